@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages occmap needs, only those that are missing.
+# Uses sudo when not root. Safe to run repeatedly: a no-op once everything is there.
+set -euo pipefail
+packages=(
+  build-essential cmake ninja-build pkg-config ccache
+  libopencv-dev
+  libavcodec-dev libavformat-dev libavutil-dev libswscale-dev
+  libeigen3-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
+  libfmt-dev libspdlog-dev libtbb-dev libhwy-dev
+  googletest libgtest-dev libgmock-dev libbenchmark-dev
+)
+missing=()
+for p in "${packages[@]}"; do
+  status=$(dpkg-query -W -f='${db:Status-Status}' "$p" 2>/dev/null || true)
+  [ "$status" = "installed" ] || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+echo "occmap: installing missing Debian packages: ${missing[*]}"
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then
+  if command -v sudo >/dev/null 2>&1; then SUDO="sudo"; else
+    echo "occmap: not root and no sudo; install these packages by hand: ${missing[*]}" >&2
+    exit 1
+  fi
+fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -1,0 +1,29 @@
+#include "occmap/geometry/rotation.h"
+
+#include <Eigen/Geometry>
+#include <cmath>
+
+namespace occmap {
+
+Eigen::Matrix3d RotationFromRodrigues(const Eigen::Vector3d& rvec) {
+  const double angle = rvec.norm();
+  if (angle < 1e-300) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(angle, rvec / angle).toRotationMatrix();
+}
+
+Eigen::Matrix3d TsaiRotation(double rx, double ry, double rz) {
+  const double sa = std::sin(rx), ca = std::cos(rx);
+  const double sb = std::sin(ry), cb = std::cos(ry);
+  const double sg = std::sin(rz), cg = std::cos(rz);
+  Eigen::Matrix3d r;
+  r << cb * cg, cg * sa * sb - ca * sg, sa * sg + ca * cg * sb,  //
+      cb * sg, sa * sb * sg + ca * cg, ca * sb * sg - cg * sa,   //
+      -sb, cb * sa, ca * cb;
+  return r;
+}
+
+double OrthonormalityError(const Eigen::Matrix3d& r) {
+  return (r * r.transpose() - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+}
+
+}  // namespace occmap

@@ -1,0 +1,20 @@
+// Rotation helpers: Rodrigues vectors (OpenCV), Tsai/Willson Euler angles, orthonormality.
+//
+//   Eigen::Matrix3d cam_from_world = RotationFromRodrigues({1.76, 0.47, -0.33});
+//   Eigen::Matrix3d r = TsaiRotation(rx, ry, rz);  // Rot_z(rz) * Rot_y(ry) * Rot_x(rx)
+#pragma once
+
+#include <Eigen/Core>
+
+namespace occmap {
+
+// Rotation matrix of a Rodrigues (axis * angle) vector, as cv::Rodrigues.
+Eigen::Matrix3d RotationFromRodrigues(const Eigen::Vector3d& rvec);
+
+// Willson's roll/pitch/yaw: R = Rot_z(Rz) * Rot_y(Ry) * Rot_x(Rx), angles in radians.
+Eigen::Matrix3d TsaiRotation(double rx, double ry, double rz);
+
+// Largest absolute entry of R * R^T - I; a rotation has ~1e-15.
+double OrthonormalityError(const Eigen::Matrix3d& r);
+
+}  // namespace occmap

@@ -1,0 +1,85 @@
+#include "occmap/util/file_util.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+
+#include <fmt/core.h>
+
+namespace occmap {
+namespace fs = std::filesystem;
+
+Result<std::string> ReadFileToString(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return NotFound(fmt::format("file not found: '{}'", path.string()));
+  if (fs::is_directory(path, ec)) {
+    return InvalidInput(fmt::format("'{}': expected a file, found a directory", path.string()));
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    return NotFound(fmt::format("'{}': cannot open: {}", path.string(), std::strerror(errno)));
+  }
+  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) return DataLoss(fmt::format("'{}': read error", path.string()));
+  return data;
+}
+
+Status WriteFileAtomic(const fs::path& path, std::span<const std::byte> bytes) {
+  static std::atomic<uint64_t> counter{0};
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  const fs::path tmp =
+      dir / fmt::format(".tmp-{}-{}-{}", path.filename().string(), ::getpid(), counter++);
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    return IoError(fmt::format("'{}': cannot create: {}", path.string(), std::strerror(errno)));
+  }
+  size_t written = 0;
+  while (written < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + written, bytes.size() - written);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const int err = errno;
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      return IoError(fmt::format("'{}': write failed: {}", path.string(), std::strerror(err)));
+    }
+    written += static_cast<size_t>(n);
+  }
+  if (::fsync(fd) != 0 || ::close(fd) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    return IoError(fmt::format("'{}': flush failed: {}", path.string(), std::strerror(err)));
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    return IoError(fmt::format("'{}': cannot rename into place: {}", path.string(),
+                               std::strerror(err)));
+  }
+  return Status::Ok();
+}
+
+Status WriteFileAtomic(const fs::path& path, std::string_view text) {
+  return WriteFileAtomic(path, std::as_bytes(std::span(text.data(), text.size())));
+}
+
+Status EnsureDirectory(const fs::path& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir)) {
+    return IoError(fmt::format("'{}': cannot create folder: {}", dir.string(),
+                               ec ? ec.message() : "not a folder"));
+  }
+  return Status::Ok();
+}
+
+fs::path ResolvePath(const fs::path& base_dir, const fs::path& path) {
+  if (path.is_absolute()) return path.lexically_normal();
+  return (base_dir / path).lexically_normal();
+}
+
+}  // namespace occmap

@@ -1,0 +1,33 @@
+// File helpers: whole-file reads with clear errors, and atomic writes.
+//
+// Every output of occmap is written atomically: the bytes go to a temporary file in the same
+// folder, are flushed to disk, and the file is renamed over the target. A failed or
+// interrupted run never leaves a half-written output; at worst a stray '.tmp-*' file.
+//
+//   OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
+//   OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(out / "summary.json", json_text));
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <string_view>
+
+#include "occmap/util/status.h"
+
+namespace occmap {
+
+Result<std::string> ReadFileToString(const std::filesystem::path& path);
+
+Status WriteFileAtomic(const std::filesystem::path& path, std::span<const std::byte> bytes);
+Status WriteFileAtomic(const std::filesystem::path& path, std::string_view text);
+
+// Creates the folder and its parents; an error names the folder.
+Status EnsureDirectory(const std::filesystem::path& dir);
+
+// Resolves `path` against `base_dir` unless it is absolute; normalises '..' lexically.
+std::filesystem::path ResolvePath(const std::filesystem::path& base_dir,
+                                  const std::filesystem::path& path);
+
+}  // namespace occmap

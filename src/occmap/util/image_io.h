@@ -1,0 +1,26 @@
+// Image files (PNG, JPEG, ...) to and from Image<T>, with OpenCV's codecs at the boundary.
+//
+// Readers check that the file exists and decodes, and name the file in every error. Writers
+// encode in memory and write atomically (file_util.h).
+//
+//   OCCMAP_ASSIGN_OR_RETURN(Image<uint8_t> mask, ReadGrayImage("mask.png"));
+//   OCCMAP_RETURN_IF_ERROR(WritePng("map.png", rgb.view()));
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+
+#include "occmap/util/image.h"
+#include "occmap/util/status.h"
+
+namespace occmap {
+
+// Reads any image OpenCV decodes as 8-bit grey (colour images are converted to luma).
+Result<Image<uint8_t>> ReadGrayImage(const std::filesystem::path& path);
+// Reads an image as 8-bit RGB.
+Result<Image<Rgb8>> ReadRgbImage(const std::filesystem::path& path);
+
+Status WritePng(const std::filesystem::path& path, ImageView<const uint8_t> image);
+Status WritePng(const std::filesystem::path& path, ImageView<const Rgb8> image);
+
+}  // namespace occmap
