@@ -1,0 +1,199 @@
+#include "occmap/calib/opencv_storage.h"
+
+#include <fmt/core.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <opencv2/core.hpp>
+#include <sstream>
+#include <vector>
+
+#include "occmap/calib/units.h"
+#include "occmap/geometry/rotation.h"
+#include "occmap/util/file_util.h"
+#include "occmap/util/yaml_util.h"
+
+namespace occmap {
+namespace fs = std::filesystem;
+namespace {
+
+Result<cv::FileStorage> Open(const fs::path& path) {
+  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
+  if (text.find_first_not_of(" \t\r\n") == std::string::npos) {
+    return InvalidInput(fmt::format("'{}': empty file, expected an OpenCV FileStorage calibration",
+                                    path.string()));
+  }
+  try {
+    cv::FileStorage storage(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
+    if (!storage.isOpened()) {
+      return InvalidInput(fmt::format("'{}': not an OpenCV FileStorage file (XML/YAML/JSON)", path.string()));
+    }
+    return storage;
+  } catch (const cv::Exception& e) {
+    return InvalidInput(fmt::format("'{}': cannot parse OpenCV FileStorage: {}", path.string(), e.err));
+  }
+}
+
+// Numbers of a node: an opencv-matrix, a sequence, a single number, or plain text holding
+// space-separated numbers (WILDTRACK writes rvec/tvec that way).
+Result<std::vector<double>> Numbers(const cv::FileNode& node, const fs::path& path,
+                                    std::string_view name, int* rows = nullptr, int* cols = nullptr) {
+  auto where = [&] { return fmt::format("'{}': {}", path.string(), name); };
+  if (node.empty() || node.isNone()) return InvalidInput(fmt::format("{}: missing", where()));
+  std::vector<double> values;
+  try {
+    if (node.isMap()) {
+      cv::Mat m;
+      node >> m;
+      if (m.empty()) return InvalidInput(fmt::format("{}: expected a matrix, found an empty or unreadable one", where()));
+      m.convertTo(m, CV_64F);
+      if (rows) *rows = m.rows;
+      if (cols) *cols = m.cols;
+      m = m.reshape(1, 1);
+      values.assign(m.ptr<double>(), m.ptr<double>() + m.total());
+    } else if (node.isSeq()) {
+      for (const auto& e : node) {
+        if (e.isString()) {
+          return InvalidInput(fmt::format("{}: expected a finite number, found '{}'", where(),
+                                          static_cast<std::string>(e)));
+        }
+        if (!e.isReal() && !e.isInt()) {
+          return InvalidInput(fmt::format("{}: expected numbers, found a non-number element", where()));
+        }
+        values.push_back(static_cast<double>(e));
+      }
+    } else if (node.isReal() || node.isInt()) {
+      values.push_back(static_cast<double>(node));
+    } else if (node.isString()) {
+      std::istringstream in(static_cast<std::string>(node));
+      std::string token;
+      while (in >> token) {
+        auto v = ParseFiniteDouble(token);
+        if (!v) return InvalidInput(fmt::format("{}: expected a finite number, found '{}'", where(), token));
+        values.push_back(*v);
+      }
+    }
+  } catch (const cv::Exception& e) {
+    return InvalidInput(fmt::format("{}: cannot read: {}", where(), e.err));
+  }
+  for (double v : values) {
+    if (!std::isfinite(v)) return InvalidInput(fmt::format("{}: expected finite numbers, found {}", where(), v));
+  }
+  if (rows && values.size() > 0 && *rows == 0) {
+    *rows = static_cast<int>(values.size());
+    *cols = 1;
+  }
+  return values;
+}
+
+}  // namespace
+
+Result<OpenCvIntrinsics> ReadOpenCvIntrinsics(const fs::path& path) {
+  OCCMAP_ASSIGN_OR_RETURN(cv::FileStorage storage, Open(path));
+  int rows = 0, cols = 0;
+  OCCMAP_ASSIGN_OR_RETURN(std::vector<double> k, Numbers(storage["camera_matrix"], path, "camera_matrix", &rows, &cols));
+  if (k.size() != 9 || rows * cols != 9) {
+    return InvalidInput(fmt::format("'{}': camera_matrix: expected a 3x3 matrix, found {}x{}", path.string(), rows, cols));
+  }
+  OpenCvIntrinsics intr;
+  intr.fx_px = k[0];
+  intr.skew_px = k[1];
+  intr.cx_px = k[2];
+  intr.fy_px = k[4];
+  intr.cy_px = k[5];
+  if (k[3] != 0 || k[6] != 0 || k[7] != 0 || k[8] != 1) {
+    return InvalidInput(fmt::format(
+        "'{}': camera_matrix: expected [fx s cx; 0 fy cy; 0 0 1], found last rows [{} {} {}; {} {} {}]",
+        path.string(), k[3], k[4], k[5], k[6], k[7], k[8]));
+  }
+  if (!(intr.fx_px > 0) || !(intr.fy_px > 0)) {
+    return InvalidInput(fmt::format("'{}': camera_matrix: expected positive focal lengths, found fx = {}, fy = {}",
+                                    path.string(), intr.fx_px, intr.fy_px));
+  }
+  const cv::FileNode dist_node = storage["distortion_coefficients"];
+  if (!dist_node.empty() && !dist_node.isNone()) {
+    OCCMAP_ASSIGN_OR_RETURN(std::vector<double> d, Numbers(dist_node, path, "distortion_coefficients"));
+    if (d.size() != 4 && d.size() != 5 && d.size() != 8 && d.size() != 12 && d.size() != 14) {
+      return InvalidInput(fmt::format("'{}': distortion_coefficients: expected 4, 5, 8, 12 or 14 values, found {}",
+                                      path.string(), d.size()));
+    }
+    for (size_t i = 0; i < d.size(); ++i) {
+      if (i < 5) {
+        intr.distortion[i] = d[i];
+      } else if (d[i] != 0) {
+        return InvalidInput(fmt::format(
+            "'{}': distortion_coefficients: only k1 k2 p1 p2 k3 are supported, found coefficient {} = {}",
+            path.string(), i + 1, d[i]));
+      }
+    }
+  }
+  const cv::FileNode w = storage["image_width"], h = storage["image_height"];
+  if (!w.empty() && !h.empty() && w.isInt() && h.isInt()) {
+    intr.image_size = ImageSize{static_cast<int>(w), static_cast<int>(h)};
+  }
+  return intr;
+}
+
+Result<OpenCvExtrinsics> ReadOpenCvExtrinsics(const fs::path& path) {
+  OCCMAP_ASSIGN_OR_RETURN(cv::FileStorage storage, Open(path));
+  OpenCvExtrinsics e;
+  OCCMAP_ASSIGN_OR_RETURN(std::vector<double> r, Numbers(storage["rvec"], path, "rvec"));
+  OCCMAP_ASSIGN_OR_RETURN(std::vector<double> t, Numbers(storage["tvec"], path, "tvec"));
+  if (r.size() != 3) return InvalidInput(fmt::format("'{}': rvec: expected 3 numbers, found {}", path.string(), r.size()));
+  if (t.size() != 3) return InvalidInput(fmt::format("'{}': tvec: expected 3 numbers, found {}", path.string(), t.size()));
+  e.rvec = Eigen::Vector3d(r[0], r[1], r[2]);
+  e.tvec_in_file_units = Eigen::Vector3d(t[0], t[1], t[2]);
+  return e;
+}
+
+Result<PinholeParameters> ReadOpenCvCalibration(const fs::path& intrinsic_path,
+                                                const fs::path& extrinsic_path,
+                                                double metres_per_unit,
+                                                std::optional<ImageSize> image_size) {
+  OCCMAP_ASSIGN_OR_RETURN(OpenCvIntrinsics intr, ReadOpenCvIntrinsics(intrinsic_path));
+  OCCMAP_ASSIGN_OR_RETURN(OpenCvExtrinsics extr, ReadOpenCvExtrinsics(extrinsic_path));
+  PinholeParameters p;
+  if (intr.image_size) {
+    p.image_size = *intr.image_size;
+  } else if (image_size) {
+    p.image_size = *image_size;
+  } else {
+    return InvalidInput(fmt::format("'{}': no image_width/image_height; give the calibrated image size",
+                                    intrinsic_path.string()));
+  }
+  p.fx_px = intr.fx_px;
+  p.fy_px = intr.fy_px;
+  p.cx_px = intr.cx_px;
+  p.cy_px = intr.cy_px;
+  p.skew_px = intr.skew_px;
+  p.distortion = intr.distortion;
+  p.cam_from_world_rotation = RotationFromRodrigues(extr.rvec);
+  p.cam_from_world_translation_m = extr.tvec_in_file_units * metres_per_unit;
+  OCCMAP_RETURN_IF_ERROR(p.Validate().WithContext(fmt::format("'{}'", intrinsic_path.string())));
+  return p;
+}
+
+Status WriteOpenCvCalibration(const PinholeParameters& p, double metres_per_unit,
+                              const fs::path& intrinsic_path, const fs::path& extrinsic_path) {
+  try {
+    cv::FileStorage intr(".xml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
+    cv::Mat k = (cv::Mat_<double>(3, 3) << p.fx_px, p.skew_px, p.cx_px, 0, p.fy_px, p.cy_px, 0, 0, 1);
+    cv::Mat d(1, 5, CV_64F);
+    for (int i = 0; i < 5; ++i) d.at<double>(i) = p.distortion[i];
+    intr << "camera_matrix" << k << "distortion_coefficients" << d;
+    intr << "image_width" << p.image_size.width << "image_height" << p.image_size.height;
+    OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(intrinsic_path, intr.releaseAndGetString()));
+
+    const Eigen::AngleAxisd aa(p.cam_from_world_rotation);
+    const Eigen::Vector3d rvec = aa.axis() * aa.angle();
+    const Eigen::Vector3d tvec = p.cam_from_world_translation_m / metres_per_unit;
+    cv::FileStorage extr(".xml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
+    extr << "rvec" << (cv::Mat_<double>(3, 1) << rvec.x(), rvec.y(), rvec.z());
+    extr << "tvec" << (cv::Mat_<double>(3, 1) << tvec.x(), tvec.y(), tvec.z());
+    return WriteFileAtomic(extrinsic_path, extr.releaseAndGetString());
+  } catch (const cv::Exception& e) {
+    return IoError(fmt::format("'{}': cannot write calibration: {}", intrinsic_path.string(), e.err));
+  }
+}
+
+}  // namespace occmap

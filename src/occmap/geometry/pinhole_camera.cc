@@ -1,5 +1,6 @@
 #include "occmap/geometry/pinhole_camera.h"
 
+#include <Eigen/LU>
 #include <fmt/core.h>
 
 #include <cmath>

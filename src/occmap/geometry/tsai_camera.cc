@@ -1,5 +1,6 @@
 #include "occmap/geometry/tsai_camera.h"
 
+#include <Eigen/LU>
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -78,19 +79,23 @@ std::optional<double> TsaiCamera::DistortedRadius(double ru) const {
     if (ru > ru_max) return std::nullopt;
     // g(Rd) = Rd + k Rd^3 - Ru is increasing on [0, Rd_max]: safeguarded Newton (bisection
     // whenever a Newton step leaves the bracket) converges to the root there.
+    // The bracket is closed: once Newton has converged, its step no longer moves rd (it stays on
+    // the bracket's end), which must end the iteration rather than trigger a bisection away
+    // from the root. The stopping test is relative to rd so that small radii keep full relative
+    // precision.
     rd = std::min(ru, rd_max);
     double lo = 0, hi = rd_max;
-    for (int i = 0; i < 100; ++i) {
+    for (int i = 0; i < 200; ++i) {
       const double g = rd + k * rd * rd * rd - ru;
+      if (g == 0) break;
       const double dg = 1 + 3 * k * rd * rd;
       if (g > 0) hi = rd; else lo = rd;
+      if (hi - lo <= 2.3e-16 * hi) break;  // the root is bracketed to one ulp
       double next = dg > 0 ? rd - g / dg : 0.5 * (lo + hi);
-      if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-      if (std::abs(next - rd) <= 1e-15 * rd_max) {
-        rd = next;
-        break;
-      }
+      if (!(next >= lo && next <= hi)) next = 0.5 * (lo + hi);
+      const bool converged = std::abs(next - rd) <= 1e-16 * rd;
       rd = next;
+      if (converged) break;
     }
     return rd;
   }
