@@ -393,10 +393,19 @@ TEST(TsaiCamera, PointsBehindTheCameraDoNotProject) {
     const Eigen::Vector3d visible = centre + world_from_cam * Eigen::Vector3d(0.5, -0.3, 2.0);
     ASSERT_TRUE(cam.Project(visible).has_value());
     EXPECT_FALSE(cam.Project(2 * centre - visible).has_value());
-    // In the camera's own plane z_c = 0 (including the centre itself).
-    EXPECT_FALSE(cam.Project(centre).has_value());
-    EXPECT_FALSE(cam.Project(centre + world_from_cam.col(0)).has_value());
+    // Just behind the camera's own plane z_c = 0.
+    EXPECT_FALSE(cam.Project(centre + world_from_cam * Eigen::Vector3d(0.3, 0.2, -1e-6)).has_value());
   }
+  // Identity pose: camera frame = world frame, so z_c = 0 holds exactly.
+  TsaiParameters p = SyntheticParameters(5.720865e-04);
+  p.cam_from_world_rotation.setIdentity();
+  p.cam_from_world_translation_m.setZero();
+  const Result<TsaiCamera> cam = TsaiCamera::Create(p);
+  ASSERT_TRUE(cam.ok());
+  EXPECT_FALSE(cam->Project(Eigen::Vector3d::Zero()).has_value());
+  EXPECT_FALSE(cam->Project(Eigen::Vector3d(1.0, -2.0, 0.0)).has_value());
+  EXPECT_FALSE(cam->Project(Eigen::Vector3d(0.0, 0.0, -1.0)).has_value());
+  EXPECT_EQ(cam->Project(Eigen::Vector3d(0.0, 0.0, 1.0)), Eigen::Vector2d(p.Cx_px, p.Cy_px));
 }
 
 TEST(TsaiCamera, PixelAboveTheHorizonHasNoFloorPoint) {
