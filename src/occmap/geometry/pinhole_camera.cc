@@ -133,7 +133,12 @@ UndistortResult PinholeCamera::Undistort(const Eigen::Vector2d& pixel) const {
   auto residual_px = [&](const Eigen::Vector2d& e) {
     return std::hypot(e.x() * p_.fx_px, e.y() * p_.fy_px);
   };
+  // Start at the distorted point itself; but when that lies beyond the valid radius (pincushion
+  // distortion near the fold: the distorted radius exceeds the undistorted one) the damping
+  // below would pin the iteration out there, so start halfway to the fold in that direction.
   Eigen::Vector2d xy = target;
+  const double target_r2 = target.squaredNorm();
+  if (target_r2 > max_valid_r2_) xy = target * (0.5 * std::sqrt(max_valid_r2_ / target_r2));
   Eigen::Matrix2d jac;
   for (int it = 0; it < kMaxUndistortIterations; ++it) {
     const Eigen::Vector2d err = Distort(xy, &jac) - target;

@@ -35,11 +35,15 @@ Image<Rgb8> RenderVisibility(const GroundLut& lut, const std::vector<CameraMarke
   x0 -= margin; y0 -= margin; x1 += margin; y1 += margin;
   const int legend_px = 40;
   const double px_per_m = max_side_px / std::max(x1 - x0, y1 - y0);
-  const int width = std::max(1, static_cast<int>(std::lround((x1 - x0) * px_per_m)));
+  const int map_width = std::max(1, static_cast<int>(std::lround((x1 - x0) * px_per_m)));
+  // Wide enough for the legend too; a narrow map is centred.
+  const int width = std::max(map_width, 50 * (lut.num_cameras() + 1) + 240);
+  const int left_px = (width - map_width) / 2;
   const int height = std::max(1, static_cast<int>(std::lround((y1 - y0) * px_per_m)));
   cv::Mat canvas(height + legend_px, width, CV_8UC3, cv::Scalar(255, 255, 255));
   auto to_px = [&](double x, double y) {
-    return cv::Point(static_cast<int>(std::lround((x - x0) * px_per_m)), static_cast<int>(std::lround((y1 - y) * px_per_m)));
+    return cv::Point(left_px + static_cast<int>(std::lround((x - x0) * px_per_m)),
+                     static_cast<int>(std::lround((y1 - y) * px_per_m)));
   };
   const int n = lut.num_cameras();
   const auto counts = lut.view_count();
@@ -47,8 +51,8 @@ Image<Rgb8> RenderVisibility(const GroundLut& lut, const std::vector<CameraMarke
   for (int py = 0; py < height; ++py) {
     auto* row = canvas.ptr<cv::Vec3b>(py);
     const double y = y1 - (py + 0.5) / px_per_m;
-    for (int px = 0; px < width; ++px) {
-      const double x = x0 + (px + 0.5) / px_per_m;
+    for (int px = left_px; px < left_px + map_width; ++px) {
+      const double x = x0 + (px - left_px + 0.5) / px_per_m;
       const int64_t cell = g.CellAt(x, y);
       if (cell < 0) continue;
       const Rgb8 c = VisibilityColor(counts[cell], n);

@@ -1,0 +1,425 @@
+#include "occmap/site/site.h"
+
+#include <fmt/core.h>
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <set>
+
+#include "occmap/calib/forward_sign.h"
+#include "occmap/calib/gopro_json.h"
+#include "occmap/calib/opencv_storage.h"
+#include "occmap/calib/tsai_yaml.h"
+#include "occmap/calib/units.h"
+#include "occmap/geometry/homography_camera.h"
+#include "occmap/geometry/pinhole_camera.h"
+#include "occmap/geometry/tsai_camera.h"
+#include "occmap/util/file_util.h"
+#include "occmap/util/image_io.h"
+#include "occmap/util/yaml_util.h"
+
+namespace occmap {
+namespace fs = std::filesystem;
+namespace {
+
+constexpr int kMaxImageSide = 16384;
+
+struct PathContext {
+  fs::path site_dir;
+  fs::path data_root;
+};
+
+// Wraps an error from a reader (which names its own file) with the YAML location.
+Status At(const YamlField& field, const Status& status) {
+  if (status.ok()) return status;
+  return Status(status.code(), fmt::format("{}: {}", field.Where(), status.message()));
+}
+
+Result<fs::path> GetPath(const YamlField& parent, std::string_view key, const PathContext& ctx, bool must_exist = true) {
+  OCCMAP_ASSIGN_OR_RETURN(YamlField f, parent.Get(key));
+  OCCMAP_ASSIGN_OR_RETURN(std::string text, f.AsString());
+  if (text.empty()) return f.Error("expected a path, found an empty text");
+  const fs::path path = ResolvePath(ctx.data_root, text);
+  std::error_code ec;
+  if (must_exist && !fs::exists(path, ec)) {
+    return Status(StatusCode::kNotFound, fmt::format("{}: file not found: '{}'", f.Where(), path.string()));
+  }
+  return path;
+}
+
+Result<ImageSize> GetImageSize(const YamlField& field) {
+  OCCMAP_ASSIGN_OR_RETURN(std::vector<double> v, field.AsDoubles(2));
+  for (double d : v) {
+    if (d != std::floor(d) || d < 1 || d > kMaxImageSide) {
+      return field.Error(fmt::format("expected [width, height] in whole pixels 1..{}, found [{}, {}]", kMaxImageSide,
+                                     v[0], v[1]));
+    }
+  }
+  return ImageSize{static_cast<int>(v[0]), static_cast<int>(v[1])};
+}
+
+Result<FloorGrid> ParseFloor(const YamlField& floor, double* plane_height_m) {
+  OCCMAP_RETURN_IF_ERROR(floor.CheckKeys({"origin_m", "cell_size_m", "cells", "size_m", "plane_height_m"}));
+  FloorGrid g;
+  OCCMAP_ASSIGN_OR_RETURN(std::vector<double> origin, floor.GetDoubles("origin_m", 2));
+  g.origin_x_m = origin[0];
+  g.origin_y_m = origin[1];
+  OCCMAP_ASSIGN_OR_RETURN(YamlField cell_field, floor.Get("cell_size_m"));
+  OCCMAP_ASSIGN_OR_RETURN(g.cell_size_m, cell_field.AsDouble());
+  if (!(g.cell_size_m > 0)) return cell_field.Error(fmt::format("expected a positive number, found {}", g.cell_size_m));
+  const bool has_cells = floor.Has("cells"), has_size = floor.Has("size_m");
+  if (has_cells == has_size) return floor.Error("expected exactly one of 'cells' or 'size_m'");
+  if (has_cells) {
+    OCCMAP_ASSIGN_OR_RETURN(YamlField f, floor.Get("cells"));
+    OCCMAP_ASSIGN_OR_RETURN(std::vector<double> c, f.AsDoubles(2));
+    for (double d : c) {
+      if (d != std::floor(d) || d < 1 || d > 1e9) {
+        return f.Error(fmt::format("expected two positive whole numbers, found [{}, {}]", c[0], c[1]));
+      }
+    }
+    g.cells_x = static_cast<int>(c[0]);
+    g.cells_y = static_cast<int>(c[1]);
+  } else {
+    OCCMAP_ASSIGN_OR_RETURN(YamlField f, floor.Get("size_m"));
+    OCCMAP_ASSIGN_OR_RETURN(std::vector<double> s, f.AsDoubles(2));
+    double n[2];
+    for (int i = 0; i < 2; ++i) {
+      n[i] = std::round(s[i] / g.cell_size_m);
+      if (!(s[i] > 0) || std::abs(n[i] * g.cell_size_m - s[i]) > 1e-6 * s[i] || n[i] > 1e9) {
+        return f.Error(fmt::format("expected positive multiples of cell_size_m = {}, found [{}, {}]", g.cell_size_m,
+                                   s[0], s[1]));
+      }
+    }
+    g.cells_x = static_cast<int>(n[0]);
+    g.cells_y = static_cast<int>(n[1]);
+  }
+  OCCMAP_ASSIGN_OR_RETURN(*plane_height_m, floor.GetDouble("plane_height_m", 0.0));
+  if (Status s = g.Validate(); !s.ok()) return Status(s.code(), fmt::format("{}: {}", floor.Where(), s.message()));
+  return g;
+}
+
+// Floor points for the forward-sign vote: a lattice over the grid.
+std::vector<Eigen::Vector3d> FloorSamples(const FloorGrid& g, double z) {
+  std::vector<Eigen::Vector3d> pts;
+  constexpr int kSteps = 40;
+  for (int i = 0; i <= kSteps; ++i) {
+    for (int j = 0; j <= kSteps; ++j) {
+      pts.emplace_back(g.origin_x_m + g.size_x_m() * i / kSteps, g.origin_y_m + g.size_y_m() * j / kSteps, z);
+    }
+  }
+  return pts;
+}
+
+Result<std::unique_ptr<CameraModel>> ParsePinholeOptions(const YamlField& calib, PinholeParameters p,
+                                                         const FloorGrid& grid, double plane_z) {
+  OCCMAP_ASSIGN_OR_RETURN(bool ignore_distortion, calib.GetBool("ignore_distortion", false));
+  if (ignore_distortion) p.distortion = {0, 0, 0, 0, 0};
+  OCCMAP_ASSIGN_OR_RETURN(std::string forward, calib.GetString("forward", "auto"));
+  if (forward == "auto") {
+    auto sign = ChooseForwardSign(p, FloorSamples(grid, plane_z));
+    if (!sign.ok()) return At(calib, sign.status());
+    p.forward_sign = *sign;
+  } else if (forward == "+z") {
+    p.forward_sign = +1;
+  } else if (forward == "-z") {
+    p.forward_sign = -1;
+  } else {
+    return calib.Find("forward")->Error(fmt::format("expected auto, +z or -z, found '{}'", forward));
+  }
+  auto cam = PinholeCamera::Create(p);
+  if (!cam.ok()) return At(calib, cam.status());
+  return std::unique_ptr<CameraModel>(std::make_unique<PinholeCamera>(std::move(cam).value()));
+}
+
+Status ParseCalibration(const YamlField& calib, const PathContext& ctx, const FloorGrid& grid, double plane_z,
+                        SiteCamera& cam) {
+  OCCMAP_ASSIGN_OR_RETURN(std::string format, calib.GetString("format"));
+  cam.calibration_format = format;
+  std::optional<ImageSize> declared_size;
+  if (auto f = calib.Find("image_size")) {
+    OCCMAP_ASSIGN_OR_RETURN(declared_size, GetImageSize(*f));
+  }
+  std::optional<double> m_per_unit;
+  if (auto f = calib.Find("unit")) {
+    OCCMAP_ASSIGN_OR_RETURN(std::string unit, f->AsString());
+    auto m = MetresPerUnit(unit);
+    if (!m.ok()) return At(*f, m.status());
+    m_per_unit = *m;
+  }
+  if (format == "opencv" || format == "gopro-json") {
+    OCCMAP_RETURN_IF_ERROR(calib.CheckKeys({"format", "intrinsic", "extrinsic", "unit", "image_size", "forward",
+                                            "ignore_distortion"}));
+    OCCMAP_ASSIGN_OR_RETURN(fs::path intr, GetPath(calib, "intrinsic", ctx));
+    OCCMAP_ASSIGN_OR_RETURN(fs::path extr, GetPath(calib, "extrinsic", ctx));
+    cam.calibration_files = {intr, extr};
+    Result<PinholeParameters> p = InvalidInput("unreachable");
+    if (format == "opencv") {
+      if (!m_per_unit) return calib.Error("missing required field 'unit' (m, cm or mm: the unit of tvec)");
+      p = ReadOpenCvCalibration(intr, extr, *m_per_unit, declared_size);
+    } else {
+      p = ReadGoProCalibration(intr, extr, m_per_unit);
+    }
+    if (!p.ok()) return At(calib, p.status());
+    if (declared_size && *declared_size != p->image_size) {
+      return calib.Find("image_size")->Error(fmt::format("the calibration file says {}x{}, the site says {}x{}",
+                                                         p->image_size.width, p->image_size.height,
+                                                         declared_size->width, declared_size->height));
+    }
+    OCCMAP_ASSIGN_OR_RETURN(cam.camera, ParsePinholeOptions(calib, *p, grid, plane_z));
+  } else if (format == "tsai-yaml") {
+    OCCMAP_RETURN_IF_ERROR(calib.CheckKeys({"format", "file", "camera", "unit"}));
+    OCCMAP_ASSIGN_OR_RETURN(fs::path file, GetPath(calib, "file", ctx));
+    cam.calibration_files = {file};
+    OCCMAP_ASSIGN_OR_RETURN(std::string name, calib.GetString("camera", ""));
+    auto p = ReadTsaiYaml(file, name, m_per_unit.value_or(0.001));
+    if (!p.ok()) return At(calib, p.status());
+    auto tsai = TsaiCamera::Create(*p);
+    if (!tsai.ok()) return At(calib, tsai.status());
+    cam.camera = std::make_unique<TsaiCamera>(std::move(tsai).value());
+  } else if (format == "homography") {
+    OCCMAP_RETURN_IF_ERROR(calib.CheckKeys({"format", "floor_from_image", "unit", "image_size"}));
+    if (!declared_size) return calib.Error("missing required field 'image_size'");
+    OCCMAP_ASSIGN_OR_RETURN(YamlField hf, calib.Get("floor_from_image"));
+    if (!hf.IsSequence() || hf.size() != 3) return hf.Error("expected a 3x3 matrix (3 rows of 3 numbers)");
+    Eigen::Matrix3d h;
+    for (size_t r = 0; r < 3; ++r) {
+      OCCMAP_ASSIGN_OR_RETURN(YamlField row, hf.At(r));
+      OCCMAP_ASSIGN_OR_RETURN(std::vector<double> v, row.AsDoubles(3));
+      for (int c = 0; c < 3; ++c) h(static_cast<int>(r), c) = v[c];
+    }
+    // Rows 0 and 1 give floor coordinates in the declared unit: scale them to metres.
+    const double m = m_per_unit.value_or(1.0);
+    h.row(0) *= m;
+    h.row(1) *= m;
+    auto hc = HomographyCamera::Create(h, *declared_size);
+    if (!hc.ok()) return At(hf, hc.status());
+    cam.camera = std::make_unique<HomographyCamera>(std::move(hc).value());
+  } else {
+    return calib.Find("format")->Error(
+        fmt::format("expected opencv, gopro-json, tsai-yaml or homography, found '{}'", format));
+  }
+  cam.calibrated_size = cam.camera->image_size();
+  return Status::Ok();
+}
+
+Result<Image<uint8_t>> ParseMask(const YamlField& field, const PathContext& ctx, ImageSize size) {
+  if (field.IsScalar()) {
+    OCCMAP_ASSIGN_OR_RETURN(std::string text, field.AsString());
+    const fs::path path = ResolvePath(ctx.data_root, text);
+    auto mask = ReadGrayImage(path);
+    if (!mask.ok()) return At(field, mask.status());
+    if (mask->width() != size.width || mask->height() != size.height) {
+      return field.Error(fmt::format("'{}' is {}x{}, expected the camera's image size {}x{}", path.string(),
+                                     mask->width(), mask->height(), size.width, size.height));
+    }
+    return std::move(mask).value();
+  }
+  OCCMAP_RETURN_IF_ERROR(field.CheckKeys({"polygon", "polygons"}));
+  std::vector<std::vector<Eigen::Vector2d>> polygons;
+  auto parse_polygon = [&](const YamlField& poly) -> Status {
+    if (!poly.IsSequence() || poly.size() < 3) return poly.Error("expected a polygon of at least 3 [x, y] points");
+    std::vector<Eigen::Vector2d> pts;
+    for (size_t i = 0; i < poly.size(); ++i) {
+      OCCMAP_ASSIGN_OR_RETURN(YamlField p, poly.At(i));
+      OCCMAP_ASSIGN_OR_RETURN(std::vector<double> xy, p.AsDoubles(2));
+      if (xy[0] < -0.5 || xy[1] < -0.5 || xy[0] > size.width - 0.5 || xy[1] > size.height - 0.5) {
+        return p.Error(fmt::format("point ({}, {}) is outside the {}x{} image", xy[0], xy[1], size.width, size.height));
+      }
+      pts.emplace_back(xy[0], xy[1]);
+    }
+    polygons.push_back(std::move(pts));
+    return Status::Ok();
+  };
+  if (auto poly = field.Find("polygon")) OCCMAP_RETURN_IF_ERROR(parse_polygon(*poly));
+  if (auto list = field.Find("polygons")) {
+    if (!list->IsSequence() || list->size() == 0) return list->Error("expected a list of polygons");
+    for (size_t i = 0; i < list->size(); ++i) {
+      OCCMAP_ASSIGN_OR_RETURN(YamlField poly, list->At(i));
+      OCCMAP_RETURN_IF_ERROR(parse_polygon(poly));
+    }
+  }
+  if (polygons.empty()) return field.Error("expected 'polygon' or 'polygons'");
+  return RasterizePolygons(polygons, size);
+}
+
+Result<FrameSourceSpec> ParseSource(const YamlField& field, const PathContext& ctx) {
+  OCCMAP_RETURN_IF_ERROR(field.CheckKeys({"images", "video", "stream", "masks"}));
+  if (field.size() != 1) return field.Error("expected exactly one of images, video, stream or masks");
+  FrameSourceSpec spec;
+  const std::string key = field.node().begin()->first.as<std::string>();
+  OCCMAP_ASSIGN_OR_RETURN(std::string value, field.GetString(key));
+  if (value.empty()) return field.Error(fmt::format("{}: expected a location, found an empty text", key));
+  if (key == "stream") {
+    spec.kind = FrameSourceSpec::Kind::kStream;
+    spec.location = value;  // URL or device, used as is
+    return spec;
+  }
+  spec.kind = key == "images" ? FrameSourceSpec::Kind::kImages
+              : key == "video" ? FrameSourceSpec::Kind::kVideo
+                               : FrameSourceSpec::Kind::kMasks;
+  spec.location = ResolvePath(ctx.data_root, value).string();
+  if (key == "video" && !fs::exists(spec.location)) {
+    return Status(StatusCode::kNotFound,
+                  fmt::format("{}: file not found: '{}'", field.Find(key)->Where(), spec.location));
+  }
+  return spec;
+}
+
+Status ParseCamera(const YamlField& field, const PathContext& ctx, const FloorGrid& grid, double plane_z, SiteCamera& cam) {
+  OCCMAP_RETURN_IF_ERROR(field.CheckKeys({"id", "calibration", "image_size", "mask", "source", "background"}));
+  OCCMAP_ASSIGN_OR_RETURN(YamlField id, field.Get("id"));
+  OCCMAP_ASSIGN_OR_RETURN(cam.id, id.AsString());
+  if (cam.id.empty()) return id.Error("expected a non-empty camera id");
+  OCCMAP_ASSIGN_OR_RETURN(YamlField calib, field.Get("calibration"));
+  if (!calib.IsMap()) return calib.Error("expected a map with 'format' and its files");
+  OCCMAP_RETURN_IF_ERROR(ParseCalibration(calib, ctx, grid, plane_z, cam));
+  if (auto f = field.Find("image_size")) {
+    OCCMAP_ASSIGN_OR_RETURN(ImageSize run_size, GetImageSize(*f));
+    if (run_size != cam.calibrated_size) {
+      const double a0 = static_cast<double>(cam.calibrated_size.width) / cam.calibrated_size.height;
+      const double a1 = static_cast<double>(run_size.width) / run_size.height;
+      if (std::abs(a0 / a1 - 1) > 0.01) {
+        return f->Error(fmt::format("expected the calibrated aspect ratio ({}x{}), found {}x{}",
+                                    cam.calibrated_size.width, cam.calibrated_size.height, run_size.width,
+                                    run_size.height));
+      }
+      cam.camera = cam.camera->Resized(run_size);
+    }
+  }
+  if (!cam.camera->SupportsPlaneHeight(plane_z)) {
+    return calib.Error(fmt::format("a {} calibration only knows the floor; plane_height_m must be 0, found {}",
+                                   cam.camera->kind(), plane_z));
+  }
+  if (auto f = field.Find("mask")) {
+    OCCMAP_ASSIGN_OR_RETURN(cam.mask, ParseMask(*f, ctx, cam.camera->image_size()));
+  }
+  if (auto f = field.Find("source")) {
+    OCCMAP_ASSIGN_OR_RETURN(cam.source, ParseSource(*f, ctx));
+  }
+  if (field.Has("background")) {
+    OCCMAP_ASSIGN_OR_RETURN(fs::path bg, GetPath(field, "background", ctx));
+    cam.background = bg;
+  }
+  return Status::Ok();
+}
+
+Status ParseDetection(const YamlField& f, DetectionSettings& d) {
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"threshold", "colour", "tolerance_px"}));
+  OCCMAP_ASSIGN_OR_RETURN(int64_t t, f.GetInt("threshold", d.threshold));
+  if (t < 0 || t > 254) return f.Find("threshold")->Error(fmt::format("expected 0..254 grey levels, found {}", t));
+  d.threshold = static_cast<int>(t);
+  OCCMAP_ASSIGN_OR_RETURN(d.colour, f.GetBool("colour", d.colour));
+  OCCMAP_ASSIGN_OR_RETURN(int64_t tol, f.GetInt("tolerance_px", d.tolerance_px));
+  if (tol < 0 || tol > 64) return f.Find("tolerance_px")->Error(fmt::format("expected 0..64 pixels, found {}", tol));
+  d.tolerance_px = static_cast<int>(tol);
+  return Status::Ok();
+}
+
+Status ParseFusion(const YamlField& f, size_t num_cameras, FusionSettings& s) {
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"algorithm", "max_free_views"}));
+  OCCMAP_ASSIGN_OR_RETURN(std::string algo, f.GetString("algorithm", "image-based"));
+  if (algo == "image-based") {
+    s.algorithm = FusionAlgorithm::kImageBased;
+  } else if (algo == "map-based") {
+    s.algorithm = FusionAlgorithm::kMapBased;
+  } else {
+    return f.Find("algorithm")->Error(fmt::format("expected image-based or map-based, found '{}'", algo));
+  }
+  OCCMAP_ASSIGN_OR_RETURN(int64_t k, f.GetInt("max_free_views", 0));
+  if (k < 0 || k >= static_cast<int64_t>(std::max<size_t>(1, num_cameras))) {
+    return f.Find("max_free_views")
+        ->Error(fmt::format("expected 0..{} (fewer than the {} cameras), found {}", std::max<size_t>(1, num_cameras) - 1,
+                            num_cameras, k));
+  }
+  s.max_free_views = static_cast<int>(k);
+  return Status::Ok();
+}
+
+}  // namespace
+
+const char* ToString(FusionAlgorithm algorithm) {
+  return algorithm == FusionAlgorithm::kImageBased ? "image-based" : "map-based";
+}
+
+std::vector<LutCameraInput> Site::LutInputs() const {
+  std::vector<LutCameraInput> inputs;
+  for (const auto& c : cameras) {
+    inputs.push_back({c.camera.get(), c.mask.empty() ? ImageView<const uint8_t>() : c.mask.view()});
+  }
+  return inputs;
+}
+
+Image<uint8_t> RasterizePolygons(const std::vector<std::vector<Eigen::Vector2d>>& polygons, ImageSize size) {
+  cv::Mat mat(size.height, size.width, CV_8UC1, cv::Scalar(0));
+  constexpr int kShift = 8;  // sub-pixel vertices
+  std::vector<std::vector<cv::Point>> pts;
+  for (const auto& poly : polygons) {
+    std::vector<cv::Point> p;
+    for (const auto& v : poly) {
+      p.emplace_back(static_cast<int>(std::lround(v.x() * (1 << kShift))),
+                     static_cast<int>(std::lround(v.y() * (1 << kShift))));
+    }
+    pts.push_back(std::move(p));
+  }
+  cv::fillPoly(mat, pts, cv::Scalar(255), cv::LINE_8, kShift);
+  Image<uint8_t> mask(size.width, size.height);
+  for (int y = 0; y < size.height; ++y) std::memcpy(mask.row(y), mat.ptr<uint8_t>(y), static_cast<size_t>(size.width));
+  return mask;
+}
+
+Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const SiteLoadOptions& options) {
+  OCCMAP_ASSIGN_OR_RETURN(YamlField root, ParseYaml(yaml_text, path.string()));
+  if (!root.IsMap()) return root.Error("expected a site description (a map with floor and cameras)");
+  OCCMAP_RETURN_IF_ERROR(
+      root.CheckKeys({"version", "name", "data_root", "floor", "cameras", "detection", "fusion", "lut"}));
+  OCCMAP_ASSIGN_OR_RETURN(int64_t version, root.GetInt("version", 1));
+  if (version != 1) return root.Find("version")->Error(fmt::format("expected site format version 1, found {}", version));
+  Site site;
+  site.file = path;
+  OCCMAP_ASSIGN_OR_RETURN(site.name, root.GetString("name", path.stem().string()));
+  PathContext ctx;
+  ctx.site_dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  ctx.data_root = ctx.site_dir;
+  if (options.data_root) {
+    ctx.data_root = *options.data_root;
+  } else if (auto f = root.Find("data_root")) {
+    OCCMAP_ASSIGN_OR_RETURN(std::string dr, f->AsString());
+    ctx.data_root = ResolvePath(ctx.site_dir, dr);
+  }
+  if (std::error_code ec; !fs::is_directory(ctx.data_root, ec)) {
+    const std::string where = options.data_root ? "--data-root" : root.Has("data_root") ? root.Find("data_root")->Where() : root.Where();
+    return Status(StatusCode::kNotFound, fmt::format("{}: data folder not found: '{}'", where, ctx.data_root.string()));
+  }
+
+  OCCMAP_ASSIGN_OR_RETURN(YamlField floor, root.Get("floor"));
+  OCCMAP_ASSIGN_OR_RETURN(site.grid, ParseFloor(floor, &site.plane_height_m));
+  site.lut.plane_height_m = site.plane_height_m;
+
+  OCCMAP_ASSIGN_OR_RETURN(YamlField cams, root.Get("cameras"));
+  if (!cams.IsSequence() || cams.size() == 0) return cams.Error("expected a list of at least one camera");
+  if (cams.size() > GroundLut::kMaxCameras) {
+    return cams.Error(fmt::format("expected at most {} cameras, found {}", GroundLut::kMaxCameras, cams.size()));
+  }
+  std::set<std::string> ids;
+  for (size_t i = 0; i < cams.size(); ++i) {
+    OCCMAP_ASSIGN_OR_RETURN(YamlField f, cams.At(i));
+    SiteCamera cam;
+    OCCMAP_RETURN_IF_ERROR(ParseCamera(f, ctx, site.grid, site.plane_height_m, cam));
+    if (!ids.insert(cam.id).second) return f.Find("id")->Error(fmt::format("duplicate camera id '{}'", cam.id));
+    site.cameras.push_back(std::move(cam));
+  }
+  if (auto f = root.Find("detection")) OCCMAP_RETURN_IF_ERROR(ParseDetection(*f, site.detection));
+  if (auto f = root.Find("fusion")) OCCMAP_RETURN_IF_ERROR(ParseFusion(*f, site.cameras.size(), site.fusion));
+  if (auto f = root.Find("lut")) {
+    OCCMAP_RETURN_IF_ERROR(f->CheckKeys({"add_cell_projections"}));
+    OCCMAP_ASSIGN_OR_RETURN(site.lut.add_cell_projections, f->GetBool("add_cell_projections", true));
+  }
+  return site;
+}
+
+Result<Site> LoadSite(const fs::path& path, const SiteLoadOptions& options) {
+  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
+  return ParseSite(text, path, options);
+}
+
+}  // namespace occmap

@@ -1,0 +1,242 @@
+#include "occmap/site/site.h"
+
+#include <gtest/gtest.h>
+
+#include "occmap/calib/opencv_storage.h"
+#include "occmap/lut/test_scene.h"
+#include "occmap/site/demo_scene.h"
+#include "occmap/site/site_lut.h"
+#include "occmap/util/image_io.h"
+#include "occmap/util/testing.h"
+
+namespace occmap {
+namespace {
+
+// A folder with two calibrated cameras of the small room (OpenCV files in millimetres), a
+// mask PNG, and a valid site file.
+class SiteFixture : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    testing::SmallRoom room;
+    for (int i = 0; i < 2; ++i) {
+      PinholeParameters p = room.cameras[i].params();
+      ASSERT_TRUE(WriteOpenCvCalibration(p, 0.001, dir_ / ("intr" + std::to_string(i) + ".xml"),
+                                         dir_ / ("extr" + std::to_string(i) + ".xml"))
+                      .ok());
+    }
+    Image<uint8_t> mask(160, 120, 255);
+    ASSERT_TRUE(WritePng(dir_ / "mask.png", mask.view()).ok());
+    Image<uint8_t> small(80, 60, 255);
+    ASSERT_TRUE(WritePng(dir_ / "small.png", small.view()).ok());
+    testing::WriteText(dir_ / "not_png.png", "garbage");
+  }
+
+  std::string Valid() const {
+    return R"(version: 1
+name: room
+floor:
+  origin_m: [0, 0]
+  size_m: [4, 3]
+  cell_size_m: 0.05
+cameras:
+  - id: a
+    calibration:
+      format: opencv
+      intrinsic: intr0.xml
+      extrinsic: extr0.xml
+      unit: mm
+    mask: mask.png
+  - id: b
+    calibration:
+      format: opencv
+      intrinsic: intr1.xml
+      extrinsic: extr1.xml
+      unit: mm
+    image_size: [80, 60]
+    mask:
+      polygon: [[0, 30], [79, 30], [79, 59], [0, 59]]
+detection:
+  threshold: 25
+  tolerance_px: 2
+fusion:
+  algorithm: map-based
+  max_free_views: 1
+)";
+  }
+
+  Result<Site> Parse(const std::string& text) const {
+    testing::WriteText(dir_ / "site.yaml", text);
+    return LoadSite(dir_ / "site.yaml");
+  }
+
+  testing::TempDir dir_;
+};
+
+TEST_F(SiteFixture, LoadsAValidSite) {
+  auto site = Parse(Valid());
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  EXPECT_EQ(site->name, "room");
+  EXPECT_EQ(site->grid.cells_x, 80);
+  EXPECT_EQ(site->grid.cells_y, 60);
+  ASSERT_EQ(site->cameras.size(), 2u);
+  EXPECT_EQ(site->cameras[0].camera->image_size(), (ImageSize{160, 120}));
+  EXPECT_EQ(site->cameras[1].camera->image_size(), (ImageSize{80, 60}));
+  EXPECT_EQ(site->cameras[1].calibrated_size, (ImageSize{160, 120}));
+  EXPECT_EQ(site->cameras[1].mask(10, 10), 0);
+  EXPECT_EQ(site->cameras[1].mask(10, 40), 255);
+  EXPECT_EQ(site->detection.threshold, 25);
+  EXPECT_EQ(site->detection.tolerance_px, 2);
+  EXPECT_EQ(site->fusion.algorithm, FusionAlgorithm::kMapBased);
+  EXPECT_EQ(site->fusion.max_free_views, 1);
+}
+
+TEST_F(SiteFixture, ResizedCameraProjectsToScaledPixels) {
+  auto site = Parse(Valid());
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  testing::SmallRoom room;
+  const Eigen::Vector3d p(2.0, 1.0, 0.0);
+  const auto full = room.cameras[1].Project(p);
+  const auto half = site->cameras[1].camera->Project(p);
+  ASSERT_TRUE(full && half);
+  EXPECT_NEAR(half->x(), (full->x() + 0.5) * 0.5 - 0.5, 1e-9);
+  EXPECT_NEAR(half->y(), (full->y() + 0.5) * 0.5 - 0.5, 1e-9);
+}
+
+TEST_F(SiteFixture, DataRootOptionRedirectsRelativePaths) {
+  testing::TempDir other;
+  std::string text = Valid();
+  testing::WriteText(other / "site.yaml", text);
+  EXPECT_EQ(LoadSite(other / "site.yaml").status().code(), StatusCode::kNotFound);
+  SiteLoadOptions options;
+  options.data_root = dir_.path();
+  auto site = LoadSite(other / "site.yaml", options);
+  EXPECT_TRUE(site.ok()) << site.status().message();
+}
+
+struct BadSite {
+  const char* name;
+  const char* from;  // text of the valid site to replace
+  const char* to;
+  const char* expected;  // the message, after "<dir>/site.yaml"
+};
+
+class SiteBadInput : public SiteFixture, public ::testing::WithParamInterface<BadSite> {};
+
+TEST_P(SiteBadInput, IsRejectedWithFileLineFieldExpectedAndFound) {
+  std::string text = Valid();
+  const std::string from = GetParam().from;
+  const auto pos = text.find(from);
+  ASSERT_NE(pos, std::string::npos) << from;
+  text.replace(pos, from.size(), GetParam().to);
+  auto site = Parse(text);
+  ASSERT_FALSE(site.ok());
+  EXPECT_EQ(ExitCodeFor(site.status()), 2);
+  std::string message = site.status().message();
+  const std::string prefix = (dir_ / "site.yaml").string();
+  ASSERT_EQ(message.rfind(prefix, 0), 0u) << message;
+  message = message.substr(prefix.size());
+  // Absolute paths in messages are shown relative to the fixture folder.
+  for (size_t p; (p = message.find(dir_.path().string() + "/")) != std::string::npos;) {
+    message.erase(p, dir_.path().string().size() + 1);
+  }
+  EXPECT_EQ(message, GetParam().expected);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Table, SiteBadInput,
+    ::testing::Values(
+        BadSite{"missing_calibration_file", "intrinsic: intr0.xml", "intrinsic: intr9.xml",
+                ":11: cameras[0].calibration.intrinsic: file not found: 'intr9.xml'"},
+        BadSite{"unknown_field", "    mask: mask.png", "    maks: mask.png",
+                ":14: cameras[0]: unknown field 'maks' (did you mean 'mask'?)"},
+        BadSite{"nan_cell_size", "cell_size_m: 0.05", "cell_size_m: .nan",
+                ":6: floor.cell_size_m: expected a finite number, found '.nan'"},
+        BadSite{"zero_cell_size", "cell_size_m: 0.05", "cell_size_m: 0",
+                ":6: floor.cell_size_m: expected a positive number, found 0"},
+        BadSite{"size_not_multiple", "size_m: [4, 3]", "size_m: [4.01, 3]",
+                ":5: floor.size_m: expected positive multiples of cell_size_m = 0.05, found [4.01, 3]"},
+        BadSite{"grid_too_large", "size_m: [4, 3]", "size_m: [40000, 30000]",
+                ":4: floor: grid: 800000 x 600000 = 480000000000 cells is too large (at most 268435456 cells); "
+                "use larger cells or a smaller area"},
+        BadSite{"both_cells_and_size", "size_m: [4, 3]", "size_m: [4, 3]\n  cells: [80, 60]",
+                ":4: floor: expected exactly one of 'cells' or 'size_m'"},
+        BadSite{"origin_wrong_size", "origin_m: [0, 0]", "origin_m: [0, 0, 0]",
+                ":4: floor.origin_m: expected a list of 2 numbers, found 3"},
+        BadSite{"bad_unit", "      unit: mm\n    mask", "      unit: inch\n    mask",
+                ":13: cameras[0].calibration.unit: unit: expected m, cm or mm, found 'inch'"},
+        BadSite{"missing_unit", "      unit: mm\n    mask", "\n    mask",
+                ":10: cameras[0].calibration: missing required field 'unit' (m, cm or mm: the unit of tvec)"},
+        BadSite{"wrong_unit_sees_nothing", "      unit: mm\n    mask", "      unit: m\n    mask",
+                ":10: cameras[0].calibration: the camera sees none of the 1681 floor sample points (calibration, "
+                "unit or grid wrong?)"},
+        BadSite{"bad_format", "format: opencv\n      intrinsic: intr0", "format: matlab\n      intrinsic: intr0",
+                ":10: cameras[0].calibration.format: expected opencv, gopro-json, tsai-yaml or homography, found "
+                "'matlab'"},
+        BadSite{"mask_wrong_size", "mask: mask.png", "mask: small.png",
+                ":14: cameras[0].mask: 'small.png' is 80x60, expected the camera's image size 160x120"},
+        BadSite{"mask_not_an_image", "mask: mask.png", "mask: not_png.png",
+                ":14: cameras[0].mask: 'not_png.png': cannot decode image (not a PNG/JPEG/... or truncated)"},
+        BadSite{"polygon_outside_image", "[[0, 30], [79, 30]", "[[0, 30], [200, 30]",
+                ":23: cameras[1].mask.polygon[1]: point (200, 30) is outside the 80x60 image"},
+        BadSite{"aspect_ratio", "image_size: [80, 60]", "image_size: [80, 80]",
+                ":21: cameras[1].image_size: expected the calibrated aspect ratio (160x120), found 80x80"},
+        BadSite{"duplicate_id", "id: b", "id: a", ":15: cameras[1].id: duplicate camera id 'a'"},
+        BadSite{"threshold_range", "threshold: 25", "threshold: 300",
+                ":25: detection.threshold: expected 0..254 grey levels, found 300"},
+        BadSite{"vote_range", "max_free_views: 1", "max_free_views: 2",
+                ":29: fusion.max_free_views: expected 0..1 (fewer than the 2 cameras), found 2"},
+        BadSite{"algorithm", "algorithm: map-based", "algorithm: fastest",
+                ":28: fusion.algorithm: expected image-based or map-based, found 'fastest'"},
+        BadSite{"version", "version: 1", "version: 2", ":1: version: expected site format version 1, found 2"},
+        BadSite{"no_cameras", "cameras:\n  - id: a", "cameras: []\nx:\n  - id: a",
+                ":8: unknown field 'x' (expected one of: version, name, data_root, floor, cameras, detection, fusion, lut)"},
+        BadSite{"yaml_syntax", "origin_m: [0, 0]", "origin_m: [0, 0",
+                ":5:9: YAML syntax error: end of sequence flow not found"}),
+    [](const ::testing::TestParamInfo<BadSite>& param_info) { return std::string(param_info.param.name); });
+
+TEST_F(SiteFixture, MissingSiteFileIsNotFound) {
+  auto site = LoadSite(dir_ / "nope.yaml");
+  EXPECT_EQ(site.status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(ExitCodeFor(site.status()), 2);
+}
+
+TEST_F(SiteFixture, BadCalibrationContentIsReportedWithSiteLocation) {
+  testing::WriteText(dir_ / "intr0.xml", R"(<?xml version="1.0"?>
+<opencv_storage><camera_matrix type_id="opencv-matrix"><rows>3</rows><cols>3</cols><dt>d</dt>
+<data>-5 0 80 0 100 60 0 0 1</data></camera_matrix></opencv_storage>
+)");
+  auto site = Parse(Valid());
+  ASSERT_FALSE(site.ok());
+  const std::string m = site.status().message();
+  EXPECT_NE(m.find("site.yaml:10: cameras[0].calibration: '"), std::string::npos) << m;
+  EXPECT_NE(m.find("intr0.xml': camera_matrix: expected positive focal lengths, found fx = -5, fy = 100"),
+            std::string::npos)
+      << m;
+}
+
+TEST(RasterizePolygons, FillsPixelCentresInside) {
+  const Image<uint8_t> m = RasterizePolygons({{{1.5, 1.5}, {5.5, 1.5}, {5.5, 3.5}, {1.5, 3.5}}}, {8, 6});
+  int inside = 0;
+  for (int y = 0; y < 6; ++y) {
+    for (int x = 0; x < 8; ++x) inside += m(x, y) != 0;
+  }
+  EXPECT_EQ(m(3, 2), 255);
+  EXPECT_EQ(m(0, 0), 0);
+  EXPECT_EQ(m(7, 5), 0);
+  EXPECT_GE(inside, 8);   // the 4 x 2 pixel centres strictly inside
+  EXPECT_LE(inside, 15);  // plus at most the boundary ones
+}
+
+TEST(DemoSite, BuildsTablesThatSeeTheWholeLab) {
+  const Site site = MakeDemoLabSite();
+  Context ctx(2);
+  auto cached = LoadOrBuildSiteLut(site, {}, ctx);
+  ASSERT_TRUE(cached.ok()) << cached.status().message();
+  const GridCoverage g = SummarizeCoverage(cached->lut);
+  EXPECT_EQ(g.cells_seen_by_at_least[2], g.cells);  // every cell of the lab by at least 2 cameras
+  EXPECT_GT(g.cells_seen_by_at_least[4], g.cells / 3);
+  EXPECT_NE(CoverageTable(site, cached->lut).find("cam4"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace occmap

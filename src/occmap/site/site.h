@@ -1,0 +1,101 @@
+// Site: the one file a user writes (YAML), loaded and validated into cameras, masks and grid.
+//
+// The full schema is in docs/formats.md. In short:
+//   version: 1
+//   name: wildtrack
+//   data_root: ../../shared/datasets   # relative paths below resolve against it (default: this
+//                                      # file's folder); `--data-root` overrides it
+//   floor: {origin_m: [-3, -9], cells: [480, 1440], cell_size_m: 0.025}   # or size_m: [12, 36]
+//   cameras:
+//     - id: C1
+//       calibration: {format: opencv, intrinsic: ..., extrinsic: ..., unit: cm, image_size: [1920, 1080]}
+//       image_size: [480, 270]          # run-time frames/masks; intrinsics are scaled
+//       mask: {polygon: [[0, 500], [1919, 500], [1919, 1079], [0, 1079]]}   # or mask.png
+//       source: {video: c1.mp4}
+//       background: c1_bg.png
+//   detection: {threshold: 30, tolerance_px: 0}
+//   fusion: {algorithm: image-based, max_free_views: 0}
+//   lut: {add_cell_projections: true}
+//
+// Every error names the file, line and field, what was expected and what was found:
+//   site.yaml:14: cameras[2].calibration.intrinsic: file not found: '/data/intr_C3.xml'
+//
+//   OCCMAP_ASSIGN_OR_RETURN(Site site, LoadSite("sites/wildtrack.yaml", {}));
+//   std::vector<LutCameraInput> inputs = site.LutInputs();
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "occmap/geometry/camera_model.h"
+#include "occmap/lut/floor_grid.h"
+#include "occmap/lut/ground_lut.h"
+#include "occmap/util/image.h"
+#include "occmap/util/status.h"
+
+namespace occmap {
+
+// Where a camera's frames come from (read by the pipeline; validated here).
+struct FrameSourceSpec {
+  enum class Kind { kNone, kImages, kVideo, kStream, kMasks };
+  Kind kind = Kind::kNone;
+  std::string location;  // resolved path, printf-style pattern, or URL / device
+};
+
+// Change detection (paper equation 4) settings.
+struct DetectionSettings {
+  int threshold = 30;     // T: a pixel changed when |I - B| > T (grey levels, 0..254)
+  bool colour = false;    // difference on colour rather than grey
+  int tolerance_px = 0;   // dilate the change mask by this many pixels
+};
+
+enum class FusionAlgorithm { kImageBased, kMapBased };
+
+// Fusion (paper equation 5) settings.
+struct FusionSettings {
+  FusionAlgorithm algorithm = FusionAlgorithm::kImageBased;
+  int max_free_views = 0;  // a cell stays occupied while at most k cameras see it free (0 = AND)
+};
+
+struct SiteCamera {
+  std::string id;
+  std::unique_ptr<CameraModel> camera;  // at the run-time image size
+  ImageSize calibrated_size;
+  std::string calibration_format;       // opencv, gopro-json, tsai-yaml, homography
+  std::vector<std::filesystem::path> calibration_files;
+  Image<uint8_t> mask;                  // empty: every pixel is floor; non-zero = floor
+  FrameSourceSpec source;
+  std::optional<std::filesystem::path> background;
+};
+
+struct Site {
+  std::filesystem::path file;  // the site file ("" for scenes built in code)
+  std::string name;
+  FloorGrid grid;
+  double plane_height_m = 0;
+  std::vector<SiteCamera> cameras;
+  LutOptions lut;
+  DetectionSettings detection;
+  FusionSettings fusion;
+
+  std::vector<LutCameraInput> LutInputs() const;
+};
+
+struct SiteLoadOptions {
+  std::optional<std::filesystem::path> data_root;  // overrides the file's data_root
+};
+
+Result<Site> LoadSite(const std::filesystem::path& path, const SiteLoadOptions& options = {});
+Result<Site> ParseSite(std::string_view yaml_text, const std::filesystem::path& path,
+                       const SiteLoadOptions& options = {});
+
+// Rasterises polygons (pixel coordinates, centre of pixel (c, r) at (c, r)) into a mask:
+// 255 inside any polygon, 0 elsewhere.
+Image<uint8_t> RasterizePolygons(const std::vector<std::vector<Eigen::Vector2d>>& polygons, ImageSize size);
+
+const char* ToString(FusionAlgorithm algorithm);
+
+}  // namespace occmap
