@@ -100,7 +100,7 @@ Status WriteLutReport(const Site& site, const fs::path& out_dir, const fs::path&
     return Status::Ok();
   }
   const FloorGrid& g = site.grid;
-  std::fputs(fmt::format("site {}: {} cameras; grid {} x {} cells of {} m ({} x {} m) at z = {} m\n", site.name,
+  std::fputs(fmt::format("site {}: {} cameras; grid {} x {} cells of {:g} m ({:g} x {:g} m) at z = {:g} m\n", site.name,
                          site.cameras.size(), g.cells_x, g.cells_y, g.cell_size_m, g.size_x_m(), g.size_y_m(),
                          site.lut.plane_height_m)
                  .c_str(),
@@ -183,6 +183,7 @@ int main(int argc, char** argv) {
   CLI::App app{"occmap: floor occupancy from several calibrated cameras (volume intersection in a plane)"};
   app.set_version_flag("--version", kVersion);
   app.require_subcommand(1);
+  app.fallthrough();  // --threads and --data-root may also follow the subcommand
   CommonOptions common;
   app.add_option("--threads", common.threads, "worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
   app.add_option("--data-root", common.data_root,

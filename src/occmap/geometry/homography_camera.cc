@@ -30,7 +30,7 @@ HomographyCamera::HomographyCamera(const Eigen::Matrix3d& h, ImageSize size)
 }
 
 std::optional<Eigen::Vector2d> HomographyCamera::Project(const Eigen::Vector3d& p) const {
-  if (p.z() != 0.0) return std::nullopt;
+  if (std::abs(p.z()) > 1e-9) return std::nullopt;  // only points on the floor (to rounding)
   const Eigen::Vector3d q = image_from_floor_ * Eigen::Vector3d(p.x(), p.y(), 1);
   // H (q / q_z) = (x, y, 1) / q_z, so that pixel's scale w is 1 / q_z.
   if (!(visible_w_sign_ * q.z() > 0)) return std::nullopt;

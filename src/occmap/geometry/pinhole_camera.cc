@@ -80,6 +80,7 @@ PinholeCamera::PinholeCamera(const PinholeParameters& p) : p_(p) {
 }
 
 PinholeCamera PinholeCamera::WithForwardSign(int sign) const {
+  OCCMAP_CHECK(sign == 1 || sign == -1, "forward sign must be +1 or -1");
   PinholeParameters p = p_;
   p.forward_sign = sign;
   return PinholeCamera(p);
