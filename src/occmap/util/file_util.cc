@@ -23,7 +23,12 @@ Result<std::string> ReadFileToString(const fs::path& path) {
   if (!in) {
     return NotFound(fmt::format("'{}': cannot open: {}", path.string(), std::strerror(errno)));
   }
-  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // Read in blocks (istreambuf_iterator goes a character at a time: 10x slower on big tables).
+  std::string data;
+  const auto size = fs::file_size(path, ec);
+  if (!ec) data.reserve(static_cast<size_t>(size));
+  char buffer[1 << 16];
+  while (in.read(buffer, sizeof(buffer)) || in.gcount() > 0) data.append(buffer, static_cast<size_t>(in.gcount()));
   if (in.bad()) return DataLoss(fmt::format("'{}': read error", path.string()));
   return data;
 }
