@@ -10,8 +10,10 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <unistd.h>
 
 #include "occmap/lut/visibility_image.h"
+#include "occmap/pipeline/run.h"
 #include "occmap/site/demo_scene.h"
 #include "occmap/site/site.h"
 #include "occmap/site/site_lut.h"
@@ -170,6 +172,83 @@ Status RunDemo(const CommonOptions& common, const std::string& out_dir) {
   return Status::Ok();
 }
 
+// A progress bar on a terminal (stderr), nothing when piped.
+class ProgressBar {
+ public:
+  ProgressBar() : enabled_(::isatty(STDERR_FILENO) == 1) {}
+  ~ProgressBar() { Finish(); }
+  void Update(const RunProgress& p) {
+    if (!enabled_) return;
+    const double fps = p.elapsed_s > 0 ? static_cast<double>(p.frames_done) / p.elapsed_s : 0;
+    std::string line;
+    if (p.frames_total && *p.frames_total > 0) {
+      const double f = std::min(1.0, static_cast<double>(p.frames_done) / static_cast<double>(*p.frames_total));
+      const int width = 30, filled = static_cast<int>(f * width);
+      const double eta = fps > 0 ? static_cast<double>(*p.frames_total - p.frames_done) / fps : 0;
+      line = fmt::format("\r[{}{}] {:>3.0f}% {}/{} frames  {:.1f} frames/s  eta {:.0f} s ", std::string(filled, '#'),
+                         std::string(width - filled, '.'), 100 * f, p.frames_done, *p.frames_total, fps, eta);
+    } else {
+      line = fmt::format("\r{} frames  {:.1f} frames/s ", p.frames_done, fps);
+    }
+    std::fputs(line.c_str(), stderr);
+    shown_ = true;
+  }
+  void Finish() {
+    if (shown_) std::fputs("\n", stderr);
+    shown_ = false;
+  }
+
+ private:
+  bool enabled_;
+  bool shown_ = false;
+};
+
+struct RunCommand {
+  std::string site_path;
+  RunOptions options;
+  std::string cache_dir;
+  bool no_cache = false;
+  std::string sync = "index";
+  bool continue_without_camera = false;
+  bool no_video = false;
+};
+
+Status RunRun(const CommonOptions& common, RunCommand cmd) {
+  SiteLoadOptions load;
+  if (!common.data_root.empty()) load.data_root = fs::path(common.data_root);
+  OCCMAP_ASSIGN_OR_RETURN(Site site, LoadSite(cmd.site_path, load));
+  Context ctx(common.threads);
+  RunOptions& o = cmd.options;
+  o.cache_dir = cmd.no_cache ? fs::path() : cmd.cache_dir.empty() ? DefaultCacheDir() : fs::path(cmd.cache_dir);
+  o.sync = cmd.sync == "timestamp" ? FrameSync::kTimestamp : FrameSync::kIndex;
+  o.on_camera_failure = cmd.continue_without_camera ? OnCameraFailure::kContinue : OnCameraFailure::kStop;
+  if (cmd.no_video) o.occupancy_video = o.mosaic_video = false;
+  ProgressBar bar;
+  auto summary = RunSite(site, o, ctx, [&](const RunProgress& p) { bar.Update(p); });
+  bar.Finish();
+  if (!summary.ok()) return summary.status();
+  size_t max_blobs = 0;
+  double mean = 0;
+  for (size_t b : summary->blob_counts) {
+    max_blobs = std::max(max_blobs, b);
+    mean += static_cast<double>(b);
+  }
+  if (!summary->blob_counts.empty()) mean /= static_cast<double>(summary->blob_counts.size());
+  std::fputs(fmt::format("{} frames in {:.2f} s ({:.1f} frames/s; tables {}): {} ; blobs per frame: mean {:.2f}, max {}\n",
+                         summary->frames, summary->seconds, summary->frames_per_second, summary->lut_cache,
+                         summary->stop_reason, mean, max_blobs)
+                 .c_str(),
+             stdout);
+  for (const auto& c : summary->cameras) {
+    std::fputs(fmt::format("  {:<10} {}; background {}{}\n", c.id, c.source, c.background,
+                           c.ended_at_frame ? fmt::format("; ended at frame {}: {}", *c.ended_at_frame, c.end_reason) : "")
+                   .c_str(),
+               stdout);
+  }
+  std::fputs(fmt::format("wrote {}\n", (o.out_dir / "summary.json").string()).c_str(), stdout);
+  return Status::Ok();
+}
+
 int Fail(const Status& status) {
   std::fputs(fmt::format("occmap: error: {}\n", status.message()).c_str(), stderr);
   return ExitCodeFor(status);
@@ -202,6 +281,24 @@ int main(int argc, char** argv) {
   CLI::App* check_cmd = app.add_subcommand("check", "validate a site file and list its cameras");
   check_cmd->add_option("site", check_site, "site file (YAML)")->required();
 
+  RunCommand run;
+  CLI::App* run_cmd = app.add_subcommand("run", "the main job: occupancy, detections and mosaic from the site's cameras");
+  run_cmd->add_option("site", run.site_path, "site file (YAML)")->required();
+  run_cmd->add_option("--out", run.options.out_dir, "output folder")->capture_default_str();
+  run_cmd->add_option("--frames", run.options.max_frames, "process at most N frames");
+  run_cmd->add_option("--start", run.options.start_frame, "first frame of every source")->capture_default_str();
+  run_cmd->add_option("--cache-dir", run.cache_dir, "folder of cached tables and backgrounds (default: ~/.cache/occmap)");
+  run_cmd->add_flag("--no-cache", run.no_cache, "never read or write cached tables or backgrounds");
+  run_cmd->add_option("--sync", run.sync, "synchronise cameras by frame index or timestamp")
+      ->check(CLI::IsMember({"index", "timestamp"}))->capture_default_str();
+  run_cmd->add_flag("--continue-without-camera", run.continue_without_camera,
+                    "when a camera's stream ends or fails, go on without it (its cells become unseen)");
+  run_cmd->add_flag("--occupancy-pngs", run.options.occupancy_pngs, "also write occupancy/NNNNNN.png per frame");
+  run_cmd->add_flag("--no-video", run.no_video, "do not write occupancy.mp4 and mosaic.mp4");
+  run_cmd->add_option("--background-frames", run.options.background_frames,
+                      "K: frames in the median background of a camera without one")->capture_default_str();
+  run_cmd->add_option("--min-blob-area-m2", run.options.min_blob_area_m2, "drop smaller blobs")->capture_default_str();
+
   std::string demo_out = "demo-out";
   CLI::App* demo_cmd = app.add_subcommand("demo", "run on the built-in lab scene (no data needed)");
   demo_cmd->add_option("--out", demo_out, "output folder")->capture_default_str();
@@ -214,6 +311,7 @@ int main(int argc, char** argv) {
   }
   Status status;
   if (lut_cmd->parsed()) status = RunLut(common, lut);
+  if (run_cmd->parsed()) status = RunRun(common, run);
   if (check_cmd->parsed()) status = RunCheck(common, check_site);
   if (demo_cmd->parsed()) status = RunDemo(common, demo_out);
   return status.ok() ? 0 : Fail(status);

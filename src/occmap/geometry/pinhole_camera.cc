@@ -52,13 +52,7 @@ Status PinholeParameters::Validate() const {
   if (!cam_from_world_rotation.allFinite() || !cam_from_world_translation_m.allFinite()) {
     return InvalidInput("extrinsics: expected finite values, found NaN or infinity");
   }
-  const double err = OrthonormalityError(cam_from_world_rotation);
-  if (err > 1e-6 || cam_from_world_rotation.determinant() < 0) {
-    return InvalidInput(fmt::format(
-        "rotation: expected an orthonormal matrix with determinant +1, found |R R^T - I| = {:.3g}, "
-        "det = {:.6g}",
-        err, cam_from_world_rotation.determinant()));
-  }
+  OCCMAP_RETURN_IF_ERROR(ValidateRotation(cam_from_world_rotation));
   if (forward_sign != 1 && forward_sign != -1) {
     return InvalidInput(fmt::format("forward sign: expected +1 or -1, found {}", forward_sign));
   }

@@ -1,6 +1,8 @@
 #include "occmap/geometry/rotation.h"
 
 #include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <fmt/core.h>
 #include <cmath>
 
 namespace occmap {
@@ -24,6 +26,17 @@ Eigen::Matrix3d TsaiRotation(double rx, double ry, double rz) {
 
 double OrthonormalityError(const Eigen::Matrix3d& r) {
   return (r * r.transpose() - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+}
+
+Status ValidateRotation(const Eigen::Matrix3d& r) {
+  const double err = OrthonormalityError(r);
+  const double det = r.determinant();
+  if (err > 1e-6 || !(det > 0)) {
+    return InvalidInput(fmt::format(
+        "rotation: expected an orthonormal matrix with determinant +1, found |R R^T - I| = {:.3g}, det = {:.6g}", err,
+        det));
+  }
+  return Status::Ok();
 }
 
 }  // namespace occmap

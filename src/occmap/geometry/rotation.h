@@ -6,6 +6,8 @@
 
 #include <Eigen/Core>
 
+#include "occmap/util/status.h"
+
 namespace occmap {
 
 // Rotation matrix of a Rodrigues (axis * angle) vector, as cv::Rodrigues.
@@ -16,5 +18,8 @@ Eigen::Matrix3d TsaiRotation(double rx, double ry, double rz);
 
 // Largest absolute entry of R * R^T - I; a rotation has ~1e-15.
 double OrthonormalityError(const Eigen::Matrix3d& r);
+
+// OK for a proper rotation (|R R^T - I| <= 1e-6, det > 0), else a message with both figures.
+Status ValidateRotation(const Eigen::Matrix3d& r);
 
 }  // namespace occmap

@@ -38,13 +38,7 @@ Status TsaiParameters::Validate() const {
   OCCMAP_RETURN_IF_ERROR(positive("Ncx", Ncx));
   OCCMAP_RETURN_IF_ERROR(positive("Nfx", Nfx));
   OCCMAP_RETURN_IF_ERROR(positive("sx", sx));
-  const double err = OrthonormalityError(cam_from_world_rotation);
-  if (err > 1e-6 || cam_from_world_rotation.determinant() < 0) {
-    return InvalidInput(fmt::format(
-        "rotation: expected an orthonormal matrix with determinant +1, found |R R^T - I| = {:.3g}, "
-        "det = {:.6g}",
-        err, cam_from_world_rotation.determinant()));
-  }
+  OCCMAP_RETURN_IF_ERROR(ValidateRotation(cam_from_world_rotation));
   return Status::Ok();
 }
 

@@ -303,7 +303,7 @@ Status ParseCamera(const YamlField& field, const PathContext& ctx, const FloorGr
   return Status::Ok();
 }
 
-Status ParseDetection(const YamlField& f, DetectionSettings& d) {
+Status ParseDetection(const YamlField& f, ChangeDetectionOptions& d) {
   OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"threshold", "colour", "tolerance_px"}));
   OCCMAP_ASSIGN_OR_RETURN(int64_t t, f.GetInt("threshold", d.threshold));
   if (t < 0 || t > 254) return f.Find("threshold")->Error(fmt::format("expected 0..254 grey levels, found {}", t));
@@ -315,13 +315,13 @@ Status ParseDetection(const YamlField& f, DetectionSettings& d) {
   return Status::Ok();
 }
 
-Status ParseFusion(const YamlField& f, size_t num_cameras, FusionSettings& s) {
+Status ParseFusion(const YamlField& f, size_t num_cameras, FusionOptions& s) {
   OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"algorithm", "max_free_views"}));
   OCCMAP_ASSIGN_OR_RETURN(std::string algo, f.GetString("algorithm", "image-based"));
   if (algo == "image-based") {
-    s.algorithm = FusionAlgorithm::kImageBased;
+    s.method = FusionMethod::kImageBased;
   } else if (algo == "map-based") {
-    s.algorithm = FusionAlgorithm::kMapBased;
+    s.method = FusionMethod::kMapBased;
   } else {
     return f.Find("algorithm")->Error(fmt::format("expected image-based or map-based, found '{}'", algo));
   }
@@ -337,8 +337,8 @@ Status ParseFusion(const YamlField& f, size_t num_cameras, FusionSettings& s) {
 
 }  // namespace
 
-const char* ToString(FusionAlgorithm algorithm) {
-  return algorithm == FusionAlgorithm::kImageBased ? "image-based" : "map-based";
+const char* ToString(FusionMethod method) {
+  return method == FusionMethod::kImageBased ? "image-based" : "map-based";
 }
 
 std::vector<LutCameraInput> Site::LutInputs() const {

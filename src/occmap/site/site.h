@@ -30,35 +30,16 @@
 #include <string>
 #include <vector>
 
+#include "occmap/detect/change_detection.h"
+#include "occmap/fusion/fusion.h"
 #include "occmap/geometry/camera_model.h"
+#include "occmap/io/frame_source.h"
 #include "occmap/lut/floor_grid.h"
 #include "occmap/lut/ground_lut.h"
 #include "occmap/util/image.h"
 #include "occmap/util/status.h"
 
 namespace occmap {
-
-// Where a camera's frames come from (read by the pipeline; validated here).
-struct FrameSourceSpec {
-  enum class Kind { kNone, kImages, kVideo, kStream, kMasks };
-  Kind kind = Kind::kNone;
-  std::string location;  // resolved path, printf-style pattern, or URL / device
-};
-
-// Change detection (paper equation 4) settings.
-struct DetectionSettings {
-  int threshold = 30;     // T: a pixel changed when |I - B| > T (grey levels, 0..254)
-  bool colour = false;    // difference on colour rather than grey
-  int tolerance_px = 0;   // dilate the change mask by this many pixels
-};
-
-enum class FusionAlgorithm { kImageBased, kMapBased };
-
-// Fusion (paper equation 5) settings.
-struct FusionSettings {
-  FusionAlgorithm algorithm = FusionAlgorithm::kImageBased;
-  int max_free_views = 0;  // a cell stays occupied while at most k cameras see it free (0 = AND)
-};
 
 struct SiteCamera {
   std::string id;
@@ -78,8 +59,8 @@ struct Site {
   double plane_height_m = 0;
   std::vector<SiteCamera> cameras;
   LutOptions lut;
-  DetectionSettings detection;
-  FusionSettings fusion;
+  ChangeDetectionOptions detection;
+  FusionOptions fusion;
 
   std::vector<LutCameraInput> LutInputs() const;
 };
@@ -96,6 +77,6 @@ Result<Site> ParseSite(std::string_view yaml_text, const std::filesystem::path& 
 // 255 inside any polygon, 0 elsewhere.
 Image<uint8_t> RasterizePolygons(const std::vector<std::vector<Eigen::Vector2d>>& polygons, ImageSize size);
 
-const char* ToString(FusionAlgorithm algorithm);
+const char* ToString(FusionMethod method);
 
 }  // namespace occmap

@@ -86,7 +86,7 @@ TEST_F(SiteFixture, LoadsAValidSite) {
   EXPECT_EQ(site->cameras[1].mask(10, 40), 255);
   EXPECT_EQ(site->detection.threshold, 25);
   EXPECT_EQ(site->detection.tolerance_px, 2);
-  EXPECT_EQ(site->fusion.algorithm, FusionAlgorithm::kMapBased);
+  EXPECT_EQ(site->fusion.method, FusionMethod::kMapBased);
   EXPECT_EQ(site->fusion.max_free_views, 1);
 }
 

@@ -33,39 +33,70 @@ Result<std::string> ReadFileToString(const fs::path& path) {
   return data;
 }
 
-Status WriteFileAtomic(const fs::path& path, std::span<const std::byte> bytes) {
+namespace {
+
+fs::path TempPathFor(const fs::path& path) {
   static std::atomic<uint64_t> counter{0};
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
-  const fs::path tmp =
-      dir / fmt::format(".tmp-{}-{}-{}", path.filename().string(), ::getpid(), counter++);
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) {
-    return IoError(fmt::format("'{}': cannot create: {}", path.string(), std::strerror(errno)));
-  }
+  return dir / fmt::format(".tmp-{}-{}-{}", path.filename().string(), ::getpid(), counter++);
+}
+
+Status WriteAll(int fd, const fs::path& path, const void* data, size_t size) {
+  const auto* p = static_cast<const char*>(data);
   size_t written = 0;
-  while (written < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + written, bytes.size() - written);
+  while (written < size) {
+    const ssize_t n = ::write(fd, p + written, size - written);
     if (n < 0) {
       if (errno == EINTR) continue;
-      const int err = errno;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      return IoError(fmt::format("'{}': write failed: {}", path.string(), std::strerror(err)));
+      return IoError(fmt::format("'{}': write failed: {}", path.string(), std::strerror(errno)));
     }
     written += static_cast<size_t>(n);
   }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<std::unique_ptr<AtomicFileWriter>> AtomicFileWriter::Open(const fs::path& path) {
+  const fs::path tmp = TempPathFor(path);
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return IoError(fmt::format("'{}': cannot create: {}", path.string(), std::strerror(errno)));
+  return std::unique_ptr<AtomicFileWriter>(new AtomicFileWriter(path, tmp, fd));
+}
+
+AtomicFileWriter::~AtomicFileWriter() {
+  if (fd_ >= 0) {
+    ::close(fd_);
+    ::unlink(tmp_.c_str());
+  }
+}
+
+Status AtomicFileWriter::Append(std::string_view text) {
+  if (fd_ < 0) return Internal(fmt::format("'{}': append after commit", path_.string()));
+  return WriteAll(fd_, path_, text.data(), text.size());
+}
+
+Status AtomicFileWriter::Commit() {
+  if (fd_ < 0) return Internal(fmt::format("'{}': committed twice", path_.string()));
+  const int fd = fd_;
+  fd_ = -1;
   if (::fsync(fd) != 0 || ::close(fd) != 0) {
     const int err = errno;
-    ::unlink(tmp.c_str());
-    return IoError(fmt::format("'{}': flush failed: {}", path.string(), std::strerror(err)));
+    ::unlink(tmp_.c_str());
+    return IoError(fmt::format("'{}': flush failed: {}", path_.string(), std::strerror(err)));
   }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+  if (::rename(tmp_.c_str(), path_.c_str()) != 0) {
     const int err = errno;
-    ::unlink(tmp.c_str());
-    return IoError(fmt::format("'{}': cannot rename into place: {}", path.string(),
-                               std::strerror(err)));
+    ::unlink(tmp_.c_str());
+    return IoError(fmt::format("'{}': cannot rename into place: {}", path_.string(), std::strerror(err)));
   }
   return Status::Ok();
+}
+
+Status WriteFileAtomic(const fs::path& path, std::span<const std::byte> bytes) {
+  OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<AtomicFileWriter> writer, AtomicFileWriter::Open(path));
+  OCCMAP_RETURN_IF_ERROR(writer->Append(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size())));
+  return writer->Commit();
 }
 
 Status WriteFileAtomic(const fs::path& path, std::string_view text) {

@@ -10,6 +10,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <memory>
 #include <span>
 #include <string>
 #include <string_view>
@@ -22,6 +23,26 @@ Result<std::string> ReadFileToString(const std::filesystem::path& path);
 
 Status WriteFileAtomic(const std::filesystem::path& path, std::span<const std::byte> bytes);
 Status WriteFileAtomic(const std::filesystem::path& path, std::string_view text);
+
+// Streams an output to a temporary file next to `path`; Commit() flushes it to disk and renames
+// it into place. Destroyed without Commit(), it removes the temporary: a failed or interrupted
+// run never leaves a half-written file under the final name.
+class AtomicFileWriter {
+ public:
+  static Result<std::unique_ptr<AtomicFileWriter>> Open(const std::filesystem::path& path);
+  ~AtomicFileWriter();
+  AtomicFileWriter(const AtomicFileWriter&) = delete;
+  AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
+  Status Append(std::string_view text);
+  Status Commit();
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  AtomicFileWriter(std::filesystem::path path, std::filesystem::path tmp, int fd)
+      : path_(std::move(path)), tmp_(std::move(tmp)), fd_(fd) {}
+  std::filesystem::path path_, tmp_;
+  int fd_ = -1;
+};
 
 // Creates the folder and its parents; an error names the folder.
 Status EnsureDirectory(const std::filesystem::path& dir);

@@ -44,6 +44,26 @@ TEST(FileUtil, DirectoryIsNotAFile) {
   EXPECT_NE(r.status().message().find("expected a file, found a directory"), std::string::npos);
 }
 
+TEST(AtomicFileWriter, NothingAppearsUntilCommit) {
+  testing::TempDir dir;
+  {
+    auto w = AtomicFileWriter::Open(dir / "d.jsonl");
+    ASSERT_TRUE(w.ok());
+    ASSERT_TRUE((*w)->Append("line 1\n").ok());
+    EXPECT_FALSE(fs::exists(dir / "d.jsonl"));
+    ASSERT_TRUE((*w)->Append("line 2\n").ok());
+    ASSERT_TRUE((*w)->Commit().ok());
+  }
+  EXPECT_EQ(*ReadFileToString(dir / "d.jsonl"), "line 1\nline 2\n");
+  {
+    auto w = AtomicFileWriter::Open(dir / "abandoned.jsonl");
+    ASSERT_TRUE((*w)->Append("half").ok());
+  }  // destroyed without Commit: no file, no temporary
+  int count = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path())) ++count;
+  EXPECT_EQ(count, 1);
+}
+
 TEST(FileUtil, ResolvePathKeepsAbsoluteAndJoinsRelative) {
   EXPECT_EQ(ResolvePath("/a/b", "/c/d.xml"), fs::path("/c/d.xml"));
   EXPECT_EQ(ResolvePath("/a/b", "../c/d.xml"), fs::path("/a/c/d.xml"));

@@ -1,0 +1,179 @@
+#include "occmap/detect/change_detection.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cstdlib>
+
+namespace occmap {
+namespace {
+
+static_assert(sizeof(Rgb8) == 3, "Rgb8 must be three packed bytes");
+
+// The column pass keeps the number of set pixels of each column's window in a byte.
+constexpr int kMaxDilationRadius = 127;
+
+template <typename A, typename B>
+bool SameSize(ImageView<A> a, ImageView<B> b) {
+  return a.width() == b.width() && a.height() == b.height();
+}
+
+// |a - b| in bytes, written so that the compiler vectorises it (max - min).
+inline uint8_t AbsDiff(uint8_t a, uint8_t b) {
+  return static_cast<uint8_t>(std::max(a, b) - std::min(a, b));
+}
+
+}  // namespace
+
+Status ChangeDetectionOptions::Validate() const {
+  if (threshold < 0 || threshold > 254) {
+    return InvalidInput(fmt::format("threshold: expected 0..254 grey levels, found {}", threshold));
+  }
+  if (tolerance_px < 0 || tolerance_px > kMaxTolerancePx) {
+    return InvalidInput(
+        fmt::format("tolerance_px: expected 0..{} pixels, found {}", kMaxTolerancePx, tolerance_px));
+  }
+  return Status::Ok();
+}
+
+void DetectChangesGray(ImageView<const uint8_t> frame, ImageView<const uint8_t> background, int threshold,
+                       ImageView<uint8_t> out) {
+  OCCMAP_CHECK(SameSize(frame, background) && SameSize(frame, out), "change detection: image sizes differ");
+  OCCMAP_CHECK(threshold >= 0 && threshold <= 255, "change detection: threshold outside 0..255");
+  const uint8_t t = static_cast<uint8_t>(threshold);
+  const int width = frame.width();
+  for (int y = 0; y < frame.height(); ++y) {
+    const uint8_t* f = frame.row(y);
+    const uint8_t* b = background.row(y);
+    uint8_t* o = out.row(y);
+    for (int x = 0; x < width; ++x) o[x] = static_cast<uint8_t>(AbsDiff(f[x], b[x]) > t);
+  }
+}
+
+void DetectChangesGrayReference(ImageView<const uint8_t> frame, ImageView<const uint8_t> background,
+                                int threshold, ImageView<uint8_t> out) {
+  OCCMAP_CHECK(SameSize(frame, background) && SameSize(frame, out), "change detection: image sizes differ");
+  for (int y = 0; y < frame.height(); ++y) {
+    for (int x = 0; x < frame.width(); ++x) {
+      const int difference = std::abs(int{frame(x, y)} - int{background(x, y)});
+      out(x, y) = difference > threshold ? 1 : 0;
+    }
+  }
+}
+
+void DetectChangesRgb(ImageView<const Rgb8> frame, ImageView<const Rgb8> background, int threshold,
+                      ImageView<uint8_t> out) {
+  OCCMAP_CHECK(SameSize(frame, background) && SameSize(frame, out), "change detection: image sizes differ");
+  OCCMAP_CHECK(threshold >= 0 && threshold <= 255, "change detection: threshold outside 0..255");
+  const uint8_t t = static_cast<uint8_t>(threshold);
+  const int width = frame.width();
+  for (int y = 0; y < frame.height(); ++y) {
+    const Rgb8* f = frame.row(y);
+    const Rgb8* b = background.row(y);
+    uint8_t* o = out.row(y);
+    for (int x = 0; x < width; ++x) {
+      const uint8_t d = std::max({AbsDiff(f[x].r, b[x].r), AbsDiff(f[x].g, b[x].g), AbsDiff(f[x].b, b[x].b)});
+      o[x] = static_cast<uint8_t>(d > t);
+    }
+  }
+}
+
+void DetectChangesRgbReference(ImageView<const Rgb8> frame, ImageView<const Rgb8> background, int threshold,
+                               ImageView<uint8_t> out) {
+  OCCMAP_CHECK(SameSize(frame, background) && SameSize(frame, out), "change detection: image sizes differ");
+  for (int y = 0; y < frame.height(); ++y) {
+    for (int x = 0; x < frame.width(); ++x) {
+      const Rgb8 f = frame(x, y), b = background(x, y);
+      const int dr = std::abs(int{f.r} - int{b.r});
+      const int dg = std::abs(int{f.g} - int{b.g});
+      const int db = std::abs(int{f.b} - int{b.b});
+      out(x, y) = (dr > threshold || dg > threshold || db > threshold) ? 1 : 0;
+    }
+  }
+}
+
+void DilateChanges(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t> out,
+                   std::vector<uint8_t>& scratch) {
+  OCCMAP_CHECK(SameSize(in, out), "dilation: image sizes differ");
+  OCCMAP_CHECK(radius_px >= 0 && radius_px <= kMaxDilationRadius, "dilation: radius outside 0..127");
+  const int width = in.width(), height = in.height();
+  if (width == 0 || height == 0) return;
+  const size_t w = static_cast<size_t>(width);
+  // scratch: height rows of the row pass (1 / 0), then one row of per-column window counts.
+  const size_t needed = w * static_cast<size_t>(height) + w;
+  if (scratch.size() < needed) scratch.resize(needed);
+  uint8_t* rows = scratch.data();
+  uint8_t* counts = scratch.data() + w * static_cast<size_t>(height);
+  const int r = radius_px;
+
+  // Row pass: a running count of the non-zero pixels in [x - r, x + r] clipped to the row.
+  for (int y = 0; y < height; ++y) {
+    const uint8_t* src = in.row(y);
+    uint8_t* dst = rows + static_cast<size_t>(y) * w;
+    int count = 0;
+    for (int x = 0; x < std::min(r, width); ++x) count += src[x] != 0;  // [0, r) before x = 0
+    for (int x = 0; x < width; ++x) {
+      if (x + r < width) count += src[x + r] != 0;     // enters the window
+      dst[x] = static_cast<uint8_t>(count != 0);
+      if (x - r >= 0) count -= src[x - r] != 0;        // leaves it before x + 1
+    }
+  }
+
+  // Column pass, row by row so that every step runs along contiguous rows: counts[x] is the
+  // number of set row-pass pixels in rows [y - r, y + r] of column x (at most 2r + 1 <= 255).
+  std::fill(counts, counts + w, uint8_t{0});
+  for (int y = 0; y < std::min(r, height); ++y) {
+    const uint8_t* add = rows + static_cast<size_t>(y) * w;
+    for (size_t x = 0; x < w; ++x) counts[x] = static_cast<uint8_t>(counts[x] + add[x]);
+  }
+  for (int y = 0; y < height; ++y) {
+    if (y + r < height) {
+      const uint8_t* add = rows + static_cast<size_t>(y + r) * w;
+      for (size_t x = 0; x < w; ++x) counts[x] = static_cast<uint8_t>(counts[x] + add[x]);
+    }
+    uint8_t* dst = out.row(y);
+    for (size_t x = 0; x < w; ++x) dst[x] = static_cast<uint8_t>(counts[x] != 0);
+    if (y - r >= 0) {
+      const uint8_t* sub = rows + static_cast<size_t>(y - r) * w;
+      for (size_t x = 0; x < w; ++x) counts[x] = static_cast<uint8_t>(counts[x] - sub[x]);
+    }
+  }
+}
+
+void DilateChangesReference(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t> out) {
+  OCCMAP_CHECK(SameSize(in, out), "dilation: image sizes differ");
+  OCCMAP_CHECK(radius_px >= 0, "dilation: negative radius");
+  for (int y = 0; y < in.height(); ++y) {
+    for (int x = 0; x < in.width(); ++x) {
+      uint8_t set = 0;
+      for (int v = std::max(0, y - radius_px); v <= std::min(in.height() - 1, y + radius_px); ++v) {
+        for (int u = std::max(0, x - radius_px); u <= std::min(in.width() - 1, x + radius_px); ++u) {
+          if (in(u, v) != 0) set = 1;
+        }
+      }
+      out(x, y) = set;
+    }
+  }
+}
+
+void MaskToChanges(ImageView<const uint8_t> mask, ImageView<uint8_t> out) {
+  OCCMAP_CHECK(mask.empty() == out.empty(), "mask resampling: one image is empty");
+  if (out.empty()) return;
+  const int64_t w_in = mask.width(), h_in = mask.height();
+  const int64_t w_out = out.width(), h_out = out.height();
+  // floor((x + 0.5) * w_in / w_out) = floor((2x + 1) * w_in / (2 w_out)), always < w_in.
+  auto source = [](int64_t x, int64_t n_in, int64_t n_out) {
+    return static_cast<int>(((2 * x + 1) * n_in) / (2 * n_out));
+  };
+  for (int y = 0; y < out.height(); ++y) {
+    const uint8_t* src = mask.row(source(y, h_in, h_out));
+    uint8_t* dst = out.row(y);
+    if (w_in == w_out) {
+      for (int x = 0; x < out.width(); ++x) dst[x] = static_cast<uint8_t>(src[x] != 0);
+    } else {
+      for (int x = 0; x < out.width(); ++x) dst[x] = static_cast<uint8_t>(src[source(x, w_in, w_out)] != 0);
+    }
+  }
+}
+
+}  // namespace occmap

@@ -1,0 +1,63 @@
+// The real gopro4 masks (4 GoPro cameras, 480x270 background-subtraction masks): the reference
+// Probabilistic Occupancy Map implementation detects 4 people in this frame set.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "occmap/pipeline/run.h"
+#include "occmap/util/file_util.h"
+#include "occmap/util/testing.h"
+
+namespace occmap {
+namespace {
+namespace fs = std::filesystem;
+
+// tolerance_px < 0: the site file's own setting.
+Result<RunSummary> RunGoPro4(const fs::path& root, const fs::path& out, int tolerance_px) {
+  SiteLoadOptions load;
+  load.data_root = root;
+  OCCMAP_ASSIGN_OR_RETURN(Site site, LoadSite(fs::path(OCCMAP_SOURCE_DIR) / "sites" / "gopro4.yaml", load));
+  if (tolerance_px >= 0) site.detection.tolerance_px = tolerance_px;
+  RunOptions o;
+  o.out_dir = out;
+  o.occupancy_video = o.mosaic_video = false;
+  Context ctx(2);
+  return RunSite(site, o, ctx);
+}
+
+TEST(GoPro4, ReportsFourPeopleLikeTheReferencePom) {
+  OCCMAP_REQUIRE_DATASETS(root);
+  testing::TempDir dir;
+  auto summary = RunGoPro4(root, dir.path(), /*tolerance_px=*/-1);  // sites/gopro4.yaml: 5 px
+  ASSERT_TRUE(summary.ok()) << summary.status().message();
+  ASSERT_EQ(summary->frames, 1);
+  const std::string detections = *ReadFileToString(dir / "detections.jsonl");
+  EXPECT_EQ(summary->blob_counts[0], 4u) << detections;
+  // Each detection is person-sized: 0.1 to 1 m^2 of floor.
+  const auto line = nlohmann::json::parse(detections);
+  for (const auto& b : line["blobs"]) {
+    EXPECT_GT(b["area_m2"].get<double>(), 0.1) << detections;
+    EXPECT_LT(b["area_m2"].get<double>(), 1.0) << detections;
+  }
+}
+
+TEST(GoPro4, AStrictAndOfTheRawMasksLosesPeople) {
+  OCCMAP_REQUIRE_DATASETS(root);
+  testing::TempDir dir;
+  auto summary = RunGoPro4(root, dir.path(), /*tolerance_px=*/0);
+  ASSERT_TRUE(summary.ok()) << summary.status().message();
+  EXPECT_LT(summary->blob_counts[0], 4u);
+}
+
+TEST(GoPro4, ToleranceOfFourOrFivePixelsFindsTheFourPeople) {
+  OCCMAP_REQUIRE_DATASETS(root);
+  for (int t : {4, 5}) {
+    testing::TempDir dir;
+    auto summary = RunGoPro4(root, dir.path(), t);
+    ASSERT_TRUE(summary.ok()) << summary.status().message();
+    EXPECT_EQ(summary->blob_counts[0], 4u) << "tolerance " << t;
+  }
+}
+
+}  // namespace
+}  // namespace occmap

@@ -1,0 +1,47 @@
+// The mosaic picture of a frame, like the paper's figures 6 and 8: each camera's image with its
+// changed pixels tinted red, beside the occupancy map (white free, black occupied, grey
+// unseen; +x right, +y up) with the cameras marked as grey circles and the blobs as red rings.
+//
+//   MosaicRenderer mosaic(site, 1280);
+//   Image<Rgb8> picture = mosaic.Render(cameras, map, blobs, frame_index, time_s);
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "occmap/fusion/blobs.h"
+#include "occmap/fusion/occupancy_map.h"
+#include "occmap/site/site.h"
+#include "occmap/util/image.h"
+
+namespace occmap {
+
+struct MosaicCamera {
+  std::string id;
+  ImageView<const uint8_t> gray;     // the frame (or the mask, for mask sources)
+  ImageView<const uint8_t> changes;  // 1 = changed; same size as gray
+  bool active = true;
+};
+
+class MosaicRenderer {
+ public:
+  MosaicRenderer(const Site& site, int width_px);
+  ImageSize size() const { return {width_, height_}; }
+  Image<Rgb8> Render(const std::vector<MosaicCamera>& cameras, const OccupancyMap& map,
+                     const std::vector<Blob>& blobs, int64_t frame, double time_s) const;
+
+ private:
+  struct Marker {
+    std::string label;
+    double x_m, y_m;
+  };
+  FloorGrid grid_;
+  std::vector<Marker> markers_;
+  int width_ = 0, height_ = 0;
+  int cols_ = 1, tile_w_ = 0, tile_h_ = 0, left_w_ = 0;
+  // World -> panel mapping of the map (including camera positions).
+  double x0_ = 0, y1_ = 0, px_per_m_ = 1;
+  int panel_x_ = 0, panel_y_ = 0;
+};
+
+}  // namespace occmap

@@ -1,0 +1,96 @@
+// The on-line system (paper sections 2.2 and 2.5) over a site's frame sources: per frame,
+// difference each camera's image against its background (equation 4, or take a foreground
+// mask from another tool), fuse the change masks through the lookup tables into the tri-state
+// occupancy map (equation 5), find blobs, and write the outputs.
+//
+// Outputs in out_dir (all written atomically; a run that stops early keeps what it finished):
+//   detections.jsonl   one line per frame: {"frame", "time_s", "blobs": [{x_m, y_m, area_m2, ...}]}
+//   summary.json       frames, timing, settings, cameras and how each ended
+//   occupancy.mp4      the map per frame (white free, black occupied, grey unseen), and/or
+//   occupancy/NNNNNN.png
+//   mosaic.mp4, mosaic.png   camera tiles with the change overlay beside the map with the
+//                      cameras and blobs (like the paper's figures 6 and 8); the PNG is the
+//                      frame with the most blobs
+//   backgrounds/<camera>.png  the background each camera used
+//
+//   RunOptions options;  options.out_dir = "out";
+//   OCCMAP_ASSIGN_OR_RETURN(RunSummary summary, RunSite(site, options, ctx, on_progress));
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "occmap/fusion/blobs.h"
+#include "occmap/site/site.h"
+#include "occmap/util/status.h"
+#include "occmap/util/thread_pool.h"
+
+namespace occmap {
+
+enum class FrameSync { kIndex, kTimestamp };
+enum class OnCameraFailure { kStop, kContinue };
+
+struct RunOptions {
+  std::filesystem::path out_dir = "occmap-out";
+  std::filesystem::path cache_dir;  // lookup tables and estimated backgrounds; empty: none
+  int64_t start_frame = 0;          // first frame (of every source) to process
+  int64_t max_frames = -1;          // -1: until a source ends
+  FrameSync sync = FrameSync::kIndex;
+  double sync_tolerance_s = 0.020;  // timestamp sync: largest accepted offset from camera 0
+  // A camera whose stream ends or whose frame is unreadable: stop the run (default), or go on
+  // without it, marking the cells only it could see as unseen.
+  OnCameraFailure on_camera_failure = OnCameraFailure::kStop;
+  bool occupancy_video = true;
+  bool occupancy_pngs = false;
+  bool mosaic_video = true;
+  int background_frames = 25;  // K of the median background, when a camera has none
+  int background_step = 4;     // take every n-th frame for the median
+  double min_blob_area_m2 = 0.0;
+  int mosaic_width_px = 1280;
+  Status Validate() const;
+};
+
+struct RunProgress {
+  int64_t frames_done = 0;
+  std::optional<int64_t> frames_total;
+  double elapsed_s = 0;
+};
+using ProgressCallback = std::function<void(const RunProgress&)>;
+
+struct CameraRunInfo {
+  std::string id;
+  std::string source;      // FrameSource::Describe()
+  std::string background;  // "given: <path>", "estimated from K frames", "reused: <path>", "none (masks)"
+  std::optional<int64_t> ended_at_frame;  // when its stream ended or failed before the run did
+  std::string end_reason;
+};
+
+struct FrameBlobs {
+  int64_t frame = 0;
+  double time_s = 0;
+  std::vector<Blob> blobs;
+};
+
+struct RunSummary {
+  int64_t frames = 0;
+  double seconds = 0;
+  double frames_per_second = 0;
+  double decode_s = 0, detect_s = 0, fuse_s = 0, blobs_s = 0, output_s = 0;
+  std::string stop_reason;  // "end of streams", "frame limit", "camera C2 ended", ...
+  std::vector<CameraRunInfo> cameras;
+  std::string lut_cache;    // ToString(LutCacheOutcome)
+  double lut_seconds = 0;
+  std::vector<size_t> blob_counts;  // per frame
+  std::vector<std::string> outputs;  // files written
+};
+
+// Runs the site; on a failed frame with OnCameraFailure::kStop, the outputs of the frames
+// processed so far are written, then the error is returned.
+Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context& ctx,
+                           const ProgressCallback& progress = {});
+
+}  // namespace occmap

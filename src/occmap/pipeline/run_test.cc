@@ -1,0 +1,312 @@
+// The run over a synthetic scene written to disk: four cameras of a 4 x 3 m room watch a
+// cylinder (a person, 0.25 m radius, 1.7 m tall) walk; frames are PNG sequences rendered by
+// casting each pixel's ray against the cylinder.
+#include "occmap/pipeline/run.h"
+
+#include <fmt/core.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <sstream>
+
+#include "occmap/calib/opencv_storage.h"
+#include "occmap/lut/test_scene.h"
+#include "occmap/util/file_util.h"
+#include "occmap/util/image_io.h"
+#include "occmap/util/testing.h"
+
+namespace occmap {
+namespace {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr double kRadius = 0.25, kHeight = 1.7;
+
+// Whether the ray origin + t dir (t > 0) passes through the cylinder of axis (cx, cy).
+bool RayHitsCylinder(const Ray& ray, double cx, double cy) {
+  const Eigen::Vector3d& o = ray.origin_in_world;
+  const Eigen::Vector3d& d = ray.direction_in_world;
+  const double ox = o.x() - cx, oy = o.y() - cy;
+  const double a = d.x() * d.x() + d.y() * d.y();
+  const double b = 2 * (ox * d.x() + oy * d.y());
+  const double c = ox * ox + oy * oy - kRadius * kRadius;
+  double t0 = 0, t1 = 1e9;
+  if (a < 1e-12) {
+    if (c > 0) return false;
+  } else {
+    const double disc = b * b - 4 * a * c;
+    if (disc < 0) return false;
+    t0 = (-b - std::sqrt(disc)) / (2 * a);
+    t1 = (-b + std::sqrt(disc)) / (2 * a);
+  }
+  // Clip to 0 <= z <= kHeight and t > 0.
+  double lo = std::max(t0, 0.0), hi = t1;
+  if (std::abs(d.z()) < 1e-12) {
+    if (o.z() < 0 || o.z() > kHeight) return false;
+  } else {
+    double za = (0 - o.z()) / d.z(), zb = (kHeight - o.z()) / d.z();
+    if (za > zb) std::swap(za, zb);
+    lo = std::max(lo, za);
+    hi = std::min(hi, zb);
+  }
+  return lo <= hi;
+}
+
+Eigen::Vector2d PathAt(int frame) { return {0.9 + 0.18 * frame, 0.8 + 0.11 * frame}; }
+
+class RunFixture : public ::testing::Test {
+ protected:
+  static constexpr int kFrames = 12;
+
+  void SetUp() override {
+    std::mt19937 rng(7);
+    std::uniform_int_distribution<int> texture(40, 120);
+    for (int n = 0; n < 4; ++n) {
+      const PinholeCamera& cam = room_.cameras[n];
+      ASSERT_TRUE(WriteOpenCvCalibration(cam.params(), 1.0, dir_ / fmt::format("intr{}.xml", n),
+                                         dir_ / fmt::format("extr{}.xml", n))
+                      .ok());
+      Image<uint8_t> bg(160, 120);
+      for (int y = 0; y < 120; ++y) {
+        for (int x = 0; x < 160; ++x) bg(x, y) = static_cast<uint8_t>(texture(rng));
+      }
+      ASSERT_TRUE(WritePng(dir_ / fmt::format("bg{}.png", n), bg.view()).ok());
+      fs::create_directories(dir_ / fmt::format("cam{}", n));
+      for (int f = 0; f < kFrames; ++f) {
+        Image<uint8_t> frame = bg;
+        const Eigen::Vector2d p = PathAt(f);
+        for (int y = 0; y < 120; ++y) {
+          for (int x = 0; x < 160; ++x) {
+            const auto ray = cam.BackProject(Eigen::Vector2d(x, y));
+            if (ray && RayHitsCylinder(*ray, p.x(), p.y())) frame(x, y) = 230;  // a light shirt
+          }
+        }
+        ASSERT_TRUE(WritePng(dir_ / fmt::format("cam{}/{:06d}.png", n, f), frame.view()).ok());
+      }
+    }
+  }
+
+  std::string SiteText(bool with_backgrounds = true) const {
+    std::string s = "name: walk\nfloor: {origin_m: [0, 0], size_m: [4, 3], cell_size_m: 0.05}\ncameras:\n";
+    for (int n = 0; n < 4; ++n) {
+      s += fmt::format(
+          "  - id: c{0}\n    calibration: {{format: opencv, intrinsic: intr{0}.xml, extrinsic: extr{0}.xml, unit: m}}\n"
+          "    source: {{images: cam{0}/%06d.png}}\n",
+          n);
+      if (with_backgrounds) s += fmt::format("    background: bg{}.png\n", n);
+    }
+    s += "detection: {threshold: 40}\n";
+    return s;
+  }
+
+  Site LoadSiteText(const std::string& text) const {
+    testing::WriteText(dir_ / "site.yaml", text);
+    auto site = LoadSite(dir_ / "site.yaml");
+    EXPECT_TRUE(site.ok()) << site.status().message();
+    return std::move(site).value();
+  }
+
+  RunOptions Options(const std::string& out) const {
+    RunOptions o;
+    o.out_dir = dir_ / out;
+    o.occupancy_video = false;
+    o.mosaic_video = false;
+    return o;
+  }
+
+  std::vector<json> Detections(const std::string& out) const {
+    std::vector<json> lines;
+    std::istringstream in(*ReadFileToString(dir_ / out / "detections.jsonl"));
+    for (std::string line; std::getline(in, line);) lines.push_back(json::parse(line));
+    return lines;
+  }
+
+  testing::SmallRoom room_;
+  testing::TempDir dir_;
+};
+
+TEST_F(RunFixture, FindsTheWalkerInEveryFrame) {
+  const Site site = LoadSiteText(SiteText());
+  Context ctx(2);
+  int progress_calls = 0;
+  auto summary = RunSite(site, Options("out"), ctx, [&](const RunProgress& p) {
+    ++progress_calls;
+    EXPECT_EQ(p.frames_done, progress_calls);
+  });
+  ASSERT_TRUE(summary.ok()) << summary.status().message();
+  EXPECT_EQ(summary->frames, kFrames);
+  EXPECT_EQ(progress_calls, kFrames);
+  EXPECT_EQ(summary->stop_reason, "end of streams");
+  const auto lines = Detections("out");
+  ASSERT_EQ(lines.size(), static_cast<size_t>(kFrames));
+  for (int f = 0; f < kFrames; ++f) {
+    EXPECT_EQ(lines[f]["frame"], f);
+    ASSERT_EQ(lines[f]["blobs"].size(), 1u) << lines[f].dump();
+    const auto& b = lines[f]["blobs"][0];
+    const Eigen::Vector2d truth = PathAt(f);
+    EXPECT_NEAR(b["x_m"].get<double>(), truth.x(), 0.12) << "frame " << f;
+    EXPECT_NEAR(b["y_m"].get<double>(), truth.y(), 0.12) << "frame " << f;
+    // The footprint is a 0.5 m disc (0.196 m^2); the plane hull of four views is a little more.
+    EXPECT_GT(b["area_m2"].get<double>(), 0.15);
+    EXPECT_LT(b["area_m2"].get<double>(), 0.6);
+  }
+  const json summary_json = json::parse(*ReadFileToString(dir_ / "out" / "summary.json"));
+  EXPECT_EQ(summary_json["frames"], kFrames);
+  EXPECT_EQ(summary_json["settings"]["threshold"], 40);
+  EXPECT_EQ(summary_json["cameras"].size(), 4u);
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "mosaic.png"));
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "backgrounds" / "c0.png"));
+}
+
+TEST_F(RunFixture, MapBasedFusionGivesTheSameDetections) {
+  Site site = LoadSiteText(SiteText());
+  Context ctx(2);
+  ASSERT_TRUE(RunSite(site, Options("image"), ctx).ok());
+  site.fusion.method = FusionMethod::kMapBased;
+  ASSERT_TRUE(RunSite(site, Options("map"), ctx).ok());
+  EXPECT_EQ(*ReadFileToString(dir_ / "image" / "detections.jsonl"), *ReadFileToString(dir_ / "map" / "detections.jsonl"));
+}
+
+TEST_F(RunFixture, EstimatesAndReusesMedianBackgrounds) {
+  const Site site = LoadSiteText(SiteText(/*with_backgrounds=*/false));
+  Context ctx(2);
+  RunOptions o = Options("estimated");
+  o.cache_dir = dir_ / "cache";
+  o.background_frames = kFrames;
+  o.background_step = 1;
+  auto summary = RunSite(site, o, ctx);
+  ASSERT_TRUE(summary.ok()) << summary.status().message();
+  EXPECT_EQ(summary->cameras[0].background, "estimated: median of 12 frames");
+  // The walker covers some pixels in more than half of the 12 frames (cameras looking along
+  // the path), so the median keeps a little of it (up to 6% of a camera's pixels); elsewhere it is exact.
+  for (int n = 0; n < 4; ++n) {
+    const Image<uint8_t> truth = *ReadGrayImage(dir_ / fmt::format("bg{}.png", n));
+    const Image<uint8_t> estimated = *ReadGrayImage(dir_ / "estimated" / "backgrounds" / fmt::format("c{}.png", n));
+    int same = 0;
+    for (int y = 0; y < 120; ++y) {
+      for (int x = 0; x < 160; ++x) same += truth(x, y) == estimated(x, y);
+    }
+    EXPECT_GT(same, 160 * 120 * 90 / 100) << "camera " << n;
+  }
+  int found = 0;
+  for (const auto& line : Detections("estimated")) found += !line["blobs"].empty();
+  EXPECT_GE(found, kFrames / 2);
+  auto again = RunSite(site, o, ctx);
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(again->cameras[0].background.rfind("reused: ", 0), 0u) << again->cameras[0].background;
+  EXPECT_EQ(again->lut_cache, "loaded");
+  EXPECT_EQ(*ReadFileToString(dir_ / "estimated" / "detections.jsonl"), *ReadFileToString(dir_ / "estimated" / "detections.jsonl"));
+}
+
+TEST_F(RunFixture, StartAndFrameLimitSelectAPart) {
+  const Site site = LoadSiteText(SiteText());
+  Context ctx(1);
+  RunOptions o = Options("part");
+  o.start_frame = 3;
+  o.max_frames = 4;
+  o.occupancy_pngs = true;
+  auto summary = RunSite(site, o, ctx);
+  ASSERT_TRUE(summary.ok()) << summary.status().message();
+  EXPECT_EQ(summary->frames, 4);
+  EXPECT_EQ(summary->stop_reason, "frame limit");
+  const auto lines = Detections("part");
+  ASSERT_EQ(lines.size(), 4u);
+  EXPECT_EQ(lines[0]["frame"], 3);
+  EXPECT_EQ(lines[3]["frame"], 6);
+  EXPECT_TRUE(fs::exists(dir_ / "part" / "occupancy" / "000006.png"));
+  EXPECT_FALSE(fs::exists(dir_ / "part" / "occupancy" / "000007.png"));
+}
+
+TEST_F(RunFixture, WritesVideosAtomically) {
+  const Site site = LoadSiteText(SiteText());
+  Context ctx(2);
+  RunOptions o = Options("videos");
+  o.occupancy_video = o.mosaic_video = true;
+  o.max_frames = 5;
+  ASSERT_TRUE(RunSite(site, o, ctx).ok());
+  EXPECT_GT(fs::file_size(dir_ / "videos" / "mosaic.mp4"), 1000u);
+  EXPECT_GT(fs::file_size(dir_ / "videos" / "occupancy.mp4"), 100u);
+  for (const auto& e : fs::directory_iterator(dir_ / "videos")) {
+    EXPECT_NE(e.path().filename().string().rfind(".tmp-", 0), 0u) << e.path();
+  }
+}
+
+TEST_F(RunFixture, ACameraThatEndsStopsTheRunOrIsLeftOut) {
+  for (int f = 5; f < kFrames; ++f) fs::remove(dir_ / fmt::format("cam2/{:06d}.png", f));
+  const Site site = LoadSiteText(SiteText());
+  Context ctx(2);
+  auto stopped = RunSite(site, Options("stop"), ctx);
+  ASSERT_TRUE(stopped.ok()) << stopped.status().message();
+  EXPECT_EQ(stopped->frames, 5);
+  EXPECT_EQ(stopped->stop_reason, "camera c2 ended at frame 5");
+
+  RunOptions o = Options("continue");
+  o.on_camera_failure = OnCameraFailure::kContinue;
+  auto continued = RunSite(site, o, ctx);
+  ASSERT_TRUE(continued.ok()) << continued.status().message();
+  EXPECT_EQ(continued->frames, kFrames);
+  EXPECT_EQ(continued->cameras[2].ended_at_frame, 5);
+  const auto lines = Detections("continue");
+  ASSERT_EQ(lines.size(), static_cast<size_t>(kFrames));
+  EXPECT_GE(lines.back()["blobs"].size(), 1u);  // three cameras still find the walker
+}
+
+TEST_F(RunFixture, AnUnreadableFrameStopsWithAClearErrorAndKeepsEarlierFrames) {
+  testing::WriteText(dir_ / "cam1" / "000004.png", "not a png");
+  const Site site = LoadSiteText(SiteText());
+  Context ctx(2);
+  auto r = RunSite(site, Options("bad"), ctx);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(ExitCodeFor(r.status()), 2);
+  EXPECT_NE(r.status().message().find("camera c1 at frame 4"), std::string::npos) << r.status().message();
+  EXPECT_NE(r.status().message().find("000004.png"), std::string::npos) << r.status().message();
+  EXPECT_EQ(Detections("bad").size(), 4u);  // the frames before it are not lost
+  EXPECT_TRUE(fs::exists(dir_ / "bad" / "summary.json"));
+
+  RunOptions o = Options("skip");
+  o.on_camera_failure = OnCameraFailure::kContinue;
+  auto skipped = RunSite(site, o, ctx);
+  ASSERT_TRUE(skipped.ok()) << skipped.status().message();
+  EXPECT_EQ(skipped->frames, kFrames);
+  EXPECT_NE(skipped->cameras[1].end_reason.find("000004.png"), std::string::npos);
+}
+
+TEST_F(RunFixture, BadInputsGiveClearMessages) {
+  Context ctx(1);
+  {
+    std::string text = SiteText();
+    text.replace(text.find("background: bg0.png"), 19, "background: intr0.xml");
+    const Site site = LoadSiteText(text);
+    auto r = RunSite(site, Options("x"), ctx);
+    EXPECT_EQ(ExitCodeFor(r.status()), 2);
+    EXPECT_NE(r.status().message().find("camera c0: background"), std::string::npos) << r.status().message();
+  }
+  {
+    Image<uint8_t> small(80, 60, 0);
+    ASSERT_TRUE(WritePng(dir_ / "small_bg.png", small.view()).ok());
+    std::string text = SiteText();
+    text.replace(text.find("background: bg3.png"), 19, "background: small_bg.png");
+    const Site site = LoadSiteText(text);
+    auto r = RunSite(site, Options("x"), ctx);
+    EXPECT_NE(r.status().message().find("is 80x60, expected the image size 160x120"), std::string::npos)
+        << r.status().message();
+  }
+  {
+    std::string text = SiteText();
+    text.replace(text.find("    source: {images: cam1/%06d.png}\n"), 36, "");
+    const Site site = LoadSiteText(text);
+    auto r = RunSite(site, Options("x"), ctx);
+    EXPECT_EQ(r.status().message(), "camera c1: no source (give cameras[1].source in the site file)");
+  }
+  {
+    const Site site = LoadSiteText(SiteText());
+    RunOptions o = Options("x");
+    o.max_frames = 0;
+    EXPECT_EQ(RunSite(site, o, ctx).status().message(), "--frames: expected >= 1, found 0");
+  }
+}
+
+}  // namespace
+}  // namespace occmap
