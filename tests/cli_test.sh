@@ -72,10 +72,20 @@ check cache_stale_after_edit 0 'rebuilt \(cache file was stale\)' -- "$occmap" l
 check json_output 0 '"cells_seen_by_at_least"' -- "$occmap" lut "$work/homography.yaml" --no-cache --out "$work/h" --json
 check unwritable_output 1 "cannot create folder" -- "$occmap" lut "$work/homography.yaml" --no-cache --out /proc/occmap-test
 
+check run_without_source 2 "camera top: no source \(give cameras\[0\].source in the site file\)" -- \
+  "$occmap" run "$work/homography.yaml" --no-cache --out "$work/r"
+cat >>"$work/homography.yaml" <<'YAML'
+YAML
+sed -i 's|      floor_from_image: \[\[1, 0, 0\], \[0, -1, 479\], \[0, 0, 1\]\]|      floor_from_image: [[1, 0, 0], [0, -1, 479], [0, 0, 1]]\n    source: {images: frames/%06d.png}|' "$work/homography.yaml"
+check run_missing_frames 2 "no frame found" -- "$occmap" run "$work/homography.yaml" --no-cache --out "$work/r"
+check run_bad_option 2 "frames" -- "$occmap" run "$work/homography.yaml" --frames 0 --no-cache --out "$work/r"
+
 datasets="$src/../shared/datasets"
 if [ -d "$datasets/wildtrack" ]; then
   check wildtrack_lut 0 '^C7 +1920x1080' -- "$occmap" lut "$src/sites/wildtrack.yaml" --no-cache --out "$work/w"
   check data_root_option 0 'gopro6.3' -- "$occmap" --data-root "$datasets" lut "$src/sites/gopro4.yaml" --no-cache --out "$work/g"
+  check run_gopro4 0 'blobs per frame: mean 4.00, max 4' -- "$occmap" run "$src/sites/gopro4.yaml" --no-cache --out "$work/gr"
+  check run_gopro4_outputs 0 '"max_per_frame": 4' -- cat "$work/gr/summary.json"
   check bad_data_root 2 "data folder not found" -- "$occmap" --data-root "$work/nowhere" lut "$src/sites/gopro4.yaml" --no-cache
 else
   echo "shared datasets not found beside the checkout; dataset CLI checks skipped"

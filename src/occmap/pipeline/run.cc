@@ -45,11 +45,22 @@ struct CameraState {
 
 Status CheckFrameSize(const CameraState& c, const Frame& f) {
   const ImageSize want = c.cam->camera->image_size();
-  if (c.is_mask) return Status::Ok();  // masks are resampled to the camera's size
+  if (c.is_mask) {
+    // Masks at any resolution are resampled to the camera's size, but not to another shape.
+    const double a_want = static_cast<double>(want.width) / want.height;
+    const double a_got = static_cast<double>(f.gray.width()) / std::max(1, f.gray.height());
+    if (std::abs(a_got / a_want - 1) > 0.01) {
+      return InvalidInput(fmt::format("{} gives {}x{} masks, expected the shape of the {}x{} image "
+                                      "(any resolution with the same aspect ratio)",
+                                      c.source->Describe(), f.gray.width(), f.gray.height(), want.width,
+                                      want.height));
+    }
+    return Status::Ok();
+  }
   if (f.gray.width() != want.width || f.gray.height() != want.height) {
-    return InvalidInput(fmt::format("camera {}: {} gives {}x{} frames, expected the site's image size {}x{} "
+    return InvalidInput(fmt::format("{} gives {}x{} frames, expected the site's image size {}x{} "
                                     "(set the camera's image_size)",
-                                    c.cam->id, c.source->Describe(), f.gray.width(), f.gray.height(), want.width,
+                                    c.source->Describe(), f.gray.width(), f.gray.height(), want.width,
                                     want.height));
   }
   return Status::Ok();
@@ -118,7 +129,7 @@ Status PrepareBackground(const Site& site, const RunOptions& options, bool colou
     OCCMAP_ASSIGN_OR_RETURN(bool got, src->Read(f));
     if (!got) break;
     if (read++ % options.background_step != 0) continue;
-    OCCMAP_RETURN_IF_ERROR(CheckFrameSize(c, f));
+    OCCMAP_RETURN_IF_ERROR(CheckFrameSize(c, f).WithContext(fmt::format("camera {}", cam.id)));
     gray_median.Add(f.gray.view());
     if (colour) rgb_median.Add(f.rgb.view());
   }

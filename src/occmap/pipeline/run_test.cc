@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "occmap/calib/opencv_storage.h"
+#include "occmap/io/video_writer.h"
 #include "occmap/lut/test_scene.h"
 #include "occmap/util/file_util.h"
 #include "occmap/util/image_io.h"
@@ -271,6 +272,65 @@ TEST_F(RunFixture, AnUnreadableFrameStopsWithAClearErrorAndKeepsEarlierFrames) {
   ASSERT_TRUE(skipped.ok()) << skipped.status().message();
   EXPECT_EQ(skipped->frames, kFrames);
   EXPECT_NE(skipped->cameras[1].end_reason.find("000004.png"), std::string::npos);
+}
+
+// The same frames as H.264 videos: the run decodes them (frame threads) and finds the walker
+// where the PNG run does; a truncated video stops the run with a clear error.
+TEST_F(RunFixture, RunsOverVideoFilesLikeOverImages) {
+  for (int n = 0; n < 4; ++n) {
+    auto writer = VideoWriter::Open(dir_ / fmt::format("cam{}.mp4", n), {160, 120}, 10.0);
+    ASSERT_TRUE(writer.ok()) << writer.status().message();
+    for (int f = 0; f < kFrames; ++f) {
+      const Image<Rgb8> rgb = *ReadRgbImage(dir_ / fmt::format("cam{}/{:06d}.png", n, f));
+      ASSERT_TRUE((*writer)->Write(rgb.view()).ok());
+    }
+    ASSERT_TRUE((*writer)->Close().ok());
+  }
+  std::string text = SiteText();
+  for (int n = 0; n < 4; ++n) {
+    const std::string from = fmt::format("images: cam{}/%06d.png", n);
+    text.replace(text.find(from), from.size(), fmt::format("video: cam{}.mp4", n));
+  }
+  const Site site = LoadSiteText(text);
+  Context ctx(2);
+  auto summary = RunSite(site, Options("video"), ctx);
+  ASSERT_TRUE(summary.ok()) << summary.status().message();
+  EXPECT_EQ(summary->frames, kFrames);
+  const auto lines = Detections("video");
+  for (int f = 0; f < kFrames; ++f) {
+    ASSERT_EQ(lines[f]["blobs"].size(), 1u) << lines[f].dump();
+    EXPECT_NEAR(lines[f]["blobs"][0]["x_m"].get<double>(), PathAt(f).x(), 0.12);
+    EXPECT_NEAR(lines[f]["blobs"][0]["y_m"].get<double>(), PathAt(f).y(), 0.12);
+    EXPECT_NEAR(lines[f]["time_s"].get<double>(), f / 10.0, 1e-3);
+  }
+
+  // Cut camera 3's file to 60%: the run stops with an error naming it; earlier frames are kept.
+  const std::string bytes = *ReadFileToString(dir_ / "cam3.mp4");
+  ASSERT_TRUE(WriteFileAtomic(dir_ / "cam3.mp4", std::string_view(bytes).substr(0, bytes.size() * 6 / 10)).ok());
+  auto cut = RunSite(site, Options("cut"), ctx);
+  if (cut.ok()) {
+    EXPECT_LT(cut->frames, kFrames);  // a demuxer may also just end early
+    EXPECT_NE(cut->stop_reason.find("c3"), std::string::npos) << cut->stop_reason;
+  } else {
+    EXPECT_EQ(ExitCodeFor(cut.status()), 2);
+    EXPECT_NE(cut.status().message().find("cam3.mp4"), std::string::npos) << cut.status().message();
+  }
+  EXPECT_TRUE(fs::exists(dir_ / "cut" / "detections.jsonl"));
+}
+
+TEST_F(RunFixture, MasksOfAnotherShapeAreRejected) {
+  fs::create_directories(dir_ / "masks");
+  Image<uint8_t> square(100, 100, 0);
+  ASSERT_TRUE(WritePng(dir_ / "masks" / "m.png", square.view()).ok());
+  std::string text = SiteText();
+  text.replace(text.find("images: cam2/%06d.png"), 21, "masks: masks/m.png");
+  const Site site = LoadSiteText(text);
+  Context ctx(1);
+  auto r = RunSite(site, Options("m"), ctx);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(ExitCodeFor(r.status()), 2);
+  EXPECT_NE(r.status().message().find("gives 100x100 masks, expected the shape of the 160x120 image"), std::string::npos)
+      << r.status().message();
 }
 
 TEST_F(RunFixture, BadInputsGiveClearMessages) {
