@@ -13,13 +13,17 @@ namespace {
 namespace fs = std::filesystem;
 
 // tolerance_px < 0: the site file's own setting.
-Result<RunSummary> RunGoPro4(const fs::path& root, const fs::path& out, int tolerance_px) {
+Result<RunSummary> RunGoPro4(const fs::path& root, const fs::path& out, int tolerance_px,
+                             FusionMethod method = FusionMethod::kImageBased, int max_free_views = 0) {
   SiteLoadOptions load;
   load.data_root = root;
   OCCMAP_ASSIGN_OR_RETURN(Site site, LoadSite(fs::path(OCCMAP_SOURCE_DIR) / "sites" / "gopro4.yaml", load));
   if (tolerance_px >= 0) site.detection.tolerance_px = tolerance_px;
+  site.fusion.method = method;
+  site.fusion.max_free_views = max_free_views;
   RunOptions o;
   o.out_dir = out;
+  o.occupancy_pngs = true;
   o.occupancy_video = o.mosaic_video = false;
   Context ctx(2);
   return RunSite(site, o, ctx);
@@ -56,6 +60,20 @@ TEST(GoPro4, ToleranceOfFourOrFivePixelsFindsTheFourPeople) {
     auto summary = RunGoPro4(root, dir.path(), t);
     ASSERT_TRUE(summary.ok()) << summary.status().message();
     EXPECT_EQ(summary->blob_counts[0], 4u) << "tolerance " << t;
+  }
+}
+
+TEST(GoPro4, ImageBasedAndMapBasedFusionGiveIdenticalMapsOnRealMasks) {
+  OCCMAP_REQUIRE_DATASETS(root);
+  for (int tolerance : {0, 2, 5}) {
+    for (int k : {0, 1}) {
+      testing::TempDir image, map;
+      ASSERT_TRUE(RunGoPro4(root, image.path(), tolerance, FusionMethod::kImageBased, k).ok());
+      ASSERT_TRUE(RunGoPro4(root, map.path(), tolerance, FusionMethod::kMapBased, k).ok());
+      EXPECT_EQ(*ReadFileToString(image / "occupancy" / "000000.png"), *ReadFileToString(map / "occupancy" / "000000.png"))
+          << "tolerance " << tolerance << ", k " << k;
+      EXPECT_EQ(*ReadFileToString(image / "detections.jsonl"), *ReadFileToString(map / "detections.jsonl"));
+    }
   }
 }
 
