@@ -8,7 +8,18 @@
 
 namespace occmap {
 
-MosaicRenderer::MosaicRenderer(const Site& site, int width_px) : grid_(site.grid) {
+namespace {
+
+// A stable, distinct colour per track id (BGR).
+cv::Scalar TrackColor(int64_t id) {
+  static const cv::Scalar kPalette[] = {{255, 128, 0}, {0, 200, 0},   {255, 0, 255}, {0, 165, 255},
+                                        {255, 255, 0}, {128, 0, 255}, {0, 128, 128}, {200, 100, 100}};
+  return kPalette[static_cast<size_t>(id) % (sizeof(kPalette) / sizeof(kPalette[0]))];
+}
+
+}  // namespace
+
+MosaicRenderer::MosaicRenderer(const Site& site, int width_px) : grid_(site.grid), zones_(site.tracking.zones) {
   const int n = static_cast<int>(site.cameras.size());
   cols_ = std::max(1, static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n)))));
   const int rows = (n + cols_ - 1) / cols_;
@@ -46,7 +57,8 @@ MosaicRenderer::MosaicRenderer(const Site& site, int width_px) : grid_(site.grid
 }
 
 Image<Rgb8> MosaicRenderer::Render(const std::vector<MosaicCamera>& cameras, const OccupancyMap& map,
-                                   const std::vector<Blob>& blobs, int64_t frame, double time_s) const {
+                                   const std::vector<Blob>& blobs, int64_t frame, double time_s,
+                                   const std::vector<Track>& tracks, const std::vector<Trail>& trails) const {
   cv::Mat canvas(height_, width_, CV_8UC3, cv::Scalar(40, 40, 40));
   // Camera tiles.
   for (size_t i = 0; i < cameras.size(); ++i) {
@@ -114,7 +126,30 @@ Image<Rgb8> MosaicRenderer::Render(const std::vector<MosaicCamera>& cameras, con
     const int r = std::max(5, static_cast<int>(std::lround(std::sqrt(b.area_m2 / M_PI) * px_per_m_)) + 3);
     cv::circle(canvas, p, r, cv::Scalar(0, 0, 255), 2, cv::LINE_AA);
   }
-  cv::putText(canvas, fmt::format("frame {}  t = {:.2f} s  blobs {}", frame, time_s, blobs.size()),
+  for (const auto& zone : zones_) {
+    std::vector<cv::Point> pts;
+    for (const auto& p : zone.polygon_m) pts.push_back(to_px(p.x(), p.y()));
+    cv::polylines(canvas, pts, true, cv::Scalar(0, 200, 255), 1, cv::LINE_AA);
+    if (!pts.empty()) {
+      cv::putText(canvas, zone.name, pts[0] + cv::Point(3, -3), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 200, 255), 1,
+                  cv::LINE_AA);
+    }
+  }
+  for (const auto& trail : trails) {
+    std::vector<cv::Point> pts;
+    for (const auto& p : trail.points_m) pts.push_back(to_px(p.x(), p.y()));
+    if (pts.size() >= 2) cv::polylines(canvas, pts, false, TrackColor(trail.id), 2, cv::LINE_AA);
+  }
+  for (const auto& t : tracks) {
+    const cv::Point p = to_px(t.x_m, t.y_m);
+    cv::circle(canvas, p, 3, TrackColor(t.id), cv::FILLED, cv::LINE_AA);
+    cv::putText(canvas, std::to_string(t.id), p + cv::Point(6, 12), cv::FONT_HERSHEY_SIMPLEX, 0.45, TrackColor(t.id), 1,
+                cv::LINE_AA);
+  }
+  cv::putText(canvas,
+              tracks.empty() ? fmt::format("frame {}  t = {:.2f} s  blobs {}", frame, time_s, blobs.size())
+                             : fmt::format("frame {}  t = {:.2f} s  blobs {}  tracks {}", frame, time_s, blobs.size(),
+                                           tracks.size()),
               cv::Point(left_w_ + 8, 17), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
   Image<Rgb8> out(width_, height_);
   for (int y = 0; y < height_; ++y) {

@@ -1,6 +1,7 @@
 // The mosaic picture of a frame, like the paper's figures 6 and 8: each camera's image with its
 // changed pixels tinted red, beside the occupancy map (white free, black occupied, grey
-// unseen; +x right, +y up) with the cameras marked as grey circles and the blobs as red rings.
+// unseen; +x right, +y up) with the cameras marked as grey circles, the blobs as red rings,
+// zones as outlines, and tracks as coloured trails with their ids.
 //
 //   MosaicRenderer mosaic(site, 1280);
 //   Image<Rgb8> picture = mosaic.Render(cameras, map, blobs, frame_index, time_s);
@@ -12,6 +13,8 @@
 #include "occmap/fusion/blobs.h"
 #include "occmap/fusion/occupancy_map.h"
 #include "occmap/site/site.h"
+#include "occmap/track/track.h"
+#include "occmap/track/track_output.h"
 #include "occmap/util/image.h"
 
 namespace occmap {
@@ -27,8 +30,10 @@ class MosaicRenderer {
  public:
   MosaicRenderer(const Site& site, int width_px);
   ImageSize size() const { return {width_, height_}; }
+  // tracks and trails may be empty (no tracking); zones are drawn as outlines.
   Image<Rgb8> Render(const std::vector<MosaicCamera>& cameras, const OccupancyMap& map,
-                     const std::vector<Blob>& blobs, int64_t frame, double time_s) const;
+                     const std::vector<Blob>& blobs, int64_t frame, double time_s,
+                     const std::vector<Track>& tracks = {}, const std::vector<Trail>& trails = {}) const;
 
  private:
   struct Marker {
@@ -37,6 +42,7 @@ class MosaicRenderer {
   };
   FloorGrid grid_;
   std::vector<Marker> markers_;
+  std::vector<ZoneOptions> zones_;
   int width_ = 0, height_ = 0;
   int cols_ = 1, tile_w_ = 0, tile_h_ = 0, left_w_ = 0;
   // World -> panel mapping of the map (including camera positions).

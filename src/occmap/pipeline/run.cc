@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "occmap/detect/background.h"
 #include "occmap/detect/change_detection.h"
@@ -14,6 +16,10 @@
 #include "occmap/io/video_writer.h"
 #include "occmap/pipeline/mosaic.h"
 #include "occmap/site/site_lut.h"
+#include "occmap/track/multi_target_tracker.h"
+#include "occmap/track/track_output.h"
+#include "occmap/track/window_tracker.h"
+#include "occmap/track/zones.h"
 #include "occmap/util/file_util.h"
 #include "occmap/util/hash.h"
 #include "occmap/util/image_io.h"
@@ -150,6 +156,29 @@ Status PrepareBackground(const Site& site, const RunOptions& options, bool colou
   return Status::Ok();
 }
 
+// The site's tracker, whichever algorithm it names.
+class AnyTracker {
+ public:
+  static Result<AnyTracker> Create(const TrackerOptions& options) {
+    AnyTracker t;
+    if (options.algorithm == TrackerAlgorithm::kWindow) {
+      OCCMAP_ASSIGN_OR_RETURN(WindowTracker w, WindowTracker::Create(options));
+      t.window_ = std::make_unique<WindowTracker>(std::move(w));
+    } else {
+      OCCMAP_ASSIGN_OR_RETURN(MultiTargetTracker m, MultiTargetTracker::Create(options));
+      t.multi_ = std::make_unique<MultiTargetTracker>(std::move(m));
+    }
+    return t;
+  }
+  Result<std::vector<Track>> Update(const std::vector<Blob>& blobs, const OccupancyMap& map, double time_s) {
+    return window_ ? window_->Update(blobs, map, time_s) : multi_->Update(blobs, map, time_s);
+  }
+
+ private:
+  std::unique_ptr<WindowTracker> window_;
+  std::unique_ptr<MultiTargetTracker> multi_;
+};
+
 json BlobJson(const Blob& b) {
   return {{"x_m", std::round(b.x_m * 1e4) / 1e4}, {"y_m", std::round(b.y_m * 1e4) / 1e4},
           {"area_m2", std::round(b.area_m2 * 1e5) / 1e5}, {"cells", b.cells}};
@@ -253,6 +282,25 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   }
   Image<Rgb8> best_mosaic;
   size_t best_blobs = 0;
+
+  // Tracking.
+  std::optional<AnyTracker> tracker;
+  std::optional<ZoneMonitor> zones;
+  TrailHistory trails(site.tracking.trail_length);
+  std::unique_ptr<AtomicFileWriter> tracks_file, mot_file, events_file;
+  std::set<int64_t> track_ids;
+  double last_track_time_s = -std::numeric_limits<double>::infinity();
+  if (options.track) {
+    OCCMAP_ASSIGN_OR_RETURN(AnyTracker t, AnyTracker::Create(site.tracking));
+    tracker = std::move(t);
+    OCCMAP_ASSIGN_OR_RETURN(ZoneMonitor z, ZoneMonitor::Create(site.tracking.zones, site.tracking.zone_count_every_frame));
+    zones = std::move(z);
+    OCCMAP_ASSIGN_OR_RETURN(tracks_file, AtomicFileWriter::Open(out / "tracks.jsonl"));
+    OCCMAP_ASSIGN_OR_RETURN(mot_file, AtomicFileWriter::Open(out / "tracks_mot.csv"));
+    if (!site.tracking.zones.empty()) {
+      OCCMAP_ASSIGN_OR_RETURN(events_file, AtomicFileWriter::Open(out / "events.jsonl"));
+    }
+  }
 
   std::vector<bool> active(cams.size(), true);
   std::optional<int64_t> total;
@@ -387,11 +435,31 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     t0 = Clock::now();
     const std::vector<Blob> blobs = FindBlobs(map, blob_options);
     summary.blobs_s += Since(t0);
+    const double time_s = std::isnan(cams[0].frame.timestamp_s) ? static_cast<double>(frame_index) / fps
+                                                                : cams[0].frame.timestamp_s;
+
+    // 3b. Tracking (the tracker needs strictly increasing times: a repeated timestamp, as some
+    // streams give, is nudged forward by a microsecond).
+    t0 = Clock::now();
+    std::vector<Track> tracks;
+    if (tracker) {
+      const double track_time_s = std::max(time_s, last_track_time_s + 1e-6);
+      last_track_time_s = track_time_s;
+      OCCMAP_ASSIGN_OR_RETURN(tracks, tracker->Update(blobs, map, track_time_s));
+      trails.Update(tracks);
+      for (const Track& t : tracks) track_ids.insert(t.id);
+      OCCMAP_RETURN_IF_ERROR(tracks_file->Append(TracksJsonLine(frame_index, time_s, tracks) + "\n"));
+      OCCMAP_RETURN_IF_ERROR(mot_file->Append(MotGroundPlaneRows(frame_index, tracks)));
+      const ZoneFrame z = zones->Update(frame_index, time_s, tracks);
+      for (const ZoneEvent& e : z.events) {
+        OCCMAP_RETURN_IF_ERROR(events_file->Append(ZoneEventJsonLine(e) + "\n"));
+        ++summary.zone_events;
+      }
+    }
+    summary.track_s += Since(t0);
 
     // 4. Outputs.
     t0 = Clock::now();
-    const double time_s = std::isnan(cams[0].frame.timestamp_s) ? static_cast<double>(frame_index) / fps
-                                                                : cams[0].frame.timestamp_s;
     json line = {{"frame", frame_index}, {"time_s", std::round(time_s * 1e6) / 1e6}, {"blobs", json::array()}};
     for (const auto& b : blobs) line["blobs"].push_back(BlobJson(b));
     OCCMAP_RETURN_IF_ERROR(detections->Append(line.dump() + "\n"));
@@ -422,7 +490,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       tiles.push_back(t);
     }
     if (mosaic_video || best_mosaic.empty() || blobs.size() > best_blobs) {
-      Image<Rgb8> picture = mosaic.Render(tiles, map, blobs, frame_index, time_s);
+      Image<Rgb8> picture = mosaic.Render(tiles, map, blobs, frame_index, time_s, tracks, trails.Trails());
       if (mosaic_video) OCCMAP_RETURN_IF_ERROR(mosaic_video->Write(picture.view()));
       if (best_mosaic.empty() || blobs.size() > best_blobs) {
         best_mosaic = std::move(picture);
@@ -448,6 +516,17 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     OCCMAP_RETURN_IF_ERROR(mosaic_video->Close());
     summary.outputs.push_back((out / "mosaic.mp4").string());
   }
+  if (tracks_file) {
+    OCCMAP_RETURN_IF_ERROR(tracks_file->Commit());
+    OCCMAP_RETURN_IF_ERROR(mot_file->Commit());
+    summary.outputs.push_back((out / "tracks.jsonl").string());
+    summary.outputs.push_back((out / "tracks_mot.csv").string());
+  }
+  if (events_file) {
+    OCCMAP_RETURN_IF_ERROR(events_file->Commit());
+    summary.outputs.push_back((out / "events.jsonl").string());
+  }
+  summary.tracks = static_cast<int64_t>(track_ids.size());
   if (!best_mosaic.empty()) {
     OCCMAP_RETURN_IF_ERROR(WritePng(out / "mosaic.png", best_mosaic.view()));
     summary.outputs.push_back((out / "mosaic.png").string());
@@ -463,7 +542,14 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   j["seconds"] = summary.seconds;
   j["frames_per_second"] = summary.frames_per_second;
   j["stage_seconds"] = {{"decode", summary.decode_s}, {"detect", summary.detect_s}, {"fuse", summary.fuse_s},
-                        {"blobs", summary.blobs_s}, {"output", summary.output_s}, {"tables", summary.lut_seconds}};
+                        {"blobs", summary.blobs_s}, {"track", summary.track_s}, {"output", summary.output_s},
+                        {"tables", summary.lut_seconds}};
+  if (options.track) {
+    j["tracking"] = {{"algorithm", std::string(ToString(site.tracking.algorithm))},
+                     {"tracks", summary.tracks},
+                     {"zones", site.tracking.zones.size()},
+                     {"zone_events", summary.zone_events}};
+  }
   j["stop_reason"] = summary.stop_reason;
   j["settings"] = {{"threshold", site.detection.threshold},
                    {"colour", site.detection.colour},

@@ -5,6 +5,9 @@
 //
 // Outputs in out_dir (all written atomically; a run that stops early keeps what it finished):
 //   detections.jsonl   one line per frame: {"frame", "time_s", "blobs": [{x_m, y_m, area_m2, ...}]}
+//   tracks.jsonl       one line per frame: {"frame", "time_s", "tracks": [{id, x_m, y_m, vx_mps, ...}]}
+//   tracks_mot.csv     the tracks as MOTChallenge ground-plane rows
+//   events.jsonl       zone events (enter, leave, dwell, count), when the site has zones
 //   summary.json       frames, timing, settings, cameras and how each ended
 //   occupancy.mp4      the map per frame (white free, black occupied, grey unseen), and/or
 //   occupancy/NNNNNN.png
@@ -50,6 +53,7 @@ struct RunOptions {
   int background_frames = 25;  // K of the median background, when a camera has none
   int background_step = 4;     // take every n-th frame for the median
   double min_blob_area_m2 = 0.0;
+  bool track = true;  // run the site's tracker and write tracks.jsonl, tracks_mot.csv, events.jsonl
   int mosaic_width_px = 1280;
   Status Validate() const;
 };
@@ -79,12 +83,14 @@ struct RunSummary {
   int64_t frames = 0;
   double seconds = 0;
   double frames_per_second = 0;
-  double decode_s = 0, detect_s = 0, fuse_s = 0, blobs_s = 0, output_s = 0;
+  double decode_s = 0, detect_s = 0, fuse_s = 0, blobs_s = 0, track_s = 0, output_s = 0;
   std::string stop_reason;  // "end of streams", "frame limit", "camera C2 ended", ...
   std::vector<CameraRunInfo> cameras;
   std::string lut_cache;    // ToString(LutCacheOutcome)
   double lut_seconds = 0;
   std::vector<size_t> blob_counts;  // per frame
+  int64_t tracks = 0;                // distinct confirmed track ids
+  int64_t zone_events = 0;
   std::vector<std::string> outputs;  // files written
 };
 

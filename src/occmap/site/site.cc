@@ -371,7 +371,7 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
   OCCMAP_ASSIGN_OR_RETURN(YamlField root, ParseYaml(yaml_text, path.string()));
   if (!root.IsMap()) return root.Error("expected a site description (a map with floor and cameras)");
   OCCMAP_RETURN_IF_ERROR(
-      root.CheckKeys({"version", "name", "data_root", "floor", "cameras", "detection", "fusion", "lut"}));
+      root.CheckKeys({"version", "name", "data_root", "floor", "cameras", "detection", "fusion", "lut", "tracking"}));
   OCCMAP_ASSIGN_OR_RETURN(int64_t version, root.GetInt("version", 1));
   if (version != 1) return root.Find("version")->Error(fmt::format("expected site format version 1, found {}", version));
   Site site;
@@ -410,6 +410,7 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
   }
   if (auto f = root.Find("detection")) OCCMAP_RETURN_IF_ERROR(ParseDetection(*f, site.detection));
   if (auto f = root.Find("fusion")) OCCMAP_RETURN_IF_ERROR(ParseFusion(*f, site.cameras.size(), site.fusion));
+  if (auto f = root.Find("tracking")) OCCMAP_RETURN_IF_ERROR(ParseTrackerOptions(*f, site.tracking));
   if (auto f = root.Find("lut")) {
     OCCMAP_RETURN_IF_ERROR(f->CheckKeys({"add_cell_projections"}));
     OCCMAP_ASSIGN_OR_RETURN(site.lut.add_cell_projections, f->GetBool("add_cell_projections", true));

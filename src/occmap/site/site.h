@@ -16,6 +16,7 @@
 //   detection: {threshold: 30, tolerance_px: 0}
 //   fusion: {algorithm: image-based, max_free_views: 0}
 //   lut: {add_cell_projections: true}
+//   tracking: {algorithm: multi_target, max_speed_mps: 2.5, zones: [...]}   # track/tracker_options.h
 //
 // Every error names the file, line and field, what was expected and what was found:
 //   site.yaml:14: cameras[2].calibration.intrinsic: file not found: '/data/intr_C3.xml'
@@ -34,6 +35,7 @@
 #include "occmap/fusion/fusion.h"
 #include "occmap/geometry/camera_model.h"
 #include "occmap/io/frame_source.h"
+#include "occmap/track/tracker_options.h"
 #include "occmap/lut/floor_grid.h"
 #include "occmap/lut/ground_lut.h"
 #include "occmap/util/image.h"
@@ -61,6 +63,7 @@ struct Site {
   LutOptions lut;
   ChangeDetectionOptions detection;
   FusionOptions fusion;
+  TrackerOptions tracking;  // the `tracking:` section (trackers, zones, trails)
 
   std::vector<LutCameraInput> LutInputs() const;
 };

@@ -1,0 +1,65 @@
+// EvaluationReport: every metric of one evaluation (detection, tracking, occupancy against the
+// footprint and the plane-hull rasters), with what was left out, rendered as JSON or as a
+// fixed-width text table. A section is absent (std::nullopt; null in JSON, "not evaluated" in
+// text) when its input was not there. Undefined ratios (e.g. MODA with no ground truth) are NaN
+// in the structs, null in JSON, "n/a" in text, and a note says why.
+//
+//   EvaluationReport report = MakeEvaluationReport(options, &detections, &tracks, nullptr, nullptr);
+//   std::string json_text = EvaluationReportJson(report).dump(2);
+//   std::string table = EvaluationReportText(report);
+#pragma once
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "occmap/eval/detection_metrics.h"
+#include "occmap/eval/eval_options.h"
+#include "occmap/eval/occupancy_metrics.h"
+#include "occmap/eval/tracking_metrics.h"
+
+namespace occmap {
+
+struct EvaluationReport {
+  std::string dataset;  // where the ground truth came from (a folder, or e.g. "demo")
+  std::string run;      // where the run's outputs came from
+  double match_threshold_m = 0.5;
+  int64_t gt_frames = 0;  // frames in the ground truth
+  std::optional<DetectionMetrics> detection;
+  std::vector<FrameDetectionCounts> detection_frames;  // per frame TP, FP, FN
+  std::optional<TrackingMetrics> tracking;
+  std::optional<OccupancyMetrics> footprint;  // against the footprint rasters
+  std::optional<OccupancyMetrics> hull;       // against the ideal plane-hull rasters
+  std::vector<std::string> notes;             // what was left out, and why
+};
+
+// A report from in-memory evaluators (any may be null: that section is absent). gt_frames is
+// the most frames any evaluator saw; dataset and run are left for the caller.
+EvaluationReport MakeEvaluationReport(const EvalOptions& options, const DetectionEvaluator* detection,
+                                      const TrackingEvaluator* tracking, const OccupancyEvaluator* footprint,
+                                      const OccupancyEvaluator* hull);
+
+// The notes of the report followed by one per undefined metric ("MODA undefined: ...").
+std::vector<std::string> EvaluationNotes(const EvaluationReport& report);
+
+// {"dataset", "run", "match_threshold_m", "gt_frames",
+//  "detection": {"frames", "gt", "detections", "tp", "fp", "fn", "moda", "modp", "precision",
+//                "recall", "mean_distance_m", "gt_frames_missing_from_run",
+//                "run_frames_without_gt", "per_frame": [{"frame", "gt", "detections", "tp", "fp", "fn"}]},
+//  "tracking": {"frames", "gt", "predictions", "tp", "fp", "fn", "id_switches", "fragmentations",
+//               "gt_trajectories", "track_trajectories", "mostly_tracked", "partially_tracked",
+//               "mostly_lost", "mota", "motp_m", "motp_closeness", "idtp", "idfp", "idfn", "idf1",
+//               "idp", "idr", "gt_frames_missing_from_run", "run_frames_without_gt"},
+//  "occupancy": {"footprint": {"frames", "cells_evaluated", "tp", "fp", "fn", "tn",
+//                "computed_unseen", "reference_unseen", "iou", "precision", "recall",
+//                "computed_frames_without_reference"}, "hull": {...}},
+//  "notes": [...]}
+// Absent sections and undefined ratios are null; ratios are rounded to 1e-6.
+nlohmann::json EvaluationReportJson(const EvaluationReport& report);
+
+// A readable fixed-width table, one section per metric family, then the notes; ends in '\n'.
+std::string EvaluationReportText(const EvaluationReport& report);
+
+}  // namespace occmap

@@ -1,0 +1,77 @@
+// The simulator's built-in scenes, as SceneSpecs (write one out with SceneToYaml to start a
+// custom scene).
+//
+//   lab        the paper's UCSD lab: a carpeted 9 x 6.5 m room lined with bookshelves, a desk,
+//              a potted plant inside the area; the four 640x480 cameras of `occmap demo`
+//              (site/demo_scene.h: 2.7 m, mild barrel distortion) looking across; three people
+//              walking (one pushing a chair), a round robot; 10 fps, 10 s.
+//   clemson    the Clemson lab: 5 x 4 m, half carpet, half tiles, six Tsai cameras (Sony
+//              XC-75-like, 3.5 mm lens) on a 2.6 m drop ceiling near the corners and the
+//              centres of the two long walls; two people, a robot, a box pushed around.
+//   wildtrack  WILDTRACK's seven real calibrations and annotated trajectories (people
+//              interpolated linearly between the annotations, 0.5 s apart, absent where not
+//              annotated) on a paved square, 10 fps; object id = personID + 1.
+//
+//   sim::BuiltinSceneOptions opt;  opt.seed = 7;
+//   OCCMAP_ASSIGN_OR_RETURN(sim::SceneSpec spec, sim::MakeBuiltinSceneSpec("lab", opt));
+//   OCCMAP_ASSIGN_OR_RETURN(sim::Scene scene, sim::Scene::Create(std::move(spec)));
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "occmap/sim/scene.h"
+#include "occmap/util/status.h"
+
+namespace occmap::sim {
+
+struct BuiltinSceneOptions {
+  uint64_t seed = 1;
+  // Image size as a fraction of the cameras' native size (intrinsics scaled by
+  // CameraModel::Resized's rule): 1 = native, 0.5 = half.
+  double image_scale = 1.0;
+  int64_t num_frames = -1;      // -1: the scene's default length
+  double noise_sigma = -1;      // -1: the scene's default (2 grey levels)
+  bool shadows = false;
+  double exposure_drift = 0.0;  // relative amplitude; 0 = off
+  Status Validate() const;
+};
+
+struct WildtrackSceneOptions {
+  // The dataset folder (holding calibrations/ and annotations_positions/).
+  std::filesystem::path dataset_dir = "../shared/datasets/wildtrack";
+  bool original_intrinsics = false;  // intrinsic_original (distorted) rather than intrinsic_zero
+  int64_t first_frame = 0;           // 10 fps frame number of the dataset (annotations every 5)
+  Status Validate() const;
+};
+
+// "lab", "clemson" (wildtrack needs files: MakeWildtrackSceneSpec).
+std::vector<std::string> BuiltinSceneNames();
+Result<SceneSpec> MakeBuiltinSceneSpec(std::string_view name, const BuiltinSceneOptions& options);
+
+SceneSpec MakeLabSceneSpec(const BuiltinSceneOptions& options);
+SceneSpec MakeClemsonSceneSpec(const BuiltinSceneOptions& options);
+// num_frames -1 means up to the last annotated frame (1995 for the full dataset).
+Result<SceneSpec> MakeWildtrackSceneSpec(const BuiltinSceneOptions& options, const WildtrackSceneOptions& wildtrack);
+
+// WILDTRACK annotations: person positions per annotated frame.
+struct WildtrackAnnotation {
+  int64_t frame = 0;  // 10 fps frame number (the file name)
+  struct Person {
+    int64_t person_id = 0;
+    int64_t position_id = 0;
+    Eigen::Vector2d position_m = Eigen::Vector2d::Zero();
+  };
+  std::vector<Person> people;
+};
+// Reads annotations_positions/*.json in frame order.
+Result<std::vector<WildtrackAnnotation>> ReadWildtrackAnnotations(const std::filesystem::path& folder);
+// X = -300 + 2.5 (id % 480), Y = -900 + 2.5 (id / 480) centimetres, in metres.
+Eigen::Vector2d WildtrackPositionM(int64_t position_id);
+
+// Applies options common to all scenes (scale, frames, noise, shadows, drift) to a spec.
+Status ApplyBuiltinOptions(const BuiltinSceneOptions& options, SceneSpec& spec);
+
+}  // namespace occmap::sim

@@ -1,0 +1,75 @@
+// WriteDataset: renders a Scene into a dataset folder that `occmap run` reads as it is.
+//
+//   site.yaml                    the site (LoadSite): grid, cameras with relative paths to
+//                                their calibration, mask, frames and background; written last,
+//                                so a folder with a site.yaml is complete
+//   calib/intr_<cam>.xml, calib/extr_<cam>.xml   pinhole cameras (OpenCV FileStorage, metres)
+//   calib/tsai_<cam>.yaml        Tsai cameras (Willson's units, T in mm)
+//   frames/<cam>/%06d.png        RGB frames (or frames/<cam>.mp4, H.264 through io/VideoWriter)
+//   backgrounds/<cam>.png        the empty scene (its own noise stream, or none)
+//   masks/<cam>.png              floor mask: 255 where the pixel sees the monitored floor, 0 where
+//                                it sees walls, furniture, static occluders or nothing
+//   ground_truth.jsonl           sim/ground_truth.h, one line per frame
+//   gt/footprint/%06d.png        per cell: 255 where an object touches the floor, else 0
+//   gt/hull/%06d.png             the ideal plane hull: 255 free, 0 occupied, 128 unseen
+//                                (both one pixel per cell, +x right, +y up: row 0 = cell row
+//                                cells_y - 1, as occmap's occupancy pictures)
+//   gt/changes/<cam>/%06d.png    perfect change masks: 255 where a moving object is seen
+//   scene.yaml                   the scene (sim/scene_yaml.h): renders the same dataset again
+//   scene.json, README.txt       what the scene is, sizes, conventions, file list
+// Frame numbers in file names and in ground_truth.jsonl are the dataset's own, from 0 (the
+// frame index of the pipeline's sources); time_s = frame / fps.
+//
+// Every file is written atomically (util/file_util.h). Work per camera: the static scene is
+// cast once, then the frames are rendered (rows in parallel on the context's threads) and
+// encoded (frames in parallel).
+//
+//   sim::DatasetOptions options;  options.out_dir = "lab-data";
+//   OCCMAP_ASSIGN_OR_RETURN(sim::DatasetSummary s, sim::WriteDataset(scene, options, ctx, on_progress));
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "occmap/sim/scene.h"
+#include "occmap/util/status.h"
+#include "occmap/util/thread_pool.h"
+
+namespace occmap::sim {
+
+struct DatasetOptions {
+  enum class FrameFormat { kPng, kVideo };
+  std::filesystem::path out_dir;
+  FrameFormat frame_format = FrameFormat::kPng;
+  bool change_masks = true;   // gt/changes/
+  bool gt_rasters = true;     // gt/footprint/, gt/hull/
+  int detection_threshold = 30;  // written into site.yaml's detection.threshold
+  Status Validate() const;
+};
+
+struct DatasetProgress {
+  std::string stage;  // "camera cam1", "ground truth"
+  int64_t done = 0;   // work units (camera frames + ground-truth frames) finished
+  int64_t total = 0;
+};
+using DatasetProgressCallback = std::function<void(const DatasetProgress&)>;
+
+struct DatasetSummary {
+  std::filesystem::path site_file;
+  int64_t frames = 0;
+  size_t cameras = 0;
+  double seconds = 0;
+  double render_seconds = 0;        // ray casting of the moving objects (all cameras)
+  double static_seconds = 0;        // casting the static scenes
+  double ground_truth_seconds = 0;  // footprints and hulls
+  double write_seconds = 0;         // encoding and writing files
+  std::vector<std::string> outputs; // files and folders written, relative to out_dir
+};
+
+Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& options, Context& ctx,
+                                    const DatasetProgressCallback& progress = {});
+
+}  // namespace occmap::sim

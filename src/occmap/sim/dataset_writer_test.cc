@@ -1,0 +1,121 @@
+#include "occmap/sim/dataset_writer.h"
+
+#include <gtest/gtest.h>
+
+#include "occmap/io/frame_source.h"
+#include "occmap/sim/renderer.h"
+#include "occmap/sim/sim_test_util.h"
+#include "occmap/site/site.h"
+#include "occmap/util/image_io.h"
+#include "occmap/util/testing.h"
+
+namespace occmap::sim {
+namespace {
+
+void ExpectSiteMatchesScene(const Scene& scene, const Site& site) {
+  ASSERT_EQ(site.cameras.size(), scene.num_cameras());
+  EXPECT_EQ(site.grid, scene.grid());
+  for (size_t c = 0; c < scene.num_cameras(); ++c) {
+    EXPECT_EQ(site.cameras[c].id, scene.camera_id(c));
+    EXPECT_EQ(site.cameras[c].camera->kind(), scene.camera(c).kind());
+    EXPECT_EQ(site.cameras[c].camera->image_size(), scene.camera(c).image_size());
+    for (const Eigen::Vector3d& p : {Eigen::Vector3d(1, 1, 0), Eigen::Vector3d(2.5, 2, 0), Eigen::Vector3d(3, 1, 1.5)}) {
+      const auto a = scene.camera(c).Project(p), b = site.cameras[c].camera->Project(p);
+      ASSERT_TRUE(a && b);
+      EXPECT_NEAR((*a - *b).norm(), 0, 1e-6) << site.cameras[c].id;
+    }
+  }
+}
+
+TEST(DatasetWriter, WritesASiteThatLoadsAndProjectsLikeTheScene) {
+  const Scene lab = sim_testing::SmallLab(0.25, 4);
+  occmap::testing::TempDir dir;
+  Context ctx(2);
+  DatasetOptions options;
+  options.out_dir = dir / "lab";
+  int64_t last_done = -1, total = 0;
+  auto summary = WriteDataset(lab, options, ctx, [&](const DatasetProgress& p) {
+    EXPECT_GE(p.done, last_done);
+    last_done = p.done;
+    total = p.total;
+  });
+  ASSERT_TRUE(summary.ok()) << summary.status().message();
+  EXPECT_EQ(last_done, total);
+  EXPECT_EQ(total, 4 * 4 + 4);
+  auto site = LoadSite(summary->site_file);
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  ExpectSiteMatchesScene(lab, *site);
+  // Masks, backgrounds and frames are those of the renderer.
+  const CameraRenderer r(lab, 2, ctx);
+  EXPECT_TRUE(site->cameras[2].mask == r.floor_mask());
+  auto bg = ReadRgbImage(*site->cameras[2].background);
+  ASSERT_TRUE(bg.ok());
+  EXPECT_TRUE(*bg == r.Background());
+  RenderedView view;
+  r.Render(lab.StateAt(3), ctx, &view);
+  auto frame = ReadRgbImage(options.out_dir / "frames" / "cam3" / "000003.png");
+  ASSERT_TRUE(frame.ok()) << frame.status().message();
+  EXPECT_TRUE(*frame == view.rgb);
+  auto changes = ReadGrayImage(options.out_dir / "gt" / "changes" / "cam3" / "000003.png");
+  ASSERT_TRUE(changes.ok());
+  EXPECT_TRUE(*changes == ChangeMask(view.ids));
+  // The pipeline's frame source reads the sequence.
+  auto source = OpenFrameSource(site->cameras[0].source, {});
+  ASSERT_TRUE(source.ok()) << source.status().message();
+  Frame frame_read;
+  for (int i = 0; i < 4; ++i) {
+    auto got = (*source)->Read(frame_read);
+    ASSERT_TRUE(got.ok() && *got) << i;
+  }
+  auto end = (*source)->Read(frame_read);
+  ASSERT_TRUE(end.ok());
+  EXPECT_FALSE(*end);
+  // Ground truth: one line per frame, every object present.
+  auto gt = ReadGroundTruth(options.out_dir / "ground_truth.jsonl");
+  ASSERT_TRUE(gt.ok()) << gt.status().message();
+  ASSERT_EQ(gt->size(), 4u);
+  EXPECT_EQ((*gt)[3].objects.size(), 5u);
+  EXPECT_DOUBLE_EQ((*gt)[3].time_s, 0.3);
+  auto hull = ReadGrayImage(options.out_dir / "gt" / "hull" / "000002.png");
+  ASSERT_TRUE(hull.ok());
+  EXPECT_EQ(hull->width(), lab.grid().cells_x);
+  EXPECT_EQ(hull->height(), lab.grid().cells_y);
+  EXPECT_TRUE(std::filesystem::exists(options.out_dir / "gt" / "footprint" / "000003.png"));
+  EXPECT_TRUE(std::filesystem::exists(options.out_dir / "scene.json"));
+  EXPECT_TRUE(std::filesystem::exists(options.out_dir / "README.txt"));
+}
+
+TEST(DatasetWriter, TsaiCamerasAndVideoFramesLoadToo) {
+  BuiltinSceneOptions o;
+  o.image_scale = 0.25;
+  o.num_frames = 3;
+  const Scene clemson = Scene::Create(MakeClemsonSceneSpec(o)).value();
+  occmap::testing::TempDir dir;
+  Context ctx(2);
+  DatasetOptions options;
+  options.out_dir = dir / "clemson";
+  options.frame_format = DatasetOptions::FrameFormat::kVideo;
+  options.gt_rasters = false;
+  auto summary = WriteDataset(clemson, options, ctx);
+  ASSERT_TRUE(summary.ok()) << summary.status().message();
+  auto site = LoadSite(summary->site_file);
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  ExpectSiteMatchesScene(clemson, *site);
+  EXPECT_EQ(site->cameras[0].source.kind, FrameSourceSpec::Kind::kVideo);
+  auto source = OpenFrameSource(site->cameras[0].source, {});
+  ASSERT_TRUE(source.ok()) << source.status().message();
+  Frame f;
+  auto got = (*source)->Read(f);
+  ASSERT_TRUE(got.ok() && *got);
+  EXPECT_EQ(f.gray.width(), 160);
+}
+
+TEST(DatasetWriter, RejectsAnEmptyOutputFolder) {
+  const Scene lab = sim_testing::SmallLab(0.25, 1);
+  Context ctx(1);
+  EXPECT_EQ(WriteDataset(lab, DatasetOptions{}, ctx).status().message(),
+            "output folder: expected a path, found an empty one");
+}
+
+}  // namespace
+}  // namespace occmap::sim

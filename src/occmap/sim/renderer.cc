@@ -1,0 +1,333 @@
+#include "occmap/sim/renderer.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+namespace occmap::sim {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Acklam's rational approximation of the inverse normal CDF (relative error < 1.2e-9).
+double InverseNormalCdf(double p) {
+  static constexpr double a[] = {-3.969683028665376e+01, 2.209460984245205e+02, -2.759285104469687e+02,
+                                 1.383577518672690e+02,  -3.066479806614716e+01, 2.506628277459239e+00};
+  static constexpr double b[] = {-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
+                                 6.680131188771972e+01,  -1.328068155288572e+01};
+  static constexpr double c[] = {-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e+00,
+                                 -2.549732539343734e+00, 4.374664141464968e+00,  2.938163982698783e+00};
+  static constexpr double d[] = {7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
+                                 3.754408661907416e+00};
+  constexpr double kLow = 0.02425;
+  if (p < kLow) {
+    const double q = std::sqrt(-2 * std::log(p));
+    return (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) /
+           ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1);
+  }
+  if (p > 1 - kLow) return -InverseNormalCdf(1 - p);
+  const double q = p - 0.5, r = q * q;
+  return (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q /
+         (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1);
+}
+
+// Standard normal quantiles of the 65536 equiprobable bins' centres.
+const std::array<float, 65536>& GaussianTable() {
+  static const std::array<float, 65536> table = [] {
+    std::array<float, 65536> t{};
+    for (size_t i = 0; i < t.size(); ++i) t[i] = static_cast<float>(InverseNormalCdf((static_cast<double>(i) + 0.5) / 65536.0));
+    return t;
+  }();
+  return table;
+}
+
+uint64_t NoiseStream(uint64_t seed, size_t camera, int64_t frame) {
+  return Mix64(Mix64(seed ^ 0x6e6f697365ULL) ^ Mix64((static_cast<uint64_t>(camera) << 40) ^ static_cast<uint64_t>(frame)));
+}
+
+struct StaticHit {
+  double t = kInf;
+  const Primitive* prim = nullptr;
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+};
+
+StaticHit TraceStatic(const std::vector<Primitive>& prims, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+  StaticHit best;
+  for (const Primitive& p : prims) {
+    if (auto hit = IntersectRay(p, o, d, best.t)) {
+      best.t = hit->t;
+      best.prim = &p;
+      best.normal = hit->normal_in_world;
+    }
+  }
+  return best;
+}
+
+bool InsideGrid(const FloorGrid& g, const Eigen::Vector3d& p) {
+  return p.x() >= g.origin_x_m && p.y() >= g.origin_y_m && p.x() < g.origin_x_m + g.size_x_m() &&
+         p.y() < g.origin_y_m + g.size_y_m();
+}
+
+// Whether the floor point p is in the shadow of the object (towards the light).
+bool Shadowed(const ObjectInstance& obj, const Lighting& light, const Eigen::Vector3d& p) {
+  Eigen::Vector3d to_light;
+  double intensity = 0, dist = 0;
+  light.DirectAt(p, &to_light, &intensity, &dist);
+  // Cull: the distance from the bounding sphere's centre to the shadow ray.
+  const Eigen::Vector3d v = obj.sphere_centre_m - p;
+  const double along = v.dot(to_light);
+  if (along < -obj.sphere_radius_m || along > dist + obj.sphere_radius_m) return false;
+  if ((v - along * to_light).squaredNorm() > obj.sphere_radius_m * obj.sphere_radius_m) return false;
+  for (const Primitive& part : obj.parts) {
+    if (IntersectRay(part, p, to_light, dist)) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+Eigen::Vector3f MissRadiance(const SceneSpec& spec, const Eigen::Vector3d& d) {
+  if (!spec.room.outdoor) return Eigen::Vector3f::Zero();
+  const float up = static_cast<float>(std::clamp(d.z(), 0.0, 1.0));
+  return spec.room.sky_colour * (0.85f + 0.3f * up);
+}
+
+Image<uint8_t> ChangeMask(const Image<uint16_t>& ids) {
+  Image<uint8_t> mask(ids.width(), ids.height());
+  for (int y = 0; y < ids.height(); ++y) {
+    const uint16_t* in = ids.row(y);
+    uint8_t* out = mask.row(y);
+    for (int x = 0; x < ids.width(); ++x) out[x] = in[x] != 0 ? 255 : 0;
+  }
+  return mask;
+}
+
+CameraRenderer::CameraRenderer(const Scene& scene, size_t camera_index, Context& ctx)
+    : scene_(scene), camera_index_(camera_index) {
+  OCCMAP_CHECK(camera_index < scene.num_cameras(), "camera index out of range");
+  const CameraModel& cam = scene_.camera(camera_index);
+  size_ = cam.image_size();
+  origin_ = *cam.CenterInWorld();
+  const size_t n = static_cast<size_t>(size_.width) * static_cast<size_t>(size_.height);
+  dir_.assign(n, Eigen::Vector3d::Zero());
+  has_ray_.assign(n, 0);
+  static_t_.assign(n, kInf);
+  static_surface_.assign(n, 0);
+  bg_.assign(n, Eigen::Vector3f::Zero());
+  const SceneSpec& spec = scene_.spec();
+  const bool shadows = spec.photometry.shadows;
+  if (shadows) direct_.assign(n, Eigen::Vector3f::Zero());
+  floor_mask_ = Image<uint8_t>(size_.width, size_.height, 0);
+  const std::vector<Primitive>& statics = scene_.static_primitives();
+  ParallelFor(ctx, 0, size_.height, [&](int64_t y0, int64_t y1, int) {
+    for (int y = static_cast<int>(y0); y < y1; ++y) {
+      for (int x = 0; x < size_.width; ++x) {
+        const size_t i = Index(x, y);
+        const std::optional<Ray> ray = cam.BackProject(Eigen::Vector2d(x, y));
+        if (!ray) continue;
+        has_ray_[i] = 1;
+        dir_[i] = ray->direction_in_world;
+        const StaticHit hit = TraceStatic(statics, origin_, dir_[i]);
+        if (hit.prim == nullptr) {
+          bg_[i] = MissRadiance(spec, dir_[i]);
+          continue;
+        }
+        static_t_[i] = hit.t;
+        const Eigen::Vector3d p = origin_ + hit.t * dir_[i];
+        const bool floor = hit.prim->surface == Surface::kFloor;
+        static_surface_[i] = floor ? 1 : 2;
+        Eigen::Vector3f direct;
+        bg_[i] = Shade(hit.prim->material, p, hit.normal, spec.photometry.lighting, &direct);
+        if (shadows) direct_[i] = direct;
+        if (floor && InsideGrid(scene_.grid(), p)) floor_mask_(x, y) = 255;
+      }
+    }
+  });
+  // Tile cones: the mean direction and the largest angle to it.
+  tiles_x_ = (size_.width + kTilePx - 1) / kTilePx;
+  tiles_y_ = (size_.height + kTilePx - 1) / kTilePx;
+  tiles_.assign(static_cast<size_t>(tiles_x_) * static_cast<size_t>(tiles_y_), TileCone{});
+  for (int ty = 0; ty < tiles_y_; ++ty) {
+    for (int tx = 0; tx < tiles_x_; ++tx) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      const int x0 = tx * kTilePx, y0 = ty * kTilePx;
+      const int x1 = std::min(size_.width, x0 + kTilePx), y1 = std::min(size_.height, y0 + kTilePx);
+      for (int y = y0; y < y1; ++y) {
+        for (int x = x0; x < x1; ++x) sum += dir_[Index(x, y)];
+      }
+      TileCone& cone = tiles_[static_cast<size_t>(ty * tiles_x_ + tx)];
+      if (sum.norm() < 1e-12) continue;
+      cone.axis = sum.normalized();
+      double min_cos = 1;
+      for (int y = y0; y < y1; ++y) {
+        for (int x = x0; x < x1; ++x) {
+          if (has_ray_[Index(x, y)]) min_cos = std::min(min_cos, cone.axis.dot(dir_[Index(x, y)]));
+        }
+      }
+      cone.half_angle_rad = std::acos(std::clamp(min_cos, -1.0, 1.0)) + 1e-6;
+    }
+  }
+  exposure_phase_rad_ = 2 * std::numbers::pi * UnitFromHash(Mix64(spec.seed ^ Mix64(0xe7 + camera_index)));
+}
+
+double CameraRenderer::Gain(double time_s) const {
+  const PhotometrySpec& ph = scene_.spec().photometry;
+  if (ph.exposure_drift == 0) return 1.0;
+  return 1.0 + ph.exposure_drift * std::sin(2 * std::numbers::pi * time_s / ph.exposure_period_s + exposure_phase_rad_);
+}
+
+uint8_t CameraRenderer::Quantize(float value, float noise) const {
+  const float v = std::nearbyint(value + noise);
+  return static_cast<uint8_t>(std::clamp(v, 0.0f, 255.0f));
+}
+
+Image<Rgb8> CameraRenderer::Background(bool noise) const {
+  const PhotometrySpec& ph = scene_.spec().photometry;
+  const bool add_noise = noise && ph.background_noise && ph.noise_sigma > 0;
+  const float sigma = static_cast<float>(ph.noise_sigma);
+  const auto& table = GaussianTable();
+  const uint64_t stream = NoiseStream(scene_.spec().seed, camera_index_, -1);
+  Image<Rgb8> out(size_.width, size_.height);
+  for (int y = 0; y < size_.height; ++y) {
+    Rgb8* row = out.row(y);
+    for (int x = 0; x < size_.width; ++x) {
+      const size_t i = Index(x, y);
+      const Eigen::Vector3f v = bg_[i] * 255.0f;
+      float n[3] = {0, 0, 0};
+      if (add_noise && has_ray_[i]) {
+        const uint64_t h = Mix64(stream ^ i);
+        for (int c = 0; c < 3; ++c) n[c] = sigma * table[(h >> (16 * c)) & 0xffff];
+      }
+      row[x] = {Quantize(v[0], n[0]), Quantize(v[1], n[1]), Quantize(v[2], n[2])};
+    }
+  }
+  return out;
+}
+
+void CameraRenderer::Render(const SceneState& state, Context& ctx, RenderedView* out, bool noise) const {
+  const SceneSpec& spec = scene_.spec();
+  const PhotometrySpec& ph = spec.photometry;
+  if (out->rgb.width() != size_.width || out->rgb.height() != size_.height) out->rgb = Image<Rgb8>(size_.width, size_.height);
+  if (out->ids.width() != size_.width || out->ids.height() != size_.height) out->ids = Image<uint16_t>(size_.width, size_.height);
+  const float gain = static_cast<float>(Gain(state.time_s)) * 255.0f;
+  const bool add_noise = noise && ph.noise_sigma > 0;
+  const float sigma = static_cast<float>(ph.noise_sigma);
+  const auto& table = GaussianTable();
+  const uint64_t stream = NoiseStream(spec.seed, camera_index_, state.frame);
+  const std::vector<ObjectInstance>& objects = state.objects;
+  const bool shadows = ph.shadows && !objects.empty();
+
+  // Tile rows are dealt out in turn (task k takes rows k, k + T, ...): people stand in the lower
+  // part of most views, and contiguous chunks would leave one thread with most of the work.
+  const int num_tasks = std::max(1, std::min(ctx.num_threads(), tiles_y_));
+  ParallelFor(ctx, 0, num_tasks, [&](int64_t k0, int64_t k1, int) {
+    std::vector<const ObjectInstance*> candidates;
+    candidates.reserve(objects.size());
+    for (int64_t k = k0; k < k1; ++k)
+    for (int ty = static_cast<int>(k); ty < tiles_y_; ty += num_tasks) {
+      for (int tx = 0; tx < tiles_x_; ++tx) {
+        const TileCone& cone = tiles_[static_cast<size_t>(ty * tiles_x_ + tx)];
+        candidates.clear();
+        if (cone.half_angle_rad >= 0) {
+          for (const ObjectInstance& obj : objects) {
+            const Eigen::Vector3d v = obj.sphere_centre_m - origin_;
+            const double dist = v.norm();
+            if (dist <= obj.sphere_radius_m) {
+              candidates.push_back(&obj);
+              continue;
+            }
+            const double gamma = std::acos(std::clamp(cone.axis.dot(v) / dist, -1.0, 1.0));
+            const double beta = std::asin(std::min(1.0, obj.sphere_radius_m / dist));
+            if (gamma <= cone.half_angle_rad + beta + 1e-9) candidates.push_back(&obj);
+          }
+        }
+        const int x0 = tx * kTilePx, y0 = ty * kTilePx;
+        const int x1 = std::min(size_.width, x0 + kTilePx), y1 = std::min(size_.height, y0 + kTilePx);
+        for (int y = y0; y < y1; ++y) {
+          Rgb8* rgb_row = out->rgb.row(y);
+          uint16_t* id_row = out->ids.row(y);
+          for (int x = x0; x < x1; ++x) {
+            const size_t i = Index(x, y);
+            Eigen::Vector3f radiance = bg_[i];
+            uint16_t id = 0;
+            if (has_ray_[i] && !candidates.empty()) {
+              const Eigen::Vector3d& d = dir_[i];
+              double t_best = static_t_[i];
+              const Primitive* part_hit = nullptr;
+              Eigen::Vector3d normal;
+              for (const ObjectInstance* obj : candidates) {
+                const auto interval = RayCylinderInterval(obj->bound, origin_, d);
+                if (!interval || interval->second <= kMinHitDistanceM || interval->first >= t_best) continue;
+                for (const Primitive& part : obj->parts) {
+                  if (auto hit = IntersectRay(part, origin_, d, t_best)) {
+                    t_best = hit->t;
+                    part_hit = &part;
+                    normal = hit->normal_in_world;
+                    id = static_cast<uint16_t>(obj->id);
+                  }
+                }
+              }
+              if (part_hit != nullptr) {
+                radiance = Shade(part_hit->material, origin_ + t_best * d, normal, ph.lighting);
+              }
+            }
+            if (shadows && id == 0 && static_surface_[i] == 1) {
+              const Eigen::Vector3d p = origin_ + static_t_[i] * dir_[i];
+              for (const ObjectInstance& obj : objects) {
+                if (Shadowed(obj, ph.lighting, p)) {
+                  radiance -= direct_[i];
+                  break;
+                }
+              }
+            }
+            const Eigen::Vector3f v = radiance * gain;
+            float n[3] = {0, 0, 0};
+            if (add_noise && has_ray_[i]) {
+              const uint64_t h = Mix64(stream ^ i);
+              for (int c = 0; c < 3; ++c) n[c] = sigma * table[(h >> (16 * c)) & 0xffff];
+            }
+            rgb_row[x] = {Quantize(v[0], n[0]), Quantize(v[1], n[1]), Quantize(v[2], n[2])};
+            id_row[x] = id;
+          }
+        }
+      }
+    }
+  });
+}
+
+PixelTrace TracePixelReference(const Scene& scene, size_t camera_index, const SceneState& state,
+                               const Eigen::Vector2d& pixel) {
+  PixelTrace out;
+  const std::optional<Ray> ray = scene.camera(camera_index).BackProject(pixel);
+  if (!ray) return out;
+  out.has_ray = true;
+  const Eigen::Vector3d& o = ray->origin_in_world;
+  const Eigen::Vector3d& d = ray->direction_in_world;
+  const StaticHit s = TraceStatic(scene.static_primitives(), o, d);
+  double t_best = s.t;
+  const Primitive* best = s.prim;
+  Eigen::Vector3d normal = s.normal;
+  for (const ObjectInstance& obj : state.objects) {
+    for (const Primitive& part : obj.parts) {
+      if (auto hit = IntersectRay(part, o, d, t_best)) {
+        t_best = hit->t;
+        best = &part;
+        normal = hit->normal_in_world;
+        out.id = static_cast<uint16_t>(obj.id);
+      }
+    }
+  }
+  if (best == nullptr) {
+    out.radiance = MissRadiance(scene.spec(), d);
+    return out;
+  }
+  out.hit_anything = true;
+  out.t = t_best;
+  out.surface = best->surface;
+  out.radiance = Shade(best->material, o + t_best * d, normal, scene.spec().photometry.lighting);
+  return out;
+}
+
+}  // namespace occmap::sim

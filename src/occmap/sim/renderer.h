@@ -1,0 +1,109 @@
+// CameraRenderer: ray casting of a Scene through one of its cameras' own models.
+//
+// Every pixel's ray is CameraModel::BackProject(pixel centre) (so lens distortion is real, and
+// a pixel with no ray renders black and is never floor). At construction the static set is
+// cast once: per pixel the ray, the distance to the first static surface, its radiance (and the
+// direct-light part of it, for cast shadows), and the floor mask. Per frame only the moving
+// objects are cast: the image is cut into 16 x 16 tiles, each with a cone containing its rays;
+// an object is tried in a tile only when its bounding sphere meets the tile's cone, and in a
+// pixel only when the ray meets its bounding cylinder before the static surface (depth test).
+//
+// Output per frame: RGB (radiance x exposure x 255 + Gaussian noise, rounded and clamped) and
+// the id buffer: 0 where the pixel sees the static scene, else the id of the moving object it
+// sees. The perfect change mask of a camera is ids != 0. Cast shadows (option) darken floor
+// pixels but do not change ids.
+//
+// Radiance is shading (primitives.h Shade) of the albedo, 0..1 before exposure. Noise: one
+// 64-bit hash of (seed, camera, frame, pixel) gives three Gaussian samples (an inverse-CDF table
+// of 65536 entries): identical on any number of threads. Exposure drift: gain
+// 1 + a sin(2 pi t / period + phase_camera). Backgrounds (empty scene) have gain 1 and, when
+// the scene asks for it, noise from their own stream (frame -1).
+//
+// TracePixelReference is the plain loop (one ray, every primitive, no cache or culling): the
+// oracle of the fast path in tests.
+//
+//   sim::CameraRenderer renderer(scene, /*camera_index=*/0, ctx);
+//   sim::RenderedView view;
+//   renderer.Render(scene.StateAt(12), ctx, &view);   // view.rgb, view.ids
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "occmap/sim/scene.h"
+#include "occmap/util/image.h"
+#include "occmap/util/thread_pool.h"
+
+namespace occmap::sim {
+
+struct RenderedView {
+  Image<Rgb8> rgb;
+  Image<uint16_t> ids;  // 0 = static scene, else the moving object's id
+};
+
+// The change mask of a view: 255 where ids != 0, else 0.
+Image<uint8_t> ChangeMask(const Image<uint16_t>& ids);
+
+class CameraRenderer {
+ public:
+  static constexpr int kTilePx = 16;
+
+  // Casts the static scene through camera `camera_index` (rows in parallel on ctx).
+  CameraRenderer(const Scene& scene, size_t camera_index, Context& ctx);
+
+  ImageSize size() const { return size_; }
+  // 255 where the pixel's ray first meets the floor inside the monitored area (the grid),
+  // 0 where it meets walls, furniture, static occluders, floor outside the area, or nothing.
+  const Image<uint8_t>& floor_mask() const { return floor_mask_; }
+  // The empty scene (no moving objects), exposure gain 1; noise from the background stream
+  // when the scene's photometry.background_noise is set and `noise` is true.
+  Image<Rgb8> Background(bool noise = true) const;
+  // Renders the moving objects of `state` over the static scene.
+  void Render(const SceneState& state, Context& ctx, RenderedView* out, bool noise = true) const;
+
+  // Pre-noise radiance of the static scene at a pixel (tests).
+  Eigen::Vector3f StaticRadiance(int x, int y) const { return bg_[Index(x, y)]; }
+
+ private:
+  size_t Index(int x, int y) const { return static_cast<size_t>(y) * static_cast<size_t>(size_.width) + static_cast<size_t>(x); }
+  double Gain(double time_s) const;
+  uint8_t Quantize(float value, float noise) const;
+
+  Scene scene_;
+  size_t camera_index_ = 0;
+  ImageSize size_;
+  Eigen::Vector3d origin_;
+  std::vector<Eigen::Vector3d> dir_;  // unit; zero when the pixel has no ray
+  std::vector<uint8_t> has_ray_;
+  std::vector<double> static_t_;      // +inf: nothing
+  std::vector<uint8_t> static_surface_;  // 0 nothing (sky), 1 floor, 2 other static
+  std::vector<Eigen::Vector3f> bg_;      // static radiance
+  std::vector<Eigen::Vector3f> direct_;  // its direct-light part (only with shadows)
+  Image<uint8_t> floor_mask_;
+  struct TileCone {
+    Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+    double half_angle_rad = -1;  // < 0: no rays in the tile
+  };
+  int tiles_x_ = 0, tiles_y_ = 0;
+  std::vector<TileCone> tiles_;
+  double exposure_phase_rad_ = 0;
+};
+
+struct PixelTrace {
+  bool has_ray = false;
+  uint16_t id = 0;                 // moving object seen, 0 = static
+  Surface surface = Surface::kStatic;  // what the ray meets first (kStatic also for nothing)
+  bool hit_anything = false;
+  Eigen::Vector3f radiance = Eigen::Vector3f::Zero();  // without shadows, exposure or noise
+  double t = 0;
+};
+
+// The reference: BackProject, then every static and moving primitive of the state.
+PixelTrace TracePixelReference(const Scene& scene, size_t camera_index, const SceneState& state,
+                               const Eigen::Vector2d& pixel);
+
+// Radiance seen by a ray that meets nothing (sky outdoors, black indoors).
+Eigen::Vector3f MissRadiance(const SceneSpec& spec, const Eigen::Vector3d& direction);
+
+}  // namespace occmap::sim

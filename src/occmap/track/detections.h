@@ -1,0 +1,74 @@
+// Detections: what the multi-target tracker measures, one per object, from the blobs of an
+// occupancy map. A blob holding several people (they walk close, or cross) is split.
+//
+// How a blob is split, and why this way:
+//  1. Its cells are found again in the map (BlobCells) and their Euclidean distance
+//     transform is computed: the distance of each cell to the nearest cell outside the blob.
+//  2. People are the significant peaks of that distance: a secondary peak counts only if it
+//     rises at least split_min_neck_m (and one cell size) above the saddle joining it to a
+//     higher peak (its persistence: how deep the "neck" between two bodies is) and stands at
+//     least split_min_peak_radius_m from the edge. Peaks are found exactly, by merging cells
+//     in decreasing order of distance with a union-find.
+//  3. The number of detections is capped by the area: a blob holds at most
+//     n = floor(area / person_area + 1 - split_area_margin) people (and max_people_per_blob).
+//  4. The cells are clustered by k-means seeded at the kept peaks (Lloyd iterations until
+//     no cell changes cluster); each cluster is a detection at its centroid.
+//  5. Track-guided detections: when more predicted track positions (within a person's radius
+//     of the blob's cells) than peaks fall on a blob that may hold them (step 3), the
+//     detections are those predictions shifted together so that their mean is the blob's
+//     centroid: the blob measures where the group is, the predictions how its members stand
+//     within it (cutting the blob between predictions that nearly coincide would pick an
+//     arbitrary direction and bend the tracks). Each gets an equal share of the blob's area,
+//     no spread, guided = true, and extra measurement noise in the tracker.
+// A large object without a neck (a cart, a person with a long shadow) has one peak and stays
+// one detection, which splitting by area alone (k = round(area / person area)) would cut into
+// several; two people side by side or crossing have a neck as long as their footprints
+// overlap by less than about half a radius; closer than that, the tracks' predictions carry
+// them (step 5). Parts smaller than min_detection_area_m2 are dropped.
+//
+//   std::vector<Blob> blobs = FindBlobs(map);
+//   std::vector<Detection> detections = DetectionsFromBlobs(blobs, map, options);
+//   for (const Detection& d : detections) ... d.x_m, d.y_m, d.spread_m2 ...
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "occmap/fusion/blobs.h"
+#include "occmap/fusion/occupancy_map.h"
+#include "occmap/track/tracker_options.h"
+
+namespace occmap {
+
+struct Detection {
+  double x_m = 0, y_m = 0;  // centroid of its cells' centres
+  double area_m2 = 0;
+  int64_t cells = 0;
+  Eigen::Matrix2d spread_m2 = Eigen::Matrix2d::Zero();  // covariance of its cells' centres (0 if guided)
+  int blob_index = -1;  // the blob it came from
+  int parts = 1;        // how many detections that blob gave
+  bool guided = false;  // placed by the tracks' predictions (step 5), not by the blob's shape
+};
+
+// The cells (map indices, increasing) of a blob FindBlobs found in `map`: the 8-connected
+// occupied component in its bounding box with its cell count and centroid. The blob must
+// come from this map (checked).
+std::vector<int64_t> BlobCells(const OccupancyMap& map, const Blob& blob);
+
+// The most people a blob of this area may hold (step 3 above), >= 1.
+int MaxPeopleInArea(double area_m2, const TrackerOptions& options);
+
+// The peaks of the distance transform of a set of cells (step 2), strongest first, as
+// positions in metres. `cells` are map indices of one connected blob.
+std::vector<Eigen::Vector2d> DistancePeaks(const FloorGrid& grid, const std::vector<int64_t>& cells,
+                                           const TrackerOptions& options);
+
+// Detections of all blobs, in blob order. `predicted_positions_m` are the predictions of the
+// tracks that may guide a split, in order of priority (the first ones win when a blob can
+// hold fewer).
+std::vector<Detection> DetectionsFromBlobs(const std::vector<Blob>& blobs, const OccupancyMap& map,
+                                           const TrackerOptions& options,
+                                           const std::vector<Eigen::Vector2d>& predicted_positions_m = {});
+
+}  // namespace occmap

@@ -1,0 +1,166 @@
+#include "occmap/track/detections.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include "occmap/track/test_floor.h"
+
+namespace occmap {
+namespace {
+
+using testing::FloorWithDiscs;
+using testing::TestGrid;
+
+// Detections sorted by x, then y, for stable comparisons.
+std::vector<Detection> SortedByX(std::vector<Detection> d) {
+  std::sort(d.begin(), d.end(), [](const Detection& a, const Detection& b) {
+    return a.x_m != b.x_m ? a.x_m < b.x_m : a.y_m < b.y_m;
+  });
+  return d;
+}
+
+TEST(MaxPeopleInArea, NeedsTheMarginAbovePersonAreasForEachExtraPerson) {
+  TrackerOptions options;  // person area = pi 0.25^2 = 0.19635 m^2, margin 0.2
+  const double a = options.person_area_m2();
+  EXPECT_EQ(MaxPeopleInArea(0.5 * a, options), 1);
+  EXPECT_EQ(MaxPeopleInArea(1.19 * a, options), 1);
+  EXPECT_EQ(MaxPeopleInArea(1.21 * a, options), 2);
+  EXPECT_EQ(MaxPeopleInArea(2.21 * a, options), 3);
+  options.max_people_per_blob = 2;
+  EXPECT_EQ(MaxPeopleInArea(10 * a, options), 2);
+}
+
+TEST(BlobCells, FindsTheBlobAmongOtherBlobsReachingIntoItsBox) {
+  // An L-shaped blob whose bounding box also holds a separate square.
+  OccupancyMap map = testing::FreeFloor(TestGrid());
+  testing::MarkRectangle(map, 1.0, 1.0, 1.04, 2.0);  // vertical bar, 1 cell wide
+  testing::MarkRectangle(map, 1.0, 1.0, 2.0, 1.04);  // horizontal bar
+  testing::MarkRectangle(map, 1.5, 1.5, 1.7, 1.7);   // a square inside the L's box
+  const std::vector<Blob> blobs = FindBlobs(map);
+  ASSERT_EQ(blobs.size(), 2u);
+  const Blob& l_blob = blobs[0].cells > blobs[1].cells ? blobs[0] : blobs[1];
+  const std::vector<int64_t> cells = BlobCells(map, l_blob);
+  EXPECT_EQ(static_cast<int64_t>(cells.size()), l_blob.cells);
+  for (int64_t c : cells) {
+    const Eigen::Vector2d p = map.grid().CellCenter(c);
+    EXPECT_TRUE(p.x() < 1.05 || p.y() < 1.05) << p.transpose();
+  }
+}
+
+TEST(DetectionsFromBlobs, OnePersonIsOneDetectionAtTheBlobCentroid) {
+  const OccupancyMap map = FloorWithDiscs(TestGrid(), {{2.0, 3.0}});
+  const std::vector<Blob> blobs = FindBlobs(map);
+  const std::vector<Detection> d = DetectionsFromBlobs(blobs, map, TrackerOptions{});
+  ASSERT_EQ(d.size(), 1u);
+  EXPECT_NEAR(d[0].x_m, blobs[0].x_m, 1e-9);
+  EXPECT_NEAR(d[0].y_m, blobs[0].y_m, 1e-9);
+  EXPECT_NEAR(d[0].area_m2, blobs[0].area_m2, 1e-12);
+  EXPECT_EQ(d[0].parts, 1);
+  EXPECT_FALSE(d[0].guided);
+  // A disc's spread is r^2 / 4 per axis (0.0156 m^2), up to the cells.
+  EXPECT_NEAR(d[0].spread_m2(0, 0), 0.25 * 0.25 / 4, 0.002);
+}
+
+TEST(DetectionsFromBlobs, MergedBlobOfTwoPeopleStanding0_6mApartIsSplitIntoTwoDetectionsNearThem) {
+  // Footprints of radius 0.32 m (legs apart, shadows) 0.6 m apart overlap into one blob.
+  for (const Eigen::Vector2d& offset : {Eigen::Vector2d(0.6, 0.0), Eigen::Vector2d(0.0, 0.6),
+                                        Eigen::Vector2d(0.6 / std::sqrt(2.0), 0.6 / std::sqrt(2.0))}) {
+    const Eigen::Vector2d a(3.0, 2.5), b = a + offset;
+    const OccupancyMap map = FloorWithDiscs(TestGrid(), {a, b}, 0.32);
+    const std::vector<Blob> blobs = FindBlobs(map);
+    ASSERT_EQ(blobs.size(), 1u) << "the two footprints should form one blob";
+    const std::vector<Detection> d = DetectionsFromBlobs(blobs, map, TrackerOptions{});
+    ASSERT_EQ(d.size(), 2u) << offset.transpose();
+    const Eigen::Vector2d p0(d[0].x_m, d[0].y_m), p1(d[1].x_m, d[1].y_m);
+    const double error = std::min(std::max((p0 - a).norm(), (p1 - b).norm()), std::max((p0 - b).norm(), (p1 - a).norm()));
+    EXPECT_LT(error, 0.05) << offset.transpose() << ": " << p0.transpose() << " / " << p1.transpose();
+    EXPECT_EQ(d[0].parts, 2);
+    EXPECT_FALSE(d[0].guided);
+  }
+}
+
+TEST(DetectionsFromBlobs, TwoPeopleHoldingHandsAreSplitAtTheirArms) {
+  // Discs of 0.25 m, 0.6 m apart, joined by a 10 cm wide bridge.
+  OccupancyMap map = FloorWithDiscs(TestGrid(), {{3.0, 2.5}, {3.6, 2.5}});
+  testing::MarkRectangle(map, 3.0, 2.45, 3.6, 2.55);
+  const std::vector<Blob> blobs = FindBlobs(map);
+  ASSERT_EQ(blobs.size(), 1u);
+  const std::vector<Detection> d = SortedByX(DetectionsFromBlobs(blobs, map, TrackerOptions{}));
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_NEAR(d[0].x_m, 3.0, 0.05);
+  EXPECT_NEAR(d[1].x_m, 3.6, 0.05);
+  EXPECT_NEAR(d[0].y_m, 2.5, 0.02);
+  EXPECT_NEAR(d[1].y_m, 2.5, 0.02);
+}
+
+TEST(DetectionsFromBlobs, ThreePeopleInARowGiveThreeDetections) {
+  const OccupancyMap map = FloorWithDiscs(TestGrid(), {{2.0, 3.0}, {2.6, 3.0}, {3.2, 3.0}}, 0.32);
+  const std::vector<Blob> blobs = FindBlobs(map);
+  ASSERT_EQ(blobs.size(), 1u);
+  const std::vector<Detection> d = SortedByX(DetectionsFromBlobs(blobs, map, TrackerOptions{}));
+  ASSERT_EQ(d.size(), 3u);
+  EXPECT_NEAR(d[0].x_m, 2.0, 0.06);
+  EXPECT_NEAR(d[1].x_m, 2.6, 0.02);
+  EXPECT_NEAR(d[2].x_m, 3.2, 0.06);
+}
+
+TEST(DetectionsFromBlobs, LargeObjectWithoutANeckStaysOneDetection) {
+  // A 1 x 0.5 m cart: 2.5 person areas, which splitting by area alone would cut in two or three.
+  OccupancyMap map = testing::FreeFloor(TestGrid());
+  testing::MarkRectangle(map, 2.0, 2.0, 3.0, 2.5);
+  const std::vector<Blob> blobs = FindBlobs(map);
+  ASSERT_EQ(blobs.size(), 1u);
+  TrackerOptions options;
+  ASSERT_GE(MaxPeopleInArea(blobs[0].area_m2, options), 2);
+  const std::vector<Detection> d = DetectionsFromBlobs(blobs, map, options);
+  ASSERT_EQ(d.size(), 1u);
+  EXPECT_NEAR(d[0].x_m, 2.5, 0.03);
+  EXPECT_NEAR(d[0].y_m, 2.25, 0.03);
+}
+
+TEST(DetectionsFromBlobs, PeopleOverlappingWithoutANeckAreTheTracksPredictionsMovedOntoTheBlob) {
+  // 0.2 m apart: one peak, one blob of about 1.5 person areas, centroid (3.1, 3.0).
+  const Eigen::Vector2d a(3.0, 3.0), b(3.2, 3.0);
+  const OccupancyMap map = FloorWithDiscs(TestGrid(), {a, b});
+  const std::vector<Blob> blobs = FindBlobs(map);
+  ASSERT_EQ(blobs.size(), 1u);
+  const TrackerOptions options;
+  EXPECT_EQ(DetectionsFromBlobs(blobs, map, options).size(), 1u) << "no neck: one detection without tracks";
+
+  // Predictions 0.1 m too far up and right: the detections keep their spacing, on the blob.
+  const Eigen::Vector2d off(0.1, 0.1);
+  const std::vector<Detection> d = SortedByX(DetectionsFromBlobs(blobs, map, options, {b + off, a + off}));
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_TRUE(d[0].guided && d[1].guided);
+  EXPECT_EQ(d[0].parts, 2);
+  EXPECT_NEAR(d[0].x_m, a.x(), 1e-9);
+  EXPECT_NEAR(d[0].y_m, a.y(), 1e-9);
+  EXPECT_NEAR(d[1].x_m, b.x(), 1e-9);
+  EXPECT_NEAR(d[1].y_m, b.y(), 1e-9);
+  EXPECT_NEAR(d[0].area_m2 + d[1].area_m2, blobs[0].area_m2, 1e-12);
+
+  // A prediction far away does not count, nor does a blob too small to hold two.
+  EXPECT_EQ(DetectionsFromBlobs(blobs, map, options, {a, Eigen::Vector2d(6.0, 3.0)}).size(), 1u);
+  const OccupancyMap one = FloorWithDiscs(TestGrid(), {a});
+  EXPECT_EQ(DetectionsFromBlobs(FindBlobs(one), one, options, {a, a + Eigen::Vector2d(0.1, 0)}).size(), 1u);
+  // Peaks win over predictions when there are as many: two people with a neck.
+  const OccupancyMap apart = FloorWithDiscs(TestGrid(), {a, a + Eigen::Vector2d(0.6, 0)}, 0.32);
+  const std::vector<Detection> split =
+      DetectionsFromBlobs(FindBlobs(apart), apart, options, {a + off, a + Eigen::Vector2d(0.6, 0) + off});
+  ASSERT_EQ(split.size(), 2u);
+  EXPECT_FALSE(split[0].guided);
+}
+
+TEST(DetectionsFromBlobs, BlobsSmallerThanTheMinimumAreaAreIgnored) {
+  OccupancyMap map = FloorWithDiscs(TestGrid(), {{2.0, 2.0}});
+  map.states()[static_cast<size_t>(map.grid().CellAt(5.0, 5.0))] = CellState::kOccupied;  // one speck
+  const std::vector<Blob> blobs = FindBlobs(map);
+  ASSERT_EQ(blobs.size(), 2u);
+  const std::vector<Detection> d = DetectionsFromBlobs(blobs, map, TrackerOptions{});
+  ASSERT_EQ(d.size(), 1u);
+  EXPECT_NEAR(d[0].x_m, 2.0, 0.01);
+}
+
+}  // namespace
+}  // namespace occmap

@@ -1,0 +1,26 @@
+// Track: one tracked object as both trackers report it per frame, in world metres on the
+// floor plane (the FloorGrid's frame) and metres per second.
+//
+//   OCCMAP_ASSIGN_OR_RETURN(std::vector<Track> tracks, tracker.Update(blobs, map, time_s));
+//   for (const Track& t : tracks) draw(t.id, t.x_m, t.y_m);
+//   // ids are > 0, unique over a tracker's life, never reused
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace occmap {
+
+struct Track {
+  int64_t id = 0;           // > 0; given once (at confirmation) and never reused
+  double x_m = 0, y_m = 0;  // position: the filtered estimate, or the prediction when coasting
+  double vx_mps = 0, vy_mps = 0;
+  std::string object_class;  // a TrackerOptions::classes name; "person" without classes,
+                             // "object" from the WindowTracker
+  bool coasting = false;     // no detection (no occupied cell for the window tracker) this frame
+  double time_since_update_s = 0;  // since the last frame with a detection
+  int64_t hits = 0;                // frames with a detection
+  double area_m2 = 0;              // smoothed footprint area (the window tracker: last window's)
+};
+
+}  // namespace occmap

@@ -1,0 +1,176 @@
+// TrackerOptions: the settings of the trackers, the zones and the track outputs: the site
+// file's `tracking:` section. Lengths in metres, times in seconds, areas in square metres;
+// every default suits people walking on a floor mapped with cells of 2-10 cm.
+//
+// Validate() checks every field (ranges, confirm_hits <= confirm_frames, class areas in
+// increasing order, zone polygons with >= 3 vertices and a non-zero area, unique names).
+// ParseTrackerOptions reads the YAML section over the defaults (absent keys keep them); an
+// unknown key, a wrong type or a value out of range is an error naming file, line and field:
+//   site.yaml:31: tracking.max_speed_mps: expected a number > 0, found -1
+//
+//   TrackerOptions options;
+//   if (auto f = root.Find("tracking")) OCCMAP_RETURN_IF_ERROR(ParseTrackerOptions(*f, options));
+//   OCCMAP_ASSIGN_OR_RETURN(MultiTargetTracker tracker, MultiTargetTracker::Create(options));
+//
+// The section, with every key and its default (docs for each are on the fields below):
+//   tracking:
+//     algorithm: multi_target          # or: window (the paper's tracker, a baseline)
+//     max_speed_mps: 2.5
+//     person_diameter_m: 0.5
+//     min_detection_area_m2: 0.03
+//     max_people_per_blob: 8
+//     split_area_margin: 0.2
+//     split_min_neck_m: 0.05
+//     split_min_peak_radius_m: 0.08
+//     acceleration_psd_m2ps3: 1.0
+//     measurement_sigma_m: 0.05
+//     spread_noise_weight: 1.0
+//     guided_split_sigma_m: 0.15
+//     initial_speed_sigma_mps: 1.0
+//     gate_chi2: 13.8
+//     confirm_hits: 3
+//     confirm_frames: 5
+//     max_coast_s: 1.0
+//     birth_min_separation_m: 0.4
+//     classes: []                      # e.g. [{name: robot, max_area_m2: 0.14},
+//                                      #       {name: person, max_area_m2: 0.45}, {name: cart}]
+//     class_hysteresis: 0.15
+//     class_area_smoothing: 0.3
+//     window_object_radius_m: 0.25
+//     window_lost_timeout_s: 1.0
+//     window_min_new_area_m2: 0.05
+//     zones: []                        # e.g. [{name: door, polygon: [[0,0],[1,0],[1,1]], dwell_s: 5}]
+//     zone_count_every_frame: false
+//     trail_length: 50
+#pragma once
+
+#include <Eigen/Core>
+#include <limits>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "occmap/util/status.h"
+#include "occmap/util/yaml_util.h"
+
+namespace occmap {
+
+enum class TrackerAlgorithm {
+  kMultiTarget,  // MultiTargetTracker: split blobs, Kalman filters, gated Hungarian assignment
+  kWindow,       // WindowTracker: the paper's centroid-in-a-window tracker, kept as a baseline
+};
+std::string_view ToString(TrackerAlgorithm algorithm);  // "multi_target", "window"
+
+// A class of objects told apart by the area of their footprint in the map.
+struct ObjectClassOptions {
+  std::string name;
+  // Footprints whose smoothed area is at most this are of this class (and above the previous
+  // class's max_area_m2). Classes are listed in increasing order; only the last may be
+  // unbounded (infinity, the default; `max_area_m2` left out in YAML).
+  double max_area_m2 = std::numeric_limits<double>::infinity();
+};
+
+// A named region of the floor whose visitors are counted (ZoneMonitor).
+struct ZoneOptions {
+  std::string name;
+  // Vertices in world metres, either orientation, >= 3, non-zero area; a point is inside by
+  // the even-odd rule (PointInPolygon in zones.h).
+  std::vector<Eigen::Vector2d> polygon_m;
+  // A "dwell" event once per visit when a track has been inside this long; none: no events.
+  std::optional<double> dwell_s;
+};
+
+struct TrackerOptions {
+  TrackerAlgorithm algorithm = TrackerAlgorithm::kMultiTarget;
+
+  // --- What is tracked.
+  // The fastest an object is expected to move: the paper's window size, and the distance
+  // gate of the multi-target tracker (an object cannot be farther than max_speed_mps times
+  // the time since it was last seen, plus a person's radius, from where it was predicted).
+  double max_speed_mps = 2.5;
+  // Expected diameter of one person's footprint in the occupancy map (a disc): the unit for
+  // splitting blobs, the birth separation, and the footprint spread counted as no noise.
+  double person_diameter_m = 0.5;
+
+  // --- Detections from blobs (DetectionsFromBlobs in detections.h).
+  // Blobs, and parts of split blobs, smaller than this are ignored as noise.
+  double min_detection_area_m2 = 0.03;
+  // The most detections one blob may give.
+  int max_people_per_blob = 8;
+  // A blob may hold n people only if its area is at least (n - 1 + split_area_margin)
+  // person areas (person area = pi person_diameter_m^2 / 4).
+  double split_area_margin = 0.2;
+  // Distance-transform peaks: a secondary peak counts as another person only if it stands at
+  // least this much above the saddle joining it to a higher peak (the "neck" between two
+  // people; the tracker uses at least one cell size) ...
+  double split_min_neck_m = 0.05;
+  // ... and is at least this far from the blob's edge.
+  double split_min_peak_radius_m = 0.08;
+
+  // --- Constant-velocity Kalman filter (state x, y, vx, vy in m and m/s).
+  // Spectral density of the white-noise acceleration (m^2/s^3): the process noise over dt is
+  // q [dt^3/3, dt^2/2; dt^2/2, dt] per axis.
+  double acceleration_psd_m2ps3 = 1.0;
+  // Noise of a detection's position; the quantisation variance cell_size^2 / 12 is added.
+  double measurement_sigma_m = 0.05;
+  // The part of a detection's cell spread (covariance) beyond a single person's disc,
+  // times this weight, is added to its measurement covariance (elongated or ragged blobs are
+  // less precise).
+  double spread_noise_weight = 1.0;
+  // Extra noise of a detection cut from a blob along the tracks' predictions (no shape
+  // evidence for the cut).
+  double guided_split_sigma_m = 0.15;
+  // Velocity uncertainty of a new track.
+  double initial_speed_sigma_mps = 1.0;
+  // Gate on the squared Mahalanobis distance of a detection from a track's prediction
+  // (chi-square with 2 degrees of freedom: 13.8 keeps 99.9% of true detections).
+  double gate_chi2 = 13.8;
+
+  // --- Track life.
+  // A new track is confirmed (and given its id) once it has had confirm_hits detections
+  // within its first confirm_frames frames; a tentative track that can no longer reach that
+  // is dropped.
+  int confirm_hits = 3;
+  int confirm_frames = 5;
+  // A confirmed track without detections coasts on its prediction and ends once this long
+  // has passed since its last detection (or at once when the prediction leaves the grid).
+  double max_coast_s = 1.0;
+  // No track is born from a detection this close to a confirmed track.
+  double birth_min_separation_m = 0.4;
+
+  // --- Classes by footprint area (none: every track is a "person").
+  std::vector<ObjectClassOptions> classes;
+  // A track changes class only when its smoothed area leaves its class's range by this
+  // fraction of the bound it crosses.
+  double class_hysteresis = 0.15;
+  // Weight of a new detection in the track's smoothed area (exponential smoothing).
+  double class_area_smoothing = 0.3;
+
+  // --- The paper's window tracker (WindowTracker).
+  // The window's half-size is max_speed_mps * dt + window_object_radius_m.
+  double window_object_radius_m = 0.25;
+  // An object whose window has held no occupied cell for longer than this is lost.
+  double window_lost_timeout_s = 1.0;
+  // Blobs smaller than this never start an object.
+  double window_min_new_area_m2 = 0.05;
+
+  // --- Zones (ZoneMonitor).
+  std::vector<ZoneOptions> zones;
+  // true: a "count" event for every zone every frame; false: only when its count changes.
+  bool zone_count_every_frame = false;
+
+  // --- Outputs.
+  // Positions kept per track for drawing its trail (TrailHistory).
+  int trail_length = 50;
+
+  double person_radius_m() const { return 0.5 * person_diameter_m; }
+  double person_area_m2() const;
+  Status Validate() const;
+};
+
+// Reads a `tracking:` section over `options` (keys left out keep their values). A null
+// field (an empty section) changes nothing. Errors are located: file, line and field path.
+Status ParseTrackerOptions(const YamlField& field, TrackerOptions& options);
+
+}  // namespace occmap
