@@ -13,7 +13,12 @@
 #include <unistd.h>
 
 #include "occmap/lut/visibility_image.h"
+#include "occmap/eval/evaluate_run.h"
+#include "occmap/pipeline/demo.h"
 #include "occmap/pipeline/run.h"
+#include "occmap/sim/builtin_scenes.h"
+#include "occmap/sim/dataset_writer.h"
+#include "occmap/sim/scene_yaml.h"
 #include "occmap/site/demo_scene.h"
 #include "occmap/site/site.h"
 #include "occmap/site/site_lut.h"
@@ -161,23 +166,12 @@ Status RunCheck(const CommonOptions& common, const std::string& site_path) {
   return Status::Ok();
 }
 
-Status RunDemo(const CommonOptions& common, const std::string& out_dir) {
-  const Site site = MakeDemoLabSite();
-  Context ctx(common.threads);
-  std::fputs("occmap demo: the paper's lab (9 x 6.5 m, four 640x480 cameras at 2.7 m), built in code\n", stdout);
-  OCCMAP_RETURN_IF_ERROR(WriteLutReport(site, out_dir, fs::path(), ctx, false));
-  std::fputs(fmt::format("look at {} for the floor seen by each camera count\n", (fs::path(out_dir) / "visibility.png").string())
-                 .c_str(),
-             stdout);
-  return Status::Ok();
-}
-
 // A progress bar on a terminal (stderr), nothing when piped.
 class ProgressBar {
  public:
   ProgressBar() : enabled_(::isatty(STDERR_FILENO) == 1) {}
   ~ProgressBar() { Finish(); }
-  void Update(const RunProgress& p) {
+  void Update(const RunProgress& p, const std::string& label = "") {
     if (!enabled_) return;
     const double fps = p.elapsed_s > 0 ? static_cast<double>(p.frames_done) / p.elapsed_s : 0;
     std::string line;
@@ -185,10 +179,12 @@ class ProgressBar {
       const double f = std::min(1.0, static_cast<double>(p.frames_done) / static_cast<double>(*p.frames_total));
       const int width = 30, filled = static_cast<int>(f * width);
       const double eta = fps > 0 ? static_cast<double>(*p.frames_total - p.frames_done) / fps : 0;
-      line = fmt::format("\r[{}{}] {:>3.0f}% {}/{} frames  {:.1f} frames/s  eta {:.0f} s ", std::string(filled, '#'),
-                         std::string(width - filled, '.'), 100 * f, p.frames_done, *p.frames_total, fps, eta);
+      line = fmt::format("\r{}[{}{}] {:>3.0f}% {}/{}", label.empty() ? "" : label + " ", std::string(filled, '#'),
+                         std::string(width - filled, '.'), 100 * f, p.frames_done, *p.frames_total);
+      if (p.elapsed_s > 0) line += fmt::format("  {:.1f} frames/s  eta {:.0f} s ", fps, eta);
     } else {
-      line = fmt::format("\r{} frames  {:.1f} frames/s ", p.frames_done, fps);
+      line = fmt::format("\r{}{} done", label.empty() ? "" : label + " ", p.frames_done);
+      if (p.elapsed_s > 0) line += fmt::format("  {:.1f} frames/s ", fps);
     }
     std::fputs(line.c_str(), stderr);
     shown_ = true;
@@ -211,12 +207,17 @@ struct RunCommand {
   std::string sync = "index";
   bool continue_without_camera = false;
   bool no_video = false;
+  std::optional<double> min_blob_area_m2;
 };
 
 Status RunRun(const CommonOptions& common, RunCommand cmd) {
   SiteLoadOptions load;
   if (!common.data_root.empty()) load.data_root = fs::path(common.data_root);
   OCCMAP_ASSIGN_OR_RETURN(Site site, LoadSite(cmd.site_path, load));
+  if (cmd.min_blob_area_m2) {
+    if (!(*cmd.min_blob_area_m2 >= 0)) return InvalidInput("--min-blob-area-m2: expected >= 0");
+    site.blobs.min_area_m2 = *cmd.min_blob_area_m2;
+  }
   Context ctx(common.threads);
   RunOptions& o = cmd.options;
   o.cache_dir = cmd.no_cache ? fs::path() : cmd.cache_dir.empty() ? DefaultCacheDir() : fs::path(cmd.cache_dir);
@@ -246,6 +247,118 @@ Status RunRun(const CommonOptions& common, RunCommand cmd) {
                stdout);
   }
   std::fputs(fmt::format("wrote {}\n", (o.out_dir / "summary.json").string()).c_str(), stdout);
+  return Status::Ok();
+}
+
+Status RunDemoCommand(const CommonOptions& common, const std::string& out_dir, int64_t frames) {
+  Context ctx(common.threads);
+  std::fputs("occmap demo: renders the paper's lab (9 x 6.5 m, four 640x480 cameras at 2.7 m, people, a chair,\n"
+             "a robot), runs the pipeline on the videos and scores it against the ground truth\n",
+             stdout);
+  ProgressBar bar;
+  std::string stage;
+  DemoOptions options;
+  options.out_dir = out_dir;
+  options.frames = frames;
+  auto result = RunDemo(options, ctx, [&](const std::string& name, int64_t done, int64_t total) {
+    if (name != stage) {
+      bar.Finish();
+      stage = name;
+    }
+    bar.Update({done, total > 0 ? std::optional<int64_t>(total) : std::nullopt, 0}, name);
+  });
+  bar.Finish();
+  if (!result.ok()) return result.status();
+  std::fputs(EvaluationReportText(result->evaluation).c_str(), stdout);
+  std::fputs(fmt::format("{} frames: rendered in {:.1f} s, run at {:.1f} frames/s, evaluated in {:.1f} s\n",
+                         result->run.frames, result->synth_seconds, result->run.frames_per_second, result->eval_seconds)
+                 .c_str(),
+             stdout);
+  const fs::path out(out_dir);
+  std::fputs(fmt::format("look at {} (the mosaic video), {} and {}\n", (out / "mosaic.mp4").string(),
+                         (out / "mosaic.png").string(), result->summary_file.string())
+                 .c_str(),
+             stdout);
+  return Status::Ok();
+}
+
+struct SynthCommand {
+  std::string scene = "lab";
+  std::string out_dir = "synth-out";
+  int64_t frames = -1;
+  uint64_t seed = 1;
+  double scale = 1.0;
+  bool video = false;
+  bool shadows = false;
+  double exposure_drift = 0;
+  double noise_sigma = -1;
+  bool original_intrinsics = false;
+  int64_t first_frame = 0;
+  bool no_change_masks = false;
+};
+
+Status RunSynth(const CommonOptions& common, const SynthCommand& cmd) {
+  sim::BuiltinSceneOptions o;
+  o.seed = cmd.seed;
+  o.image_scale = cmd.scale;
+  o.num_frames = cmd.frames;
+  o.noise_sigma = cmd.noise_sigma;
+  o.shadows = cmd.shadows;
+  o.exposure_drift = cmd.exposure_drift;
+  OCCMAP_RETURN_IF_ERROR(o.Validate());
+  sim::SceneSpec spec;
+  if (cmd.scene == "wildtrack") {
+    sim::WildtrackSceneOptions w;
+    const fs::path root = common.data_root.empty() ? fs::path("../shared/datasets") : fs::path(common.data_root);
+    w.dataset_dir = root / "wildtrack";
+    w.original_intrinsics = cmd.original_intrinsics;
+    w.first_frame = cmd.first_frame;
+    OCCMAP_ASSIGN_OR_RETURN(spec, sim::MakeWildtrackSceneSpec(o, w));
+  } else if (cmd.scene.ends_with(".yaml") || cmd.scene.ends_with(".yml")) {
+    OCCMAP_ASSIGN_OR_RETURN(spec, sim::LoadSceneYaml(cmd.scene));
+    OCCMAP_RETURN_IF_ERROR(sim::ApplyBuiltinOptions(o, spec));
+  } else {
+    OCCMAP_ASSIGN_OR_RETURN(spec, sim::MakeBuiltinSceneSpec(cmd.scene, o));
+  }
+  OCCMAP_ASSIGN_OR_RETURN(sim::Scene scene, sim::Scene::Create(std::move(spec)));
+  sim::DatasetOptions d;
+  d.out_dir = cmd.out_dir;
+  d.frame_format = cmd.video ? sim::DatasetOptions::FrameFormat::kVideo : sim::DatasetOptions::FrameFormat::kPng;
+  d.change_masks = !cmd.no_change_masks;
+  Context ctx(common.threads);
+  ProgressBar bar;
+  auto summary = sim::WriteDataset(scene, d, ctx, [&](const sim::DatasetProgress& p) {
+    bar.Update({p.done, p.total > 0 ? std::optional<int64_t>(p.total) : std::nullopt, 0}, p.stage);
+  });
+  bar.Finish();
+  if (!summary.ok()) return summary.status();
+  std::fputs(fmt::format("{} frames of {} cameras in {:.1f} s (static {:.1f}, render {:.1f}, ground truth {:.1f}, "
+                         "files {:.1f})\nwrote {}; run it with: occmap run {}\n",
+                         summary->frames, summary->cameras, summary->seconds, summary->static_seconds,
+                         summary->render_seconds, summary->ground_truth_seconds, summary->write_seconds,
+                         cmd.out_dir, summary->site_file.string())
+                 .c_str(),
+             stdout);
+  return Status::Ok();
+}
+
+struct EvalCommand {
+  std::string dataset_dir;
+  std::string run_dir;
+  double threshold_m = 0.5;
+  bool json_to_stdout = false;
+};
+
+Status RunEval(const EvalCommand& cmd) {
+  EvalOptions o;
+  o.match_threshold_m = cmd.threshold_m;
+  OCCMAP_ASSIGN_OR_RETURN(EvaluationReport report, EvaluateRun(cmd.dataset_dir, cmd.run_dir, o));
+  const std::string json_text = EvaluationReportJson(report).dump(2) + "\n";
+  OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(fs::path(cmd.run_dir) / "evaluation.json", json_text));
+  std::fputs(cmd.json_to_stdout ? json_text.c_str() : EvaluationReportText(report).c_str(), stdout);
+  if (!cmd.json_to_stdout) {
+    std::fputs(fmt::format("wrote {}\n", (fs::path(cmd.run_dir) / "evaluation.json").string()).c_str(), stdout);
+  }
   return Status::Ok();
 }
 
@@ -297,11 +410,36 @@ int main(int argc, char** argv) {
   run_cmd->add_flag("--no-video", run.no_video, "do not write occupancy.mp4 and mosaic.mp4");
   run_cmd->add_option("--background-frames", run.options.background_frames,
                       "K: frames in the median background of a camera without one")->capture_default_str();
-  run_cmd->add_option("--min-blob-area-m2", run.options.min_blob_area_m2, "drop smaller blobs")->capture_default_str();
+  run_cmd->add_option("--min-blob-area-m2", run.min_blob_area_m2, "drop detections with a smaller footprint (default: the site's blobs.min_area_m2)");
 
   std::string demo_out = "demo-out";
-  CLI::App* demo_cmd = app.add_subcommand("demo", "run on the built-in lab scene (no data needed)");
+  int64_t demo_frames = -1;
+  CLI::App* demo_cmd = app.add_subcommand("demo", "render the built-in lab scene, run on it and score the result");
   demo_cmd->add_option("--out", demo_out, "output folder")->capture_default_str();
+  demo_cmd->add_option("--frames", demo_frames, "frames to render (default: the scene's 100)");
+
+  SynthCommand synth;
+  CLI::App* synth_cmd = app.add_subcommand("synth", "render a scene with exact ground truth into a dataset folder");
+  synth_cmd->add_option("--scene", synth.scene, "lab, clemson, wildtrack, or a scene YAML file")->capture_default_str();
+  synth_cmd->add_option("--out", synth.out_dir, "dataset folder")->capture_default_str();
+  synth_cmd->add_option("--frames", synth.frames, "frames to render (default: the scene's length)");
+  synth_cmd->add_option("--seed", synth.seed, "random seed (clothing, noise)")->capture_default_str();
+  synth_cmd->add_option("--scale", synth.scale, "image size as a fraction of the cameras' native size")
+      ->capture_default_str();
+  synth_cmd->add_flag("--video", synth.video, "write H.264 videos instead of PNG frames");
+  synth_cmd->add_flag("--shadows", synth.shadows, "cast shadows on the floor");
+  synth_cmd->add_option("--exposure-drift", synth.exposure_drift, "slow exposure drift, relative amplitude");
+  synth_cmd->add_option("--noise", synth.noise_sigma, "sensor noise sigma in grey levels (default 2)");
+  synth_cmd->add_flag("--original-intrinsics", synth.original_intrinsics, "wildtrack: distorted raw-frame intrinsics");
+  synth_cmd->add_option("--first-frame", synth.first_frame, "wildtrack: first 10 fps frame of the dataset");
+  synth_cmd->add_flag("--no-change-masks", synth.no_change_masks, "do not write the perfect change masks");
+
+  EvalCommand eval;
+  CLI::App* eval_cmd = app.add_subcommand("eval", "score a run against a dataset's ground truth");
+  eval_cmd->add_option("dataset", eval.dataset_dir, "dataset folder (ground_truth.jsonl, gt/)")->required();
+  eval_cmd->add_option("run", eval.run_dir, "run folder (detections.jsonl, tracks.jsonl, occupancy/)")->required();
+  eval_cmd->add_option("--threshold-m", eval.threshold_m, "match distance")->capture_default_str();
+  eval_cmd->add_flag("--json", eval.json_to_stdout, "print the report as JSON");
 
   try {
     app.parse(argc, argv);
@@ -313,6 +451,8 @@ int main(int argc, char** argv) {
   if (lut_cmd->parsed()) status = RunLut(common, lut);
   if (run_cmd->parsed()) status = RunRun(common, run);
   if (check_cmd->parsed()) status = RunCheck(common, check_site);
-  if (demo_cmd->parsed()) status = RunDemo(common, demo_out);
+  if (demo_cmd->parsed()) status = RunDemoCommand(common, demo_out, demo_frames);
+  if (synth_cmd->parsed()) status = RunSynth(common, synth);
+  if (eval_cmd->parsed()) status = RunEval(eval);
   return status.ok() ? 0 : Fail(status);
 }

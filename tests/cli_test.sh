@@ -55,11 +55,25 @@ check homography_site 0 '^top +640x480' -- "$occmap" lut "$work/homography.yaml"
 check homography_plane 2 'only knows the floor' -- "$occmap" lut "$work/homography.yaml" --plane-height-m 1 --no-cache --out "$work/h"
 check check_command 0 "valid site 'top-down' with 1 cameras" -- "$occmap" check "$work/homography.yaml"
 
-check demo 0 'look at .*visibility.png' -- "$occmap" demo --out "$work/demo"
-for f in visibility.png lut.json; do
+check demo 0 'look at .*mosaic.mp4' -- "$occmap" demo --out "$work/demo" --frames 20
+for f in mosaic.mp4 mosaic.png summary.json run/detections.jsonl run/tracks.jsonl dataset/site.yaml; do
   if [ ! -s "$work/demo/$f" ]; then echo "FAIL demo output $f missing"; failures=$((failures + 1)); fi
 done
-check demo_json_valid 0 'demo-lab' -- python3 -c "import json,sys; print(json.load(open('$work/demo/lut.json'))['site'])"
+check demo_summary_keys 0 '^ok$' -- python3 -c "
+import json; s = json.load(open('$work/demo/summary.json'))
+assert all(isinstance(s[k], (int, float)) for k in ('moda', 'modp', 'precision', 'recall', 'mota', 'idf1', 'frames_per_second')); print('ok')"
+
+check synth_clemson 0 'run it with: occmap run' -- "$occmap" synth --scene clemson --frames 6 --scale 0.5 --out "$work/clemson"
+check run_clemson 0 'wrote .*summary.json' -- "$occmap" run "$work/clemson/site.yaml" --out "$work/clemson-run" --occupancy-pngs --no-cache
+check eval_clemson 0 'MODA' -- "$occmap" eval "$work/clemson" "$work/clemson-run"
+check eval_json 0 '"detection"' -- "$occmap" eval "$work/clemson" "$work/clemson-run" --json
+check eval_missing_run 2 'detections.jsonl|nothing to evaluate|not found' -- "$occmap" eval "$work/clemson" "$work/nowhere"
+check synth_bad_scene 2 'scene|expected' -- "$occmap" synth --scene atlantis --out "$work/x"
+cat >"$work/scene.yaml" <<'YAML'
+name: broken
+floor: {origin_m: [0, 0]}
+YAML
+check synth_bad_yaml 2 'scene.yaml' -- "$occmap" synth --scene "$work/scene.yaml" --out "$work/x"
 
 check cache_first 0 'built \(no cache file yet\)' -- "$occmap" lut "$work/homography.yaml" --cache-dir "$work/cache" --out "$work/h"
 check cache_second 0 'tables: loaded' -- "$occmap" lut "$work/homography.yaml" --cache-dir "$work/cache" --out "$work/h"

@@ -4,7 +4,7 @@
 
 namespace occmap {
 
-std::vector<Blob> FindBlobs(const OccupancyMap& map, const BlobOptions& options) {
+std::vector<Blob> FindBlobs(const OccupancyMap& map, const BlobOptions& options, std::vector<int32_t>* labels) {
   const FloorGrid& grid = map.grid();
   const std::vector<CellState>& states = map.states();
   const int cells_x = grid.cells_x, cells_y = grid.cells_y;
@@ -15,6 +15,8 @@ std::vector<Blob> FindBlobs(const OccupancyMap& map, const BlobOptions& options)
   std::vector<Blob> blobs;
   std::vector<uint8_t> visited(static_cast<size_t>(num_cells), 0);
   std::vector<int64_t> stack;  // explicit flood-fill stack: no recursion, any blob size
+  std::vector<int64_t> members;  // the current blob's cells, for the labels
+  if (labels != nullptr) labels->assign(static_cast<size_t>(num_cells), -1);
   for (int64_t seed = 0; seed < num_cells; ++seed) {
     if (visited[seed] || states[seed] != CellState::kOccupied) continue;
     Blob blob;
@@ -27,6 +29,7 @@ std::vector<Blob> FindBlobs(const OccupancyMap& map, const BlobOptions& options)
       const int64_t cell = stack.back();
       stack.pop_back();
       const int i = static_cast<int>(cell % cells_x), j = static_cast<int>(cell / cells_x);
+      if (labels != nullptr) members.push_back(cell);
       ++blob.cells;
       sum_i += i;
       sum_j += j;
@@ -48,7 +51,14 @@ std::vector<Blob> FindBlobs(const OccupancyMap& map, const BlobOptions& options)
       }
     }
     blob.area_m2 = static_cast<double>(blob.cells) * cell_area_m2;
-    if (blob.area_m2 < options.min_area_m2) continue;
+    if (blob.area_m2 < options.min_area_m2) {
+      members.clear();
+      continue;
+    }
+    if (labels != nullptr) {
+      for (int64_t cell : members) (*labels)[cell] = static_cast<int32_t>(blobs.size());
+      members.clear();
+    }
     // The mean of the cells' CellCenter, from exact index sums.
     const double n = static_cast<double>(blob.cells);
     blob.x_m = grid.origin_x_m + (static_cast<double>(sum_i) / n + 0.5) * grid.cell_size_m;

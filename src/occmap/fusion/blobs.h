@@ -24,7 +24,9 @@ struct BlobOptions {
   double min_area_m2 = 0.0;  // blobs with area_m2 < min_area_m2 are dropped
 };
 
-// Blobs in order of their first cell (row-major from cell 0).
-std::vector<Blob> FindBlobs(const OccupancyMap& map, const BlobOptions& options = {});
+// Blobs in order of their first cell (row-major from cell 0). With `labels`, also each cell's
+// blob: the index into the result, or -1 (not occupied, or in a blob under min_area_m2).
+std::vector<Blob> FindBlobs(const OccupancyMap& map, const BlobOptions& options = {},
+                            std::vector<int32_t>* labels = nullptr);
 
 }  // namespace occmap

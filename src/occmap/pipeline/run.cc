@@ -12,9 +12,12 @@
 #include "occmap/detect/background.h"
 #include "occmap/detect/change_detection.h"
 #include "occmap/fusion/fusion.h"
+#include "occmap/fusion/morphology.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/io/video_writer.h"
+#include "occmap/pipeline/ghosts.h"
 #include "occmap/pipeline/mosaic.h"
+#include "occmap/track/detections.h"
 #include "occmap/site/site_lut.h"
 #include "occmap/track/multi_target_tracker.h"
 #include "occmap/track/track_output.h"
@@ -208,7 +211,6 @@ Status RunOptions::Validate() const {
     return InvalidInput(fmt::format("--background-frames: expected 1..255, found {}", background_frames));
   }
   if (background_step < 1) return InvalidInput(fmt::format("background step: expected >= 1, found {}", background_step));
-  if (!(min_blob_area_m2 >= 0)) return InvalidInput("--min-blob-area-m2: expected >= 0");
   if (!(sync_tolerance_s > 0)) return InvalidInput("--sync-tolerance-s: expected > 0");
   return Status::Ok();
 }
@@ -283,6 +285,30 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   Image<Rgb8> best_mosaic;
   size_t best_blobs = 0;
 
+  OccupancyMap grown;  // the map with fragments grouped (BlobSettings::group_radius_m)
+  std::vector<int32_t> labels;
+  // The tracker sees footprints grown by r, so its idea of one person's size grows with them.
+  TrackerOptions tracker_options = site.tracking;
+  tracker_options.person_diameter_m += 2 * site.blobs.group_radius_m;
+
+  // Ghost test: what each camera sees (in front, on the image, on an unmasked pixel).
+  std::vector<Viewer> viewer_of;
+  for (const auto& c : cams) {
+    const CameraModel* model = c.cam->camera.get();
+    const Image<uint8_t>* mask = &c.cam->mask;
+    const double z = site.plane_height_m;
+    viewer_of.push_back({model->CenterInWorld().value_or(Eigen::Vector3d::Zero()), [model, mask, z](const Eigen::Vector2d& p) {
+                           const auto px = model->Project(Eigen::Vector3d(p.x(), p.y(), z));
+                           if (!px || !model->InImage(*px)) return false;
+                           if (mask->empty()) return true;
+                           const int x = std::clamp(static_cast<int>(std::lround(px->x())), 0, mask->width() - 1);
+                           const int y = std::clamp(static_cast<int>(std::lround(px->y())), 0, mask->height() - 1);
+                           return (*mask)(x, y) != 0;
+                         }});
+  }
+  const GhostOptions ghost_options{.occluder_radius_m = 0.5 * tracker_options.person_diameter_m,
+                                   .occluder_height_m = site.blobs.occluder_height_m};
+
   // Tracking.
   std::optional<AnyTracker> tracker;
   std::optional<ZoneMonitor> zones;
@@ -291,7 +317,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   std::set<int64_t> track_ids;
   double last_track_time_s = -std::numeric_limits<double>::infinity();
   if (options.track) {
-    OCCMAP_ASSIGN_OR_RETURN(AnyTracker t, AnyTracker::Create(site.tracking));
+    OCCMAP_ASSIGN_OR_RETURN(AnyTracker t, AnyTracker::Create(tracker_options));
     tracker = std::move(t);
     OCCMAP_ASSIGN_OR_RETURN(ZoneMonitor z, ZoneMonitor::Create(site.tracking.zones, site.tracking.zone_count_every_frame));
     zones = std::move(z);
@@ -310,7 +336,6 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   if (options.max_frames > 0) total = total ? std::min(*total, options.max_frames) : options.max_frames;
 
   Status failure;  // an error that stopped the run, returned after the outputs are finalised
-  const BlobOptions blob_options{.min_area_m2 = options.min_blob_area_m2};
   int64_t frame_index = options.start_frame;
   while (options.max_frames < 0 || summary.frames < options.max_frames) {
     // 1. One frame per active camera, by index or by timestamp.
@@ -433,7 +458,59 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     fusion.Fuse(changes, active, site.fusion, map);
     summary.fuse_s += Since(t0);
     t0 = Clock::now();
-    const std::vector<Blob> blobs = FindBlobs(map, blob_options);
+    // Detections (BlobSettings in site.h): fragments grouped, described by their footprint,
+    // too-small groups dropped, large ones split at their necks, ghosts removed. The tracker
+    // gets the groups of the grown map (it splits them itself, guided by its tracks).
+    GrowOccupied(map, site.blobs.group_radius_m, grown);
+    std::vector<Blob> groups = FindBlobs(grown, {}, &labels);
+    const std::vector<Blob> footprints = FootprintBlobs(map, labels, groups);
+    std::vector<Blob> kept_groups, kept_footprints;
+    for (size_t k = 0; k < footprints.size(); ++k) {
+      if (footprints[k].cells == 0 || footprints[k].area_m2 < site.blobs.min_area_m2) continue;
+      kept_groups.push_back(groups[k]);
+      kept_footprints.push_back(footprints[k]);
+    }
+    std::vector<Blob> blobs;  // the detections
+    std::vector<int> blob_group;
+    if (site.blobs.split) {
+      for (const Detection& d : DetectionsFromBlobs(kept_groups, grown, tracker_options)) {
+        Blob b = kept_footprints[d.blob_index];  // one part: the group's footprint
+        if (d.parts > 1) {
+          b.x_m = d.x_m;
+          b.y_m = d.y_m;
+          b.area_m2 = d.area_m2 * kept_footprints[d.blob_index].area_m2 / kept_groups[d.blob_index].area_m2;
+          b.cells = d.cells;
+        }
+        blobs.push_back(b);
+        blob_group.push_back(d.blob_index);
+      }
+    } else {
+      blobs = kept_footprints;
+      for (size_t k = 0; k < blobs.size(); ++k) blob_group.push_back(static_cast<int>(k));
+    }
+    if (site.blobs.remove_ghosts && blobs.size() > 1) {
+      std::vector<Viewer> viewers;
+      for (size_t n = 0; n < cams.size(); ++n) {
+        if (active[n] && cams[n].cam->camera->CenterInWorld()) viewers.push_back(viewer_of[n]);
+      }
+      std::vector<Eigen::Vector2d> points;
+      for (const Blob& b : blobs) points.emplace_back(b.x_m, b.y_m);
+      const std::vector<bool> ghost = FindGhosts(points, viewers, ghost_options);
+      std::vector<Blob> real;
+      std::vector<bool> group_real(kept_groups.size(), false);
+      for (size_t k = 0; k < blobs.size(); ++k) {
+        if (ghost[k]) continue;
+        real.push_back(blobs[k]);
+        group_real[blob_group[k]] = true;
+      }
+      blobs = std::move(real);
+      std::vector<Blob> real_groups;
+      for (size_t k = 0; k < kept_groups.size(); ++k) {
+        if (group_real[k]) real_groups.push_back(kept_groups[k]);
+      }
+      kept_groups = std::move(real_groups);
+    }
+    groups = std::move(kept_groups);
     summary.blobs_s += Since(t0);
     const double time_s = std::isnan(cams[0].frame.timestamp_s) ? static_cast<double>(frame_index) / fps
                                                                 : cams[0].frame.timestamp_s;
@@ -445,7 +522,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     if (tracker) {
       const double track_time_s = std::max(time_s, last_track_time_s + 1e-6);
       last_track_time_s = track_time_s;
-      OCCMAP_ASSIGN_OR_RETURN(tracks, tracker->Update(blobs, map, track_time_s));
+      OCCMAP_ASSIGN_OR_RETURN(tracks, tracker->Update(groups, grown, track_time_s));
       trails.Update(tracks);
       for (const Track& t : tracks) track_ids.insert(t.id);
       OCCMAP_RETURN_IF_ERROR(tracks_file->Append(TracksJsonLine(frame_index, time_s, tracks) + "\n"));
@@ -558,7 +635,9 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                    {"max_free_views", site.fusion.max_free_views},
                    {"sync", options.sync == FrameSync::kIndex ? "index" : "timestamp"},
                    {"on_camera_failure", options.on_camera_failure == OnCameraFailure::kStop ? "stop" : "continue"},
-                   {"min_blob_area_m2", options.min_blob_area_m2},
+                   {"blobs", {{"group_radius_m", site.blobs.group_radius_m}, {"min_area_m2", site.blobs.min_area_m2},
+                              {"split", site.blobs.split}, {"remove_ghosts", site.blobs.remove_ghosts},
+                              {"occluder_height_m", site.blobs.occluder_height_m}}},
                    {"threads", ctx.num_threads()},
                    {"grid", {{"origin_m", {site.grid.origin_x_m, site.grid.origin_y_m}},
                              {"cells", {site.grid.cells_x, site.grid.cells_y}},

@@ -52,7 +52,6 @@ struct RunOptions {
   bool mosaic_video = true;
   int background_frames = 25;  // K of the median background, when a camera has none
   int background_step = 4;     // take every n-th frame for the median
-  double min_blob_area_m2 = 0.0;
   bool track = true;  // run the site's tracker and write tracks.jsonl, tracks_mot.csv, events.jsonl
   int mosaic_width_px = 1280;
   Status Validate() const;

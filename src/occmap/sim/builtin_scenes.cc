@@ -188,7 +188,7 @@ SceneSpec MakeLabSceneSpec(const BuiltinSceneOptions& options) {
   const Eigen::Vector2d chair0(2.0, 2.7), chair1(6.8, 3.5);
   const Eigen::Vector2d along = (chair1 - chair0).normalized();
   spec.objects.push_back(Object(3, ObjectClass::kPerson, spec, carpet,
-                                Walk(0.0, {chair0 - 0.62 * along, chair1 - 0.62 * along}, 0.55, {0.5})));
+                                Walk(0.0, {chair0 - 0.8 * along, chair1 - 0.8 * along}, 0.55, {0.5})));
   spec.objects.push_back(Object(4, ObjectClass::kChair, spec, carpet,
                                 Walk(0.0, {chair0, chair1}, 0.55, {0.5})));
   spec.objects.push_back(Object(5, ObjectClass::kRobot, spec, carpet,

@@ -251,8 +251,11 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
   const FloorGrid& g = scene.grid();
   const std::string site = fmt::format(
       "# Written by occmap's scene simulator: scene '{}' (see README.txt and scene.json).\n"
-      "version: 1\nname: {}\nfloor:\n  origin_m: [{}, {}]\n  cells: [{}, {}]\n  cell_size_m: {}\ncameras:\n{}"
-      "detection:\n  threshold: {}\n",
+      "version: 1\nname: \"{}\"\nfloor:\n  origin_m: [{}, {}]\n  cells: [{}, {}]\n  cell_size_m: {}\ncameras:\n{}"
+      "detection:\n  threshold: {}\n"
+      "# A rendered person touches the floor with two feet and a chair with four legs: fragments\n"
+      "# closer than 0.4 m form one detection, and specks under 50 cm^2 are dropped.\n"
+      "blobs:\n  group_radius_m: 0.2\n  min_area_m2: 0.005\n",
       scene.spec().name, scene.spec().name, g.origin_x_m, g.origin_y_m, g.cells_x, g.cells_y, g.cell_size_m,
       site_cameras, options.detection_threshold);
   summary.site_file = out / "site.yaml";

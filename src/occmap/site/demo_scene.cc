@@ -13,10 +13,10 @@ PinholeCamera WallCamera(const Eigen::Vector3d& position_m, const Eigen::Vector3
   const Eigen::Vector3d y = z.cross(x);
   PinholeParameters p;
   p.image_size = {640, 480};
-  p.fx_px = p.fy_px = 420;  // about a 75 degree horizontal field of view (a 3.5 mm lens)
+  p.fx_px = p.fy_px = 350;  // an 85 degree horizontal field of view (a 3.5 mm lens on a 1/2" sensor)
   p.cx_px = 319.5;
   p.cy_px = 239.5;
-  p.distortion = {-0.12, 0.03, 0, 0, 0};  // mild barrel distortion, as a real wide lens
+  p.distortion = {-0.16, 0.035, 0, 0, 0};  // barrel distortion, as a real wide lens
   p.cam_from_world_rotation.row(0) = x.transpose();
   p.cam_from_world_rotation.row(1) = y.transpose();
   p.cam_from_world_rotation.row(2) = z.transpose();
@@ -35,7 +35,7 @@ Site MakeDemoLabSite() {
   for (int i = 0; i < 4; ++i) {
     // Each camera looks across the room at a point beyond the centre, down at about 25 degrees.
     const Eigen::Vector3d target(9.0 - positions[i].x(), 6.5 - positions[i].y(), 0.0);
-    const Eigen::Vector3d aim = positions[i] + 0.62 * (target - positions[i]);
+    const Eigen::Vector3d aim = positions[i] + 0.5 * (target - positions[i]);
     SiteCamera cam;
     cam.id = ids[i];
     cam.camera = std::make_unique<PinholeCamera>(WallCamera(positions[i], aim));

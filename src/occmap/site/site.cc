@@ -371,7 +371,7 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
   OCCMAP_ASSIGN_OR_RETURN(YamlField root, ParseYaml(yaml_text, path.string()));
   if (!root.IsMap()) return root.Error("expected a site description (a map with floor and cameras)");
   OCCMAP_RETURN_IF_ERROR(
-      root.CheckKeys({"version", "name", "data_root", "floor", "cameras", "detection", "fusion", "lut", "tracking"}));
+      root.CheckKeys({"version", "name", "data_root", "floor", "cameras", "detection", "fusion", "blobs", "lut", "tracking"}));
   OCCMAP_ASSIGN_OR_RETURN(int64_t version, root.GetInt("version", 1));
   if (version != 1) return root.Find("version")->Error(fmt::format("expected site format version 1, found {}", version));
   Site site;
@@ -410,6 +410,23 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
   }
   if (auto f = root.Find("detection")) OCCMAP_RETURN_IF_ERROR(ParseDetection(*f, site.detection));
   if (auto f = root.Find("fusion")) OCCMAP_RETURN_IF_ERROR(ParseFusion(*f, site.cameras.size(), site.fusion));
+  if (auto f = root.Find("blobs")) {
+    OCCMAP_RETURN_IF_ERROR(f->CheckKeys({"group_radius_m", "min_area_m2", "split", "remove_ghosts", "occluder_height_m"}));
+    OCCMAP_ASSIGN_OR_RETURN(site.blobs.split, f->GetBool("split", site.blobs.split));
+    OCCMAP_ASSIGN_OR_RETURN(site.blobs.remove_ghosts, f->GetBool("remove_ghosts", site.blobs.remove_ghosts));
+    OCCMAP_ASSIGN_OR_RETURN(site.blobs.occluder_height_m, f->GetDouble("occluder_height_m", site.blobs.occluder_height_m));
+    if (!(site.blobs.occluder_height_m > 0)) {
+      return f->Find("occluder_height_m")->Error(fmt::format("expected > 0 m, found {}", site.blobs.occluder_height_m));
+    }
+    OCCMAP_ASSIGN_OR_RETURN(site.blobs.group_radius_m, f->GetDouble("group_radius_m", site.blobs.group_radius_m));
+    OCCMAP_ASSIGN_OR_RETURN(site.blobs.min_area_m2, f->GetDouble("min_area_m2", site.blobs.min_area_m2));
+    if (site.blobs.group_radius_m < 0 || site.blobs.group_radius_m > 5) {
+      return f->Find("group_radius_m")->Error(fmt::format("expected 0..5 m, found {}", site.blobs.group_radius_m));
+    }
+    if (site.blobs.min_area_m2 < 0) {
+      return f->Find("min_area_m2")->Error(fmt::format("expected >= 0, found {}", site.blobs.min_area_m2));
+    }
+  }
   if (auto f = root.Find("tracking")) OCCMAP_RETURN_IF_ERROR(ParseTrackerOptions(*f, site.tracking));
   if (auto f = root.Find("lut")) {
     OCCMAP_RETURN_IF_ERROR(f->CheckKeys({"add_cell_projections"}));

@@ -15,6 +15,7 @@
 //       background: c1_bg.png
 //   detection: {threshold: 30, tolerance_px: 0}
 //   fusion: {algorithm: image-based, max_free_views: 0}
+//   blobs: {group_radius_m: 0.2, min_area_m2: 0.003, split: true, remove_ghosts: true}
 //   lut: {add_cell_projections: true}
 //   tracking: {algorithm: multi_target, max_speed_mps: 2.5, zones: [...]}   # track/tracker_options.h
 //
@@ -43,6 +44,23 @@
 
 namespace occmap {
 
+// From the occupancy map to detections (pipeline/run.cc):
+// 1. occupied fragments closer than 2 * group_radius_m form one group (fusion/morphology.h: a
+//    person's two feet, a chair's four legs, when the grid is fine enough to see them apart;
+//    0 = the paper's connected components);
+// 2. groups whose footprint is smaller than min_area_m2 are dropped;
+// 3. with split, a group too large for one object is split at the necks of its shape
+//    (track/detections.h, with the tracking section's person size);
+// 4. with remove_ghosts, a detection that every camera seeing it sees only through another,
+//    nearer detection is dropped (pipeline/ghosts.h).
+struct BlobSettings {
+  double group_radius_m = 0.0;
+  double min_area_m2 = 0.0;
+  bool split = true;
+  bool remove_ghosts = true;
+  double occluder_height_m = 1.8;  // objects that hide the floor behind them (ghost test)
+};
+
 struct SiteCamera {
   std::string id;
   std::unique_ptr<CameraModel> camera;  // at the run-time image size
@@ -63,6 +81,7 @@ struct Site {
   LutOptions lut;
   ChangeDetectionOptions detection;
   FusionOptions fusion;
+  BlobSettings blobs;
   TrackerOptions tracking;  // the `tracking:` section (trackers, zones, trails)
 
   std::vector<LutCameraInput> LutInputs() const;

@@ -191,7 +191,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadSite{"tracking_speed", "  max_free_views: 1\n", "  max_free_views: 1\ntracking:\n  max_speed_mps: -1\n",
                 ":31: tracking.max_speed_mps: expected a number > 0, found -1"},
         BadSite{"no_cameras", "cameras:\n  - id: a", "cameras: []\nx:\n  - id: a",
-                ":8: unknown field 'x' (expected one of: version, name, data_root, floor, cameras, detection, fusion, lut, tracking)"},
+                ":8: unknown field 'x' (expected one of: version, name, data_root, floor, cameras, detection, fusion, blobs, lut, tracking)"},
         BadSite{"yaml_syntax", "origin_m: [0, 0]", "origin_m: [0, 0",
                 ":5:9: YAML syntax error: end of sequence flow not found"}),
     [](const ::testing::TestParamInfo<BadSite>& param_info) { return std::string(param_info.param.name); });

@@ -1,0 +1,54 @@
+#include "occmap/pipeline/ghosts.h"
+
+#include <gtest/gtest.h>
+
+namespace occmap {
+namespace {
+
+std::vector<Viewer> Cameras(const std::vector<Eigen::Vector3d>& centres) {
+  std::vector<Viewer> v;
+  for (const auto& c : centres) v.push_back({c, [](const Eigen::Vector2d&) { return true; }});
+  return v;
+}
+
+TEST(FindGhosts, ADetectionBehindOthersFromEveryCameraIsAGhost) {
+  // Two cameras at the west corners; two people; the ghost where their shadows cross.
+  const auto cams = Cameras({{0, 0, 2.7}, {0, 6, 2.7}});
+  const std::vector<Eigen::Vector2d> points = {{3, 1.5}, {3, 4.5}, {6, 3}};
+  const auto ghost = FindGhosts(points, cams, {});
+  EXPECT_FALSE(ghost[0]);
+  EXPECT_FALSE(ghost[1]);
+  EXPECT_TRUE(ghost[2]);
+}
+
+TEST(FindGhosts, OneClearViewMakesItReal) {
+  const auto cams = Cameras({{0, 0, 2.7}, {0, 6, 2.7}, {9, 3, 2.7}});
+  const std::vector<Eigen::Vector2d> points = {{3, 1.5}, {3, 4.5}, {6, 3}};
+  EXPECT_FALSE(FindGhosts(points, cams, {})[2]);
+}
+
+TEST(FindGhosts, ASightLineThatPassesAboveTheOccluderIsClear) {
+  // The occluder stands next to a tall camera: the line of sight to the far point passes it
+  // at 2.7 * (1 - 0.1) = 2.43 m, above a 1.8 m person.
+  const auto cams = Cameras({{0, 0, 2.7}});
+  const std::vector<Eigen::Vector2d> points = {{1, 0}, {10, 0}};
+  EXPECT_FALSE(FindGhosts(points, cams, {})[1]);
+  EXPECT_TRUE(FindGhosts({{6, 0}, {10, 0}}, cams, {})[1]);
+}
+
+TEST(FindGhosts, TwoDetectionsHidingEachOtherAreBothKept) {
+  // Camera A sees p behind q, camera B sees q behind p: neither is explained by a real one.
+  std::vector<Viewer> cams = {{{0, 0, 2.7}, [](const Eigen::Vector2d& p) { return p.x() > 3.5; }},
+                              {{10, 0, 2.7}, [](const Eigen::Vector2d& p) { return p.x() < 3.5; }}};
+  const auto ghost = FindGhosts({{3, 0}, {4, 0}}, cams, {});
+  EXPECT_FALSE(ghost[0]);
+  EXPECT_FALSE(ghost[1]);
+}
+
+TEST(FindGhosts, UnseenPointsAreNotGhosts) {
+  std::vector<Viewer> cams = {{{0, 0, 2.7}, [](const Eigen::Vector2d&) { return false; }}};
+  EXPECT_FALSE(FindGhosts({{1, 1}, {2, 2}}, cams, {})[1]);
+}
+
+}  // namespace
+}  // namespace occmap
