@@ -25,53 +25,11 @@ extern "C" {
 #include <thread>
 #include <utility>
 
+#include "occmap/io/ffmpeg_util.h"
 #include "occmap/io/frame_source.h"
 
 namespace occmap {
 
-// Shared with video_writer.cc (declared there): FFmpeg error text, and FFmpeg's log kept
-// quiet (the library never prints) with its last error line kept for our messages.
-namespace ffmpeg_internal {
-
-namespace {
-thread_local std::string last_log_error;
-
-void CaptureLog(void* avcl, int level, const char* format, va_list args) {
-  if (level > AV_LOG_ERROR) return;
-  char line[512];
-  int print_prefix = 0;
-  va_list copy;
-  va_copy(copy, args);
-  av_log_format_line2(avcl, level, format, copy, line, sizeof(line), &print_prefix);
-  va_end(copy);
-  std::string text(line);
-  while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
-  if (!text.empty()) last_log_error = std::move(text);
-}
-}  // namespace
-
-void InitFfmpeg() {
-  static std::once_flag once;
-  std::call_once(once, [] { av_log_set_callback(&CaptureLog); });
-}
-
-std::string AvError(int error) {
-  char text[AV_ERROR_MAX_STRING_SIZE] = {};
-  if (av_strerror(error, text, sizeof(text)) < 0) return fmt::format("FFmpeg error {}", error);
-  return text;
-}
-
-// The FFmpeg error text, plus the last line FFmpeg logged on this thread when there is one:
-// "Invalid data found when processing input (moov atom not found)". Clears the log line.
-std::string AvErrorWithLog(int error) {
-  std::string text = AvError(error);
-  if (!last_log_error.empty()) text += fmt::format(" ({})", std::exchange(last_log_error, std::string()));
-  return text;
-}
-
-void ClearLog() { last_log_error.clear(); }
-
-}  // namespace ffmpeg_internal
 
 namespace {
 namespace fs = std::filesystem;
@@ -81,18 +39,10 @@ using ffmpeg_internal::ClearLog;
 struct InputDeleter {
   void operator()(AVFormatContext* p) const { avformat_close_input(&p); }
 };
-struct CodecDeleter {
-  void operator()(AVCodecContext* p) const { avcodec_free_context(&p); }
-};
-struct FrameDeleter {
-  void operator()(AVFrame* p) const { av_frame_free(&p); }
-};
-struct PacketDeleter {
-  void operator()(AVPacket* p) const { av_packet_free(&p); }
-};
-struct SwsDeleter {
-  void operator()(SwsContext* p) const { sws_freeContext(p); }
-};
+using ffmpeg_internal::CodecDeleter;
+using ffmpeg_internal::FrameDeleter;
+using ffmpeg_internal::PacketDeleter;
+using ffmpeg_internal::SwsDeleter;
 
 // "rtsp://user:secret@cam/1" -> "rtsp://user:***@cam/1": no password in messages.
 std::string RedactUrl(const std::string& url) {

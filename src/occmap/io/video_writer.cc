@@ -1,5 +1,7 @@
 #include "occmap/io/video_writer.h"
 
+#include "occmap/io/ffmpeg_util.h"
+
 extern "C" {
 #include <libavcodec/avcodec.h>
 #include <libavformat/avformat.h>
@@ -23,11 +25,6 @@ extern "C" {
 namespace occmap {
 
 // Defined in video_source.cc: FFmpeg's log kept quiet, error texts with its last log line.
-namespace ffmpeg_internal {
-void InitFfmpeg();
-std::string AvErrorWithLog(int error);
-void ClearLog();
-}  // namespace ffmpeg_internal
 
 namespace {
 namespace fs = std::filesystem;
@@ -40,18 +37,10 @@ struct OutputDeleter {
     avformat_free_context(p);
   }
 };
-struct CodecDeleter {
-  void operator()(AVCodecContext* p) const { avcodec_free_context(&p); }
-};
-struct FrameDeleter {
-  void operator()(AVFrame* p) const { av_frame_free(&p); }
-};
-struct PacketDeleter {
-  void operator()(AVPacket* p) const { av_packet_free(&p); }
-};
-struct SwsDeleter {
-  void operator()(SwsContext* p) const { sws_freeContext(p); }
-};
+using ffmpeg_internal::CodecDeleter;
+using ffmpeg_internal::FrameDeleter;
+using ffmpeg_internal::PacketDeleter;
+using ffmpeg_internal::SwsDeleter;
 struct Dictionary {
   Dictionary() = default;
   Dictionary(const Dictionary&) = delete;

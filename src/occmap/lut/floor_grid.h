@@ -17,6 +17,7 @@
 
 #include "occmap/util/hash.h"
 #include "occmap/util/status.h"
+#include "occmap/util/yaml_util.h"
 
 namespace occmap {
 
@@ -50,5 +51,9 @@ struct FloorGrid {
   void AppendToHash(Hasher& hasher) const;
   friend bool operator==(const FloorGrid&, const FloorGrid&) = default;
 };
+
+// Reads origin_m, cell_size_m and exactly one of cells or size_m (a whole number of cells) from
+// a `floor:` map of a site or scene file, with located errors; other keys are the caller's.
+Result<FloorGrid> ParseFloorGrid(const YamlField& floor);
 
 }  // namespace occmap

@@ -70,43 +70,7 @@ Result<std::array<double, 4>> GetRect(const YamlField& f) {
   return std::array<double, 4>{v[0], v[1], v[2], v[3]};
 }
 
-Result<FloorGrid> ParseGrid(const YamlField& floor) {
-  FloorGrid g;
-  OCCMAP_ASSIGN_OR_RETURN(std::vector<double> origin, floor.GetDoubles("origin_m", 2));
-  g.origin_x_m = origin[0];
-  g.origin_y_m = origin[1];
-  OCCMAP_ASSIGN_OR_RETURN(YamlField cell_field, floor.Get("cell_size_m"));
-  OCCMAP_ASSIGN_OR_RETURN(g.cell_size_m, cell_field.AsDouble());
-  if (!(g.cell_size_m > 0)) return cell_field.Error(fmt::format("expected a positive number, found {}", g.cell_size_m));
-  const bool has_cells = floor.Has("cells"), has_size = floor.Has("size_m");
-  if (has_cells == has_size) return floor.Error("expected exactly one of 'cells' or 'size_m'");
-  if (has_cells) {
-    OCCMAP_ASSIGN_OR_RETURN(YamlField f, floor.Get("cells"));
-    OCCMAP_ASSIGN_OR_RETURN(std::vector<double> c, f.AsDoubles(2));
-    for (double d : c) {
-      if (d != std::floor(d) || d < 1 || d > 1e9) {
-        return f.Error(fmt::format("expected two positive whole numbers, found [{}, {}]", c[0], c[1]));
-      }
-    }
-    g.cells_x = static_cast<int>(c[0]);
-    g.cells_y = static_cast<int>(c[1]);
-  } else {
-    OCCMAP_ASSIGN_OR_RETURN(YamlField f, floor.Get("size_m"));
-    OCCMAP_ASSIGN_OR_RETURN(std::vector<double> s, f.AsDoubles(2));
-    double n[2];
-    for (int i = 0; i < 2; ++i) {
-      n[i] = std::round(s[i] / g.cell_size_m);
-      if (!(s[i] > 0) || std::abs(n[i] * g.cell_size_m - s[i]) > 1e-6 * s[i] || n[i] > 1e9) {
-        return f.Error(fmt::format("expected positive multiples of cell_size_m = {}, found [{}, {}]", g.cell_size_m,
-                                   s[0], s[1]));
-      }
-    }
-    g.cells_x = static_cast<int>(n[0]);
-    g.cells_y = static_cast<int>(n[1]);
-  }
-  if (Status s = g.Validate(); !s.ok()) return floor.Error(s.message());
-  return g;
-}
+Result<FloorGrid> ParseGrid(const YamlField& floor) { return ParseFloorGrid(floor); }
 
 Result<Eigen::Matrix3d> GetRotation(const YamlField& f) {
   if (!f.IsSequence() || f.size() != 3) return f.Error("expected a 3x3 matrix (3 rows of 3 numbers)");

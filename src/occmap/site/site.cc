@@ -60,41 +60,8 @@ Result<ImageSize> GetImageSize(const YamlField& field) {
 
 Result<FloorGrid> ParseFloor(const YamlField& floor, double* plane_height_m) {
   OCCMAP_RETURN_IF_ERROR(floor.CheckKeys({"origin_m", "cell_size_m", "cells", "size_m", "plane_height_m"}));
-  FloorGrid g;
-  OCCMAP_ASSIGN_OR_RETURN(std::vector<double> origin, floor.GetDoubles("origin_m", 2));
-  g.origin_x_m = origin[0];
-  g.origin_y_m = origin[1];
-  OCCMAP_ASSIGN_OR_RETURN(YamlField cell_field, floor.Get("cell_size_m"));
-  OCCMAP_ASSIGN_OR_RETURN(g.cell_size_m, cell_field.AsDouble());
-  if (!(g.cell_size_m > 0)) return cell_field.Error(fmt::format("expected a positive number, found {}", g.cell_size_m));
-  const bool has_cells = floor.Has("cells"), has_size = floor.Has("size_m");
-  if (has_cells == has_size) return floor.Error("expected exactly one of 'cells' or 'size_m'");
-  if (has_cells) {
-    OCCMAP_ASSIGN_OR_RETURN(YamlField f, floor.Get("cells"));
-    OCCMAP_ASSIGN_OR_RETURN(std::vector<double> c, f.AsDoubles(2));
-    for (double d : c) {
-      if (d != std::floor(d) || d < 1 || d > 1e9) {
-        return f.Error(fmt::format("expected two positive whole numbers, found [{}, {}]", c[0], c[1]));
-      }
-    }
-    g.cells_x = static_cast<int>(c[0]);
-    g.cells_y = static_cast<int>(c[1]);
-  } else {
-    OCCMAP_ASSIGN_OR_RETURN(YamlField f, floor.Get("size_m"));
-    OCCMAP_ASSIGN_OR_RETURN(std::vector<double> s, f.AsDoubles(2));
-    double n[2];
-    for (int i = 0; i < 2; ++i) {
-      n[i] = std::round(s[i] / g.cell_size_m);
-      if (!(s[i] > 0) || std::abs(n[i] * g.cell_size_m - s[i]) > 1e-6 * s[i] || n[i] > 1e9) {
-        return f.Error(fmt::format("expected positive multiples of cell_size_m = {}, found [{}, {}]", g.cell_size_m,
-                                   s[0], s[1]));
-      }
-    }
-    g.cells_x = static_cast<int>(n[0]);
-    g.cells_y = static_cast<int>(n[1]);
-  }
+  OCCMAP_ASSIGN_OR_RETURN(FloorGrid g, ParseFloorGrid(floor));
   OCCMAP_ASSIGN_OR_RETURN(*plane_height_m, floor.GetDouble("plane_height_m", 0.0));
-  if (Status s = g.Validate(); !s.ok()) return Status(s.code(), fmt::format("{}: {}", floor.Where(), s.message()));
   return g;
 }
 
