@@ -96,8 +96,7 @@ class MultiTargetTracker {
   std::vector<TrackState> tracks_;  // in order of birth
   std::vector<Detection> detections_;
   int64_t next_id_ = 1;
-  bool has_time_ = false;
-  double last_time_s_ = 0;
+  FrameClock clock_;
 };
 
 }  // namespace occmap

@@ -9,6 +9,8 @@
 #include <cstdint>
 #include <string>
 
+#include "occmap/util/status.h"
+
 namespace occmap {
 
 struct Track {
@@ -21,6 +23,17 @@ struct Track {
   double time_since_update_s = 0;  // since the last frame with a detection
   int64_t hits = 0;                // frames with a detection
   double area_m2 = 0;              // smoothed footprint area (the window tracker: last window's)
+};
+
+// The time step between a tracker's frames: times must be finite and strictly increasing.
+class FrameClock {
+ public:
+  // The seconds since the previous frame (0 for the first), or an error naming both times.
+  Result<double> Advance(double time_s);
+
+ private:
+  bool has_time_ = false;
+  double last_time_s_ = 0;
 };
 
 }  // namespace occmap

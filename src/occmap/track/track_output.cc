@@ -83,4 +83,16 @@ std::vector<Trail> TrailHistory::Trails() const {
   return out;
 }
 
+Result<double> FrameClock::Advance(double time_s) {
+  if (!std::isfinite(time_s)) return InvalidInput(fmt::format("tracker: frame time is not finite: {}", time_s));
+  if (has_time_ && !(time_s > last_time_s_)) {
+    return InvalidInput(
+        fmt::format("tracker: frame time {} s is not after the previous frame's {} s", time_s, last_time_s_));
+  }
+  const double dt_s = has_time_ ? time_s - last_time_s_ : 0.0;
+  has_time_ = true;
+  last_time_s_ = time_s;
+  return dt_s;
+}
+
 }  // namespace occmap

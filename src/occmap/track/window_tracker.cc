@@ -49,14 +49,7 @@ int64_t WindowTracker::WindowCentroid(const OccupancyMap& map, const Eigen::Vect
 
 Result<std::vector<Track>> WindowTracker::Update(const std::vector<Blob>& blobs, const OccupancyMap& map,
                                                  double time_s) {
-  if (!std::isfinite(time_s)) return InvalidInput(fmt::format("tracker: frame time is not finite: {}", time_s));
-  if (has_time_ && !(time_s > last_time_s_)) {
-    return InvalidInput(
-        fmt::format("tracker: frame time {} s is not after the previous frame's {} s", time_s, last_time_s_));
-  }
-  const double dt_s = has_time_ ? time_s - last_time_s_ : 0.0;
-  has_time_ = true;
-  last_time_s_ = time_s;
+  OCCMAP_ASSIGN_OR_RETURN(const double dt_s, clock_.Advance(time_s));
   const double half_size_m = options_.max_speed_mps * dt_s + options_.window_object_radius_m;
   const double cell_area_m2 = map.grid().cell_size_m * map.grid().cell_size_m;
 

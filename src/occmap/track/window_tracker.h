@@ -68,8 +68,7 @@ class WindowTracker {
   TrackerOptions options_;
   std::vector<Object> objects_;  // increasing id
   int64_t next_id_ = 1;
-  bool has_time_ = false;
-  double last_time_s_ = 0;
+  FrameClock clock_;
 };
 
 }  // namespace occmap
