@@ -25,6 +25,7 @@
 #include "occmap/util/file_util.h"
 #include "occmap/util/image_io.h"
 #include "occmap/util/thread_pool.h"
+#include "occmap/bench/bench.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -362,6 +363,32 @@ Status RunEval(const EvalCommand& cmd) {
   return Status::Ok();
 }
 
+struct BenchCommand {
+  std::string workload = "all";
+  int frames = 4;
+  bool json_to_stdout = false;
+  std::string site = "sites/wildtrack.yaml";
+  int end_to_end_frames = 60;
+};
+
+Status RunBenchCommand(const CommonOptions& common, const BenchCommand& cmd) {
+  bench::BenchOptions o;
+  o.workload = cmd.workload;
+  o.frames = cmd.frames;
+  o.wildtrack_site = cmd.site;
+  o.end_to_end_frames = cmd.end_to_end_frames;
+  if (!common.data_root.empty()) o.data_root = common.data_root;
+  OCCMAP_RETURN_IF_ERROR(o.Validate());
+  Context ctx(common.threads);
+  OCCMAP_ASSIGN_OR_RETURN(bench::BenchResults results, bench::RunBench(o, ctx));
+  if (cmd.json_to_stdout) {
+    fmt::print("{}\n", bench::BenchJson(results).dump(2));
+  } else {
+    fmt::print("{}", bench::BenchTable(results));
+  }
+  return Status::Ok();
+}
+
 int Fail(const Status& status) {
   std::fputs(fmt::format("occmap: error: {}\n", status.message()).c_str(), stderr);
   return ExitCodeFor(status);
@@ -441,6 +468,17 @@ int main(int argc, char** argv) {
   eval_cmd->add_option("--threshold-m", eval.threshold_m, "match distance")->capture_default_str();
   eval_cmd->add_flag("--json", eval.json_to_stdout, "print the report as JSON");
 
+  BenchCommand bench_opts;
+  CLI::App* bench_cmd = app.add_subcommand("bench", "measure change detection + fusion: paper loop, OpenCV, fast path");
+  bench_cmd->add_option("--workload", bench_opts.workload, "paper, wildtrack or all")->capture_default_str();
+  bench_cmd->add_option("--frames", bench_opts.frames, "distinct random frames per repetition")->capture_default_str();
+  bench_cmd->add_option("--site", bench_opts.site, "the WILDTRACK site file")->capture_default_str();
+  bench_cmd->add_option("--end-to-end-frames", bench_opts.end_to_end_frames,
+                        "lab frames rendered to H.264 for RunSite vs decode (0 = skip)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 10000));
+  bench_cmd->add_flag("--json", bench_opts.json_to_stdout, "print one JSON object with a record per workload");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -454,5 +492,6 @@ int main(int argc, char** argv) {
   if (demo_cmd->parsed()) status = RunDemoCommand(common, demo_out, demo_frames);
   if (synth_cmd->parsed()) status = RunSynth(common, synth);
   if (eval_cmd->parsed()) status = RunEval(eval);
+  if (bench_cmd->parsed()) status = RunBenchCommand(common, bench_opts);
   return status.ok() ? 0 : Fail(status);
 }

@@ -1,0 +1,500 @@
+#include "occmap/bench/bench.h"
+
+#include <fmt/core.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <optional>
+#include <random>
+#include <thread>
+#include <unistd.h>
+#include <opencv2/imgproc.hpp>
+
+#include "occmap/fusion/fast_fusion.h"
+#include "occmap/io/frame_source.h"
+#include "occmap/pipeline/run.h"
+#include "occmap/sim/builtin_scenes.h"
+#include "occmap/sim/dataset_writer.h"
+#include "occmap/sim/scene.h"
+#include "occmap/geometry/pinhole_camera.h"
+#include "occmap/site/site.h"
+
+namespace occmap::bench {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+PinholeCamera LookAt(const Eigen::Vector3d& position_m, const Eigen::Vector3d& target_m, int width, int height,
+                     double f_px) {
+  const Eigen::Vector3d z = (target_m - position_m).normalized();
+  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  PinholeParameters p;
+  p.image_size = {width, height};
+  p.fx_px = p.fy_px = f_px;
+  p.cx_px = (width - 1) / 2.0;
+  p.cy_px = (height - 1) / 2.0;
+  p.cam_from_world_rotation.row(0) = x.transpose();
+  p.cam_from_world_rotation.row(1) = y.transpose();
+  p.cam_from_world_rotation.row(2) = z.transpose();
+  p.cam_from_world_translation_m = -p.cam_from_world_rotation * position_m;
+  return PinholeCamera::Create(p).value();
+}
+
+struct Workload {
+  std::string name;
+  std::vector<std::unique_ptr<CameraModel>> cameras;
+  std::vector<Image<uint8_t>> masks;  // per camera, may be empty
+  FloorGrid grid;
+  double plane_height_m = 0;
+};
+
+// `count` cameras on the walls of a room of size_x x size_y m at 2.8 m, looking across it.
+Workload SyntheticRoom(std::string name, int count, int width, int height, FloorGrid grid) {
+  Workload w;
+  w.name = std::move(name);
+  w.grid = grid;
+  const double sx = grid.size_x_m(), sy = grid.size_y_m();
+  const Eigen::Vector3d center(grid.origin_x_m + sx / 2, grid.origin_y_m + sy / 2, 0.0);
+  for (int i = 0; i < count; ++i) {
+    const double angle = 2 * M_PI * (i + 0.125) / count;
+    const Eigen::Vector3d position(center.x() + 0.55 * sx * std::cos(angle), center.y() + 0.55 * sy * std::sin(angle),
+                                   2.8);
+    const Eigen::Vector3d target = center + 0.2 * (center - Eigen::Vector3d(position.x(), position.y(), 0.0));
+    w.cameras.push_back(LookAt(position, target, width, height, 0.6 * width).Clone());
+  }
+  w.masks.resize(w.cameras.size());
+  return w;
+}
+
+Result<std::optional<Workload>> MakeWorkload(const std::string& name, const BenchOptions& options, std::string& note) {
+  if (name == "paper") {
+    return std::optional<Workload>(SyntheticRoom(
+        "paper", 6, 640, 480,
+        FloorGrid{.origin_x_m = 0, .origin_y_m = 0, .cells_x = 640, .cells_y = 480, .cell_size_m = 0.02}));
+  }
+  if (name == "tiny") {
+    return std::optional<Workload>(SyntheticRoom(
+        "tiny", 4, 96, 72, FloorGrid{.origin_x_m = 0, .origin_y_m = 0, .cells_x = 80, .cells_y = 60, .cell_size_m = 0.05}));
+  }
+  // wildtrack
+  std::error_code ec;
+  if (!std::filesystem::exists(options.wildtrack_site, ec)) {
+    note = fmt::format("skipped: site file {} not found (run from the checkout)", options.wildtrack_site.string());
+    return std::optional<Workload>();
+  }
+  SiteLoadOptions load;
+  if (!options.data_root.empty()) load.data_root = options.data_root;
+  auto site = LoadSite(options.wildtrack_site, load);
+  if (!site.ok()) {
+    note = "skipped: WILDTRACK data not available (" + site.status().message() + ")";
+    return std::optional<Workload>();
+  }
+  Workload w;
+  w.name = "wildtrack";
+  w.grid = site->grid;
+  w.plane_height_m = site->plane_height_m;
+  for (SiteCamera& cam : site->cameras) {
+    w.cameras.push_back(std::move(cam.camera));
+    w.masks.push_back(std::move(cam.mask));
+  }
+  return std::optional<Workload>(std::move(w));
+}
+
+// Background uniform random; the frame equals it except for changed_fraction of the pixels,
+// which differ by T + 1 .. 255 (in range).
+void MakeFrames(std::mt19937& rng, ImageSize size, int threshold, double changed_fraction, int count,
+                Image<uint8_t>& background, std::vector<Image<uint8_t>>& frames) {
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::uniform_real_distribution<double> unit(0, 1);
+  background = Image<uint8_t>(size.width, size.height);
+  for (int y = 0; y < size.height; ++y) {
+    for (int x = 0; x < size.width; ++x) background(x, y) = static_cast<uint8_t>(byte(rng));
+  }
+  for (int k = 0; k < count; ++k) {
+    Image<uint8_t> frame = background;
+    for (int y = 0; y < size.height; ++y) {
+      for (int x = 0; x < size.width; ++x) {
+        if (unit(rng) >= changed_fraction) continue;
+        const int b = background(x, y);
+        const int room = std::max(b, 255 - b);  // >= 128 > T for T <= 127
+        const int d = std::min(room, threshold + 1 + byte(rng) % std::max(1, room - threshold));
+        frame(x, y) = static_cast<uint8_t>(b >= 128 ? b - d : b + d);
+      }
+    }
+    frames.push_back(std::move(frame));
+  }
+}
+
+// Median over repetitions of the time per frame of fn(frame index), in seconds.
+double MedianSecondsPerFrame(int repetitions, int frames, const std::function<void(int)>& fn) {
+  fn(0);  // warm-up
+  std::vector<double> times;
+  for (int r = 0; r < repetitions; ++r) {
+    const auto start = Clock::now();
+    for (int f = 0; f < frames; ++f) fn(f);
+    times.push_back(std::chrono::duration<double>(Clock::now() - start).count() / frames);
+  }
+  std::sort(times.begin(), times.end());
+  return times[times.size() / 2];
+}
+
+Result<WorkloadResult> RunWorkload(Workload& w, const BenchOptions& options, Context& ctx) {
+  WorkloadResult result;
+  result.name = w.name;
+  result.cameras = static_cast<int>(w.cameras.size());
+  result.cells = w.grid.num_cells();
+  result.threads = ctx.num_threads();
+  result.kernel = FastFusion::KernelName();
+
+  std::vector<LutCameraInput> inputs;
+  for (size_t n = 0; n < w.cameras.size(); ++n) inputs.push_back({w.cameras[n].get(), w.masks[n].view()});
+  LutOptions lut_options;
+  lut_options.plane_height_m = w.plane_height_m;
+  auto t0 = Clock::now();
+  OCCMAP_ASSIGN_OR_RETURN(GroundLut lut, BuildGroundLut(inputs, w.grid, lut_options, ctx));
+  result.lut_build_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  t0 = Clock::now();
+  FastFusion fast(lut);
+  result.fast_build_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  result.lut_bytes = lut.MemoryBytes();
+  result.fast_bytes = fast.MemoryBytes();
+  result.fast_runs = fast.num_runs();
+  result.fast_pairs = fast.num_pairs();
+  result.mapped_pixels = fast.mapped_pixels();
+  result.camera_pixels = lut.total_pixels();
+  result.fast_bytes_read_per_frame = 2 * result.camera_pixels + fast.TableBytesPerFrame();
+
+  std::vector<const CameraModel*> cams;
+  for (const auto& c : w.cameras) cams.push_back(c.get());
+  OpenCvFusion opencv(cams, w.grid, w.plane_height_m);
+
+  // Frames: [frame index][camera].
+  std::mt19937 rng(2024);
+  std::vector<Image<uint8_t>> backgrounds(w.cameras.size());
+  std::vector<std::vector<Image<uint8_t>>> per_camera(w.cameras.size());
+  for (size_t n = 0; n < w.cameras.size(); ++n) {
+    MakeFrames(rng, lut.image_size(static_cast<int>(n)), options.threshold, options.changed_fraction, options.frames,
+               backgrounds[n], per_camera[n]);
+  }
+  std::vector<ImageView<const uint8_t>> background_views;
+  for (const auto& b : backgrounds) background_views.push_back(b.view());
+  std::vector<std::vector<ImageView<const uint8_t>>> frame_views(static_cast<size_t>(options.frames));
+  for (int f = 0; f < options.frames; ++f) {
+    for (size_t n = 0; n < w.cameras.size(); ++n) frame_views[static_cast<size_t>(f)].push_back(per_camera[n][static_cast<size_t>(f)].view());
+  }
+
+  const double pixels = static_cast<double>(result.camera_pixels);
+  std::vector<uint8_t> occupancy;
+  result.paper_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
+                       PaperLoop(lut, frame_views[static_cast<size_t>(f)], background_views, options.threshold, occupancy);
+                     });
+  cv::Mat cv_out;
+  // OpenCV parallelises absdiff / threshold / remap itself: give it the same threads as (d).
+  const int saved_cv_threads = cv::getNumThreads();
+  cv::setNumThreads(ctx.num_threads());
+  result.opencv_threads = cv::getNumThreads();
+  result.opencv_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
+                        opencv.Fuse(frame_views[static_cast<size_t>(f)], background_views, options.threshold, cv_out);
+                      });
+  cv::setNumThreads(saved_cv_threads);
+  OccupancyMap map;
+  Context one(1);
+  result.fast_1_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
+                        fast.Fuse(frame_views[static_cast<size_t>(f)], background_views, options.threshold, one, map);
+                      });
+  result.fast_all_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
+                          fast.Fuse(frame_views[static_cast<size_t>(f)], background_views, options.threshold, ctx, map);
+                        });
+  return result;
+}
+
+double Ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
+double Mega(int64_t n) { return static_cast<double>(n) / 1e6; }
+
+}  // namespace
+
+Status BenchOptions::Validate() const {
+  if (workload != "paper" && workload != "wildtrack" && workload != "all" && workload != "tiny") {
+    return InvalidInput(fmt::format("--workload: expected paper, wildtrack or all, found '{}'", workload));
+  }
+  if (frames < 1 || frames > 1000) return InvalidInput(fmt::format("--frames: expected 1..1000, found {}", frames));
+  if (repetitions < 1) return InvalidInput("repetitions: expected at least 1");
+  if (!(changed_fraction >= 0 && changed_fraction <= 1)) return InvalidInput("changed fraction: expected 0..1");
+  if (threshold < 0 || threshold > 127) return InvalidInput("threshold: expected 0..127");
+  return Status::Ok();
+}
+
+void PaperLoop(const GroundLut& lut, std::span<const ImageView<const uint8_t>> frames,
+               std::span<const ImageView<const uint8_t>> backgrounds, int threshold, std::vector<uint8_t>& occupancy) {
+  OCCMAP_CHECK(frames.size() == static_cast<size_t>(lut.num_cameras()) && backgrounds.size() == frames.size(),
+               "paper loop: one frame and one background per camera");
+  occupancy.assign(static_cast<size_t>(lut.grid().num_cells()) + 1, 1);  // O = 1
+  uint8_t* o = occupancy.data();
+  for (int n = 0; n < lut.num_cameras(); ++n) {
+    const ImageSize size = lut.image_size(n);
+    const uint32_t* l1 = lut.l1(n).data();
+    const ImageView<const uint8_t> image = frames[static_cast<size_t>(n)];
+    const ImageView<const uint8_t> background = backgrounds[static_cast<size_t>(n)];
+    // for r, for c: if |I - B| <= T then O[L1[n, c, r]] = 0 (the sentinel absorbs unmapped pixels)
+    for (int r = 0; r < size.height; ++r) {
+      const uint8_t* i_row = image.row(r);
+      const uint8_t* b_row = background.row(r);
+      const uint32_t* l1_row = l1 + static_cast<size_t>(r) * size.width;
+      for (int c = 0; c < size.width; ++c) {
+        if (std::abs(int{i_row[c]} - int{b_row[c]}) <= threshold) o[l1_row[c]] = 0;
+      }
+    }
+    const std::span<const uint32_t> extra_pixels = lut.extra_pixels(n);
+    const std::span<const uint32_t> extra_cells = lut.extra_cells(n);
+    for (size_t e = 0; e < extra_pixels.size(); ++e) {
+      const int r = static_cast<int>(extra_pixels[e] / static_cast<uint32_t>(size.width));
+      const int c = static_cast<int>(extra_pixels[e] % static_cast<uint32_t>(size.width));
+      if (std::abs(int{image(c, r)} - int{background(c, r)}) <= threshold) o[extra_cells[e]] = 0;
+    }
+  }
+}
+
+OpenCvFusion::OpenCvFusion(const std::vector<const CameraModel*>& cameras, const FloorGrid& grid,
+                           double plane_height_m) {
+  for (const CameraModel* camera : cameras) {
+    cv::Mat mx(grid.cells_y, grid.cells_x, CV_32FC1), my(grid.cells_y, grid.cells_x, CV_32FC1);
+    const ImageSize size = camera->image_size();
+    for (int j = 0; j < grid.cells_y; ++j) {
+      for (int i = 0; i < grid.cells_x; ++i) {
+        const Eigen::Vector2d c = grid.CellCenter(static_cast<int64_t>(j) * grid.cells_x + i);
+        const auto pixel = camera->Project(Eigen::Vector3d(c.x(), c.y(), plane_height_m));
+        const bool in = pixel && pixel->x() > -0.5 && pixel->y() > -0.5 && pixel->x() < size.width - 0.5 &&
+                        pixel->y() < size.height - 0.5;
+        mx.at<float>(j, i) = in ? static_cast<float>(pixel->x()) : -10.0f;
+        my.at<float>(j, i) = in ? static_cast<float>(pixel->y()) : -10.0f;
+      }
+    }
+    map_x_.push_back(mx);
+    map_y_.push_back(my);
+  }
+}
+
+void OpenCvFusion::Fuse(std::span<const ImageView<const uint8_t>> frames,
+                        std::span<const ImageView<const uint8_t>> backgrounds, int threshold, cv::Mat& out) {
+  for (size_t n = 0; n < map_x_.size(); ++n) {
+    const cv::Mat image(frames[n].height(), frames[n].width(), CV_8UC1, const_cast<uint8_t*>(frames[n].data()),
+                        static_cast<size_t>(frames[n].stride_elems()));
+    const cv::Mat background(backgrounds[n].height(), backgrounds[n].width(), CV_8UC1,
+                             const_cast<uint8_t*>(backgrounds[n].data()),
+                             static_cast<size_t>(backgrounds[n].stride_elems()));
+    cv::absdiff(image, background, diff_);
+    cv::threshold(diff_, mask_, threshold, 255, cv::THRESH_BINARY);
+    if (n == 0) {
+      cv::remap(mask_, out, map_x_[n], map_y_[n], cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(255));
+    } else {
+      cv::remap(mask_, remapped_, map_x_[n], map_y_[n], cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(255));
+      cv::bitwise_and(out, remapped_, out);
+    }
+  }
+}
+
+std::string MachineName() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("model name", 0) == 0) {
+      const size_t colon = line.find(':');
+      if (colon != std::string::npos) {
+        std::string name = line.substr(colon + 1);
+        name.erase(0, name.find_first_not_of(' '));
+        return name;
+      }
+    }
+  }
+  return "unknown";
+}
+
+Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx) {
+  EndToEndResult e;
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / fmt::format("occmap-bench-{}", static_cast<long>(getpid()));
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+  struct Cleanup {
+    fs::path dir;
+    ~Cleanup() {
+      std::error_code ignored;
+      fs::remove_all(dir, ignored);
+    }
+  } cleanup{dir};
+  sim::BuiltinSceneOptions o;
+  o.num_frames = frames;
+  OCCMAP_ASSIGN_OR_RETURN(sim::SceneSpec spec, sim::MakeBuiltinSceneSpec("lab", o));
+  OCCMAP_ASSIGN_OR_RETURN(sim::Scene scene, sim::Scene::Create(std::move(spec)));
+  sim::DatasetOptions d;
+  d.out_dir = dir / "dataset";
+  d.frame_format = sim::DatasetOptions::FrameFormat::kVideo;
+  d.change_masks = false;
+  d.gt_rasters = false;
+  OCCMAP_ASSIGN_OR_RETURN(sim::DatasetSummary written, sim::WriteDataset(scene, d, ctx));
+  OCCMAP_ASSIGN_OR_RETURN(Site site, LoadSite(written.site_file));
+  e.cameras = static_cast<int>(site.cameras.size());
+  // Pure decode: every camera's file to the end, same decoder threads as RunSite.
+  FrameSourceOptions src;
+  src.decoder_threads = ctx.num_threads();
+  const auto t0 = Clock::now();
+  int64_t decoded = 0;
+  for (const SiteCamera& cam : site.cameras) {
+    OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> source, OpenFrameSource(cam.source, src));
+    Frame frame;
+    int64_t n = 0;
+    while (true) {
+      OCCMAP_ASSIGN_OR_RETURN(bool got, source->Read(frame));
+      if (!got) break;
+      ++n;
+    }
+    decoded = std::max(decoded, n);
+  }
+  const double decode_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  e.decode_fps = decode_s > 0 ? static_cast<double>(decoded) / decode_s : 0;
+  RunOptions r;
+  r.out_dir = dir / "run";
+  r.occupancy_video = false;
+  r.mosaic_video = false;
+  OCCMAP_ASSIGN_OR_RETURN(RunSummary run, RunSite(site, r, ctx));
+  e.frames = run.frames;
+  e.run_fps = run.frames_per_second;
+  e.decode_s = run.decode_s;
+  e.detect_s = run.detect_s;
+  e.fuse_s = run.fuse_s;
+  e.measured = true;
+  e.note = fmt::format("lab scene, {} cameras 640x480 H.264, {} frames; RunSite includes background, tables, "
+                       "detections and tracking (the current pipeline, not yet FastFusion)",
+                       e.cameras, e.frames);
+  return e;
+}
+
+Result<BenchResults> RunBench(const BenchOptions& options, Context& ctx) {
+  OCCMAP_RETURN_IF_ERROR(options.Validate());
+  std::vector<std::string> names;
+  if (options.workload == "all") {
+    names = {"paper", "wildtrack"};
+  } else {
+    names = {options.workload};
+  }
+  std::vector<WorkloadResult> results;
+  for (const std::string& name : names) {
+    std::string note;
+    OCCMAP_ASSIGN_OR_RETURN(std::optional<Workload> workload, MakeWorkload(name, options, note));
+    if (!workload) {
+      WorkloadResult skipped;
+      skipped.name = name;
+      skipped.skipped = true;
+      skipped.note = note;
+      results.push_back(skipped);
+      continue;
+    }
+    OCCMAP_ASSIGN_OR_RETURN(WorkloadResult r, RunWorkload(*workload, options, ctx));
+    results.push_back(std::move(r));
+  }
+  BenchResults all;
+  all.workloads = std::move(results);
+  if (options.end_to_end_frames > 0) {
+    OCCMAP_ASSIGN_OR_RETURN(all.end_to_end, MeasureEndToEnd(options.end_to_end_frames, ctx));
+  } else {
+    all.end_to_end.note = "not measured (--end-to-end-frames 0)";
+  }
+  return all;
+}
+
+std::string BenchTable(const BenchResults& all) {
+  std::string s = fmt::format("machine: {}, {} hardware threads\n", MachineName(), std::thread::hardware_concurrency());
+  for (const WorkloadResult& r : all.workloads) {
+    if (r.skipped) {
+      s += fmt::format("\n{}: {}\n", r.name, r.note);
+      continue;
+    }
+    s += fmt::format("\n{}: {} cameras, {:.2f} Mpixel per frame, {} cells; kernel {}\n", r.name, r.cameras,
+                     Mega(r.camera_pixels), r.cells, r.kernel);
+    s += fmt::format("  tables: GroundLut built in {:.2f} s, {:.1f} MB; FastFusion built in {:.3f} s, {:.1f} MB "
+                     "({} runs, {:.2f} mapped pixels per run, {} coverage-fix pairs)\n",
+                     r.lut_build_seconds, Mega(r.lut_bytes), r.fast_build_seconds, Mega(r.fast_bytes), r.fast_runs,
+                     r.fast_runs > 0 ? static_cast<double>(r.mapped_pixels) / static_cast<double>(r.fast_runs) : 0.0,
+                     r.fast_pairs);
+    s += fmt::format("  {:<28} {:>10} {:>10} {:>12}\n", "method", "Gpixel/s", "ms/frame", "vs paper");
+    auto row = [&](const char* name, double pps) {
+      s += fmt::format("  {:<28} {:>10.3f} {:>10.3f} {:>11.2f}x\n", name, pps / 1e9,
+                       pps > 0 ? 1e3 * static_cast<double>(r.camera_pixels) / pps : 0.0, Ratio(pps, r.paper_pps));
+    };
+    row("(a) paper loop", r.paper_pps);
+    row(fmt::format("(b) OpenCV remap, {} threads", r.opencv_threads).c_str(), r.opencv_pps);
+    row("(c) FastFusion 1 thread", r.fast_1_pps);
+    row(fmt::format("(d) FastFusion {} threads", r.threads).c_str(), r.fast_all_pps);
+    s += fmt::format("  speedup vs OpenCV {:.2f}x, vs paper loop {:.2f}x; fast path reads {:.1f} MB per frame\n",
+                     Ratio(r.fast_all_pps, r.opencv_pps), Ratio(r.fast_all_pps, r.paper_pps),
+                     Mega(r.fast_bytes_read_per_frame));
+  }
+  const EndToEndResult& e = all.end_to_end;
+  if (e.measured) {
+    s += fmt::format("\nend to end ({}): RunSite {:.1f} frames/s, decode only {:.1f} frames/s, ratio {:.2f} "
+                     "(RunSite split: decode {:.2f} s, detect {:.2f} s, fuse {:.2f} s)\n",
+                     e.note, e.run_fps, e.decode_fps, Ratio(e.run_fps, e.decode_fps), e.decode_s, e.detect_s, e.fuse_s);
+  } else {
+    s += fmt::format("\nend to end: {}\n", e.note);
+  }
+  return s;
+}
+
+nlohmann::json BenchJson(const BenchResults& all) {
+  nlohmann::json out;
+  const EndToEndResult& e = all.end_to_end;
+  out["machine"] = MachineName();
+  out["nproc"] = std::thread::hardware_concurrency();
+  out["end_to_end_vs_decode"] = e.measured ? nlohmann::json(Ratio(e.run_fps, e.decode_fps)) : nlohmann::json(nullptr);
+  out["end_to_end"] = {{"note", e.note}, {"frames", e.frames}, {"run_frames_per_second", e.run_fps},
+                       {"decode_frames_per_second", e.decode_fps}};
+  out["notes"] = {
+      "pixels_per_second = all cameras' pixels / median time per frame; frames: random background, 10% of pixels "
+      "changed by more than T = 30",
+      "end_to_end_vs_decode = RunSite frames/s / decode-only frames/s over the same H.264 files"};
+  nlohmann::json list = nlohmann::json::array();
+  for (const WorkloadResult& r : all.workloads) {
+    nlohmann::json j;
+    j["name"] = r.name;
+    j["skipped"] = r.skipped;
+    if (r.skipped) {
+      j["note"] = r.note;
+      list.push_back(j);
+      continue;
+    }
+    j["cameras"] = r.cameras;
+    j["camera_pixels"] = r.camera_pixels;
+    j["cells"] = r.cells;
+    j["threads"] = r.threads;
+    j["opencv_threads"] = r.opencv_threads;
+    j["machine"] = MachineName();
+    j["nproc"] = std::thread::hardware_concurrency();
+    j["kernel"] = r.kernel;
+    j["paper_loop_pixels_per_second"] = r.paper_pps;
+    j["opencv_pixels_per_second"] = r.opencv_pps;
+    j["fast_1_thread_pixels_per_second"] = r.fast_1_pps;
+    j["fast_all_threads_pixels_per_second"] = r.fast_all_pps;
+    j["speedup_vs_opencv"] = Ratio(r.fast_all_pps, r.opencv_pps);
+    j["speedup_vs_paper_loop"] = Ratio(r.fast_all_pps, r.paper_pps);
+    j["speedup_1_thread_vs_paper_loop"] = Ratio(r.fast_1_pps, r.paper_pps);
+    j["lut_build_seconds"] = r.lut_build_seconds;
+    j["fast_build_seconds"] = r.fast_build_seconds;
+    j["lut_bytes"] = r.lut_bytes;
+    j["fast_bytes"] = r.fast_bytes;
+    j["fast_runs"] = r.fast_runs;
+    j["fast_pairs"] = r.fast_pairs;
+    j["mapped_pixels"] = r.mapped_pixels;
+    j["fast_bytes_read_per_frame"] = r.fast_bytes_read_per_frame;
+    j["end_to_end_vs_decode"] = out["end_to_end_vs_decode"];
+    list.push_back(j);
+  }
+  out["workloads"] = list;
+  return out;
+}
+
+}  // namespace occmap::bench

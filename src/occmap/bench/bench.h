@@ -1,0 +1,134 @@
+// `occmap bench`: the speed of the on-line step (change detection + fusion, the paper's AND)
+// measured four ways on one workload, in one run:
+//   (a) paper:     PaperLoop, the paper's image-based pseudo-code with the change test inside
+//                  (per pixel: if |I - B| <= T then O[L1[p]] = 0; sentinel cell; coverage pairs);
+//   (b) opencv:    what a user would write with OpenCV: cv::absdiff + cv::threshold per camera,
+//                  cv::remap of the change mask onto the floor grid (maps = each cell centre
+//                  projected into the camera, INTER_NEAREST), cv::bitwise_and over cameras;
+//   (c) fast_1:    FastFusion on one thread;
+//   (d) fast_all:  FastFusion on all the context's threads.
+// Figures: camera pixels per second (all cameras' pixels / median time per frame over the
+// repetitions) and ratios; table build time and table bytes.
+//
+// Workloads. "paper": 6 synthetic pinhole cameras 640x480 on the walls of a 12.8 x 9.6 m room
+// onto a 640 x 480 grid of 2 cm (the paper's sizes). "wildtrack": the 7 real WILDTRACK cameras
+// (1920x1080, sites/wildtrack.yaml with the data root) onto the dataset's 480 x 1440 grid;
+// skipped with a note when the data is absent. "tiny" (tests): 4 cameras 96x72.
+// Frames: background uniform random bytes; the frame equals the background but for
+// `changed_fraction` (default 10 %) of its pixels, chosen at random, which differ by more than
+// T (T = 30); `frames` such frames are cycled through.
+//
+//   BenchOptions o; o.workload = "all";
+//   OCCMAP_ASSIGN_OR_RETURN(std::vector<WorkloadResult> r, RunBench(o, ctx));
+//   fmt::print("{}", BenchTable(r));
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include "occmap/geometry/camera_model.h"
+#include "occmap/lut/ground_lut.h"
+#include "occmap/util/image.h"
+#include "occmap/util/status.h"
+#include "occmap/util/thread_pool.h"
+
+namespace occmap::bench {
+
+struct BenchOptions {
+  std::string workload = "all";  // paper, wildtrack, all, tiny
+  int frames = 4;                // distinct frames cycled through per repetition
+  int repetitions = 5;           // the median over these is reported
+  double changed_fraction = 0.10;
+  int threshold = 30;
+  std::filesystem::path wildtrack_site = "sites/wildtrack.yaml";
+  std::filesystem::path data_root;  // empty: the site file's data_root
+  // End to end over H.264: the lab scene rendered to this many frames of video per camera
+  // (in a temporary folder), RunSite (no video outputs) frames/s against a pure decode pass
+  // over the same files with the same decoder threads. 0 = not measured (null in the JSON).
+  int end_to_end_frames = 0;
+  Status Validate() const;
+};
+
+struct WorkloadResult {
+  std::string name;
+  bool skipped = false;
+  std::string note;
+  int cameras = 0;
+  int64_t camera_pixels = 0;  // all cameras, per frame
+  int64_t cells = 0;
+  double lut_build_seconds = 0;
+  double fast_build_seconds = 0;
+  int64_t lut_bytes = 0;   // GroundLut::MemoryBytes
+  int64_t fast_bytes = 0;  // FastFusion::MemoryBytes
+  int64_t fast_runs = 0;
+  int64_t fast_pairs = 0;        // coverage-fix pairs
+  int64_t mapped_pixels = 0;   // pixels whose L1 entry is a cell
+  std::string kernel;
+  int threads = 1;         // FastFusion (d): the context's threads
+  int opencv_threads = 1;  // OpenCV's own pool, set to the same count for (b)
+  // Camera pixels per second.
+  double paper_pps = 0;
+  double opencv_pps = 0;
+  double fast_1_pps = 0;
+  double fast_all_pps = 0;
+  // Bytes read per frame by the fast path: images + backgrounds + tables.
+  int64_t fast_bytes_read_per_frame = 0;
+};
+
+struct EndToEndResult {
+  bool measured = false;
+  std::string note;
+  int64_t frames = 0;
+  int cameras = 0;
+  double run_fps = 0;     // RunSite's frames_per_second (all cameras per frame)
+  double decode_fps = 0;  // frames (of all cameras) decoded per second
+  double fuse_s = 0, detect_s = 0, decode_s = 0;  // RunSite's own split
+};
+
+struct BenchResults {
+  std::vector<WorkloadResult> workloads;
+  EndToEndResult end_to_end;
+};
+
+// Runs the workloads named by options.workload (all = paper and wildtrack), then the end-to-end
+// measurement when asked.
+Result<BenchResults> RunBench(const BenchOptions& options, Context& ctx);
+Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx);
+
+std::string BenchTable(const BenchResults& results);
+// {"machine": ..., "nproc": ..., "workloads": [{name, speedup_vs_opencv, speedup_vs_paper_loop,
+// *_pixels_per_second, threads, ...}], "end_to_end_vs_decode": null, "notes": [...]}.
+nlohmann::json BenchJson(const BenchResults& results);
+std::string MachineName();  // /proc/cpuinfo's model name
+
+// (a) The paper's image-based loop with the change test inside, all cameras, AND. `occupancy`
+// is resized to num_cells + 1 (the sentinel) and gets 1 = occupied (also for unseen cells),
+// 0 = free. Unchanged means |I - B| <= T (equation 4; the printed pseudo-code's "< T" differs
+// only at |I - B| == T).
+void PaperLoop(const GroundLut& lut, std::span<const ImageView<const uint8_t>> frames,
+               std::span<const ImageView<const uint8_t>> backgrounds, int threshold,
+               std::vector<uint8_t>& occupancy);
+
+// (b) The OpenCV version. Cells a camera does not see (centre behind it or outside its image)
+// map to a pixel outside the image, read as 255 (changed): neutral for the AND. Samples one
+// pixel per cell and camera, so it may differ from the exact fusion.
+class OpenCvFusion {
+ public:
+  OpenCvFusion(const std::vector<const CameraModel*>& cameras, const FloorGrid& grid, double plane_height_m);
+  // out: grid-sized CV_8U (rows = cells_y, cols = cells_x, cell j * cells_x + i), 255 = occupied.
+  void Fuse(std::span<const ImageView<const uint8_t>> frames, std::span<const ImageView<const uint8_t>> backgrounds,
+            int threshold, cv::Mat& out);
+
+ private:
+  std::vector<cv::Mat> map_x_, map_y_;
+  cv::Mat diff_, mask_, remapped_;
+};
+
+}  // namespace occmap::bench

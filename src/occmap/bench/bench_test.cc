@@ -1,0 +1,200 @@
+#include "occmap/bench/bench.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <vector>
+
+#include "occmap/detect/change_detection.h"
+#include "occmap/fusion/fast_fusion.h"
+#include "occmap/fusion/fusion.h"
+#include "occmap/lut/test_scene.h"
+#include "occmap/site/site.h"
+#include "occmap/util/testing.h"
+
+namespace occmap::bench {
+namespace {
+
+struct Frames {
+  std::vector<Image<uint8_t>> frames, backgrounds;
+  std::vector<ImageView<const uint8_t>> frame_views, background_views;
+};
+
+// Random backgrounds; frames differ by 0..2T so both sides of the threshold occur, with
+// runs of changed pixels so that some cells are occupied.
+Frames RandomFrames(const GroundLut& lut, int threshold, double changed_fraction, std::mt19937& rng) {
+  Frames f;
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (int n = 0; n < lut.num_cameras(); ++n) {
+    const ImageSize size = lut.image_size(n);
+    Image<uint8_t> b(size.width, size.height), i(size.width, size.height);
+    for (int y = 0; y < size.height; ++y) {
+      for (int x = 0; x < size.width; ++x) {
+        b(x, y) = static_cast<uint8_t>(byte(rng));
+        const int d = unit(rng) < changed_fraction ? threshold + 1 : static_cast<int>(rng() % (threshold + 1));
+        i(x, y) = static_cast<uint8_t>(b(x, y) >= 128 ? b(x, y) - d : b(x, y) + d);
+      }
+    }
+    f.frames.push_back(std::move(i));
+    f.backgrounds.push_back(std::move(b));
+  }
+  for (size_t n = 0; n < f.frames.size(); ++n) {
+    f.frame_views.push_back(f.frames[n].view());
+    f.background_views.push_back(f.backgrounds[n].view());
+  }
+  return f;
+}
+
+// DetectChangesGray into the global change buffer, then Fusion (image-based, k = 0, all active).
+OccupancyMap Reference(const GroundLut& lut, const Frames& f, int threshold, std::vector<uint8_t>& changes) {
+  changes.assign(lut.total_pixels(), 0);
+  for (int n = 0; n < lut.num_cameras(); ++n) {
+    const ImageSize size = lut.image_size(n);
+    DetectChangesGray(f.frame_views[static_cast<size_t>(n)], f.background_views[static_cast<size_t>(n)], threshold,
+                      ImageView<uint8_t>(changes.data() + lut.pixel_offset(n), size.width, size.height, size.width));
+  }
+  Fusion fusion(lut);
+  OccupancyMap map;
+  fusion.Fuse(changes, std::vector<bool>(static_cast<size_t>(lut.num_cameras()), true), FusionOptions{}, map);
+  return map;
+}
+
+GroundLut RoomLut(const testing::SmallRoom& room) {
+  std::vector<LutCameraInput> inputs;
+  for (const auto& cam : room.cameras) inputs.push_back({&cam, {}});
+  Context ctx(1);
+  return BuildGroundLut(inputs, room.grid, {}, ctx).value();
+}
+
+TEST(Bench, PaperLoopAndFastFusionEqualTheReference) {
+  testing::SmallRoom room(120, 90);
+  const GroundLut lut = RoomLut(room);
+  FastFusion fast(lut);
+  std::mt19937 rng(5);
+  Context ctx(2);
+  int64_t occupied = 0;
+  for (int trial = 0; trial < 8; ++trial) {
+    const int threshold = 5 + static_cast<int>(rng() % 60);
+    const Frames f = RandomFrames(lut, threshold, trial % 2 == 0 ? 0.97 : 0.5, rng);
+    std::vector<uint8_t> changes;
+    const OccupancyMap expected = Reference(lut, f, threshold, changes);
+    occupied += expected.Count(CellState::kOccupied);
+    std::vector<uint8_t> paper;
+    PaperLoop(lut, f.frame_views, f.background_views, threshold, paper);
+    ASSERT_EQ(paper.size(), expected.states().size() + 1);
+    EXPECT_EQ(paper, PaperImageBasedLoop(lut, changes));
+    for (size_t c = 0; c < expected.states().size(); ++c) {
+      if (expected.states()[c] == CellState::kUnseen) continue;
+      ASSERT_EQ(paper[c] != 0, expected.states()[c] == CellState::kOccupied) << "cell " << c;
+    }
+    OccupancyMap map;
+    fast.Fuse(f.frame_views, f.background_views, threshold, ctx, map);
+    EXPECT_EQ(map, expected);
+  }
+  EXPECT_GT(occupied, 0);
+}
+
+TEST(Bench, OpenCvVersionRuns) {
+  testing::SmallRoom room(120, 90);
+  const GroundLut lut = RoomLut(room);
+  std::vector<const CameraModel*> cams;
+  for (const auto& c : room.cameras) cams.push_back(&c);
+  OpenCvFusion opencv(cams, room.grid, 0.0);
+  std::mt19937 rng(6);
+  const Frames f = RandomFrames(lut, 20, 0.0, rng);  // nothing changed: every seen cell free
+  cv::Mat out;
+  opencv.Fuse(f.frame_views, f.background_views, 20, out);
+  ASSERT_EQ(out.rows, room.grid.cells_y);
+  ASSERT_EQ(out.cols, room.grid.cells_x);
+  // Every cell some camera sees is free (0); cells no camera sees stay 255.
+  int free_cells = 0;
+  for (int j = 0; j < out.rows; ++j) {
+    for (int i = 0; i < out.cols; ++i) free_cells += out.at<uint8_t>(j, i) == 0;
+  }
+  EXPECT_GT(free_cells, room.grid.num_cells() / 2);
+}
+
+TEST(Bench, JsonHasTheRequiredKeys) {
+  BenchOptions o;
+  o.workload = "tiny";
+  o.frames = 1;
+  o.repetitions = 1;
+  Context ctx(2);
+  auto results = RunBench(o, ctx);
+  ASSERT_TRUE(results.ok()) << results.status().ToString();
+  ASSERT_EQ(results->workloads.size(), 1u);
+  const nlohmann::json j = BenchJson(*results);
+  for (const char* key : {"machine", "nproc", "end_to_end_vs_decode", "workloads"}) EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_TRUE(j["end_to_end_vs_decode"].is_null());  // end_to_end_frames = 0
+  const nlohmann::json& w = j["workloads"][0];
+  for (const char* key :
+       {"speedup_vs_opencv", "speedup_vs_paper_loop", "paper_loop_pixels_per_second", "opencv_pixels_per_second",
+        "fast_1_thread_pixels_per_second", "fast_all_threads_pixels_per_second", "threads", "machine",
+        "lut_bytes", "fast_bytes", "lut_build_seconds"}) {
+    EXPECT_TRUE(w.contains(key)) << key;
+  }
+  EXPECT_GT(w["speedup_vs_opencv"].get<double>(), 0.0);
+  EXPECT_EQ(w["threads"].get<int>(), 2);
+  EXPECT_FALSE(BenchTable(*results).empty());
+}
+
+TEST(Bench, EndToEndMeasuresRunAndDecode) {
+  Context ctx(2);
+  auto e = MeasureEndToEnd(/*frames=*/4, ctx);
+  ASSERT_TRUE(e.ok()) << e.status().ToString();
+  EXPECT_TRUE(e->measured);
+  EXPECT_EQ(e->frames, 4);
+  EXPECT_GT(e->run_fps, 0.0);
+  EXPECT_GT(e->decode_fps, 0.0);
+  BenchResults all;
+  all.end_to_end = *e;
+  EXPECT_TRUE(BenchJson(all)["end_to_end_vs_decode"].is_number());
+}
+
+TEST(Bench, WildtrackSkippedWithoutItsSiteFile) {
+  BenchOptions o;
+  o.workload = "wildtrack";
+  o.wildtrack_site = "/nonexistent/wildtrack.yaml";
+  Context ctx(1);
+  auto results = RunBench(o, ctx);
+  ASSERT_TRUE(results.ok());
+  ASSERT_EQ(results->workloads.size(), 1u);
+  EXPECT_TRUE(results->workloads[0].skipped);
+  EXPECT_FALSE(results->workloads[0].note.empty());
+  BenchOptions bad;
+  bad.workload = "nope";
+  EXPECT_FALSE(bad.Validate().ok());
+}
+
+// FastFusion on the real WILDTRACK tables (7 x 1920x1080 onto 480 x 1440), one random frame,
+// 1 and 2 threads, against DetectChangesGray + Fusion. (Here rather than in the fusion module's
+// tests, which cannot link the site loader.)
+TEST(Bench, FastFusionIdenticalToReferenceOnWildtrack) {
+  OCCMAP_REQUIRE_DATASETS(root);
+  const std::filesystem::path site_file = std::filesystem::path(OCCMAP_SOURCE_DIR) / "sites" / "wildtrack.yaml";
+  auto site = LoadSite(site_file, SiteLoadOptions{root});
+  ASSERT_TRUE(site.ok()) << site.status().ToString();
+  Context ctx(2);
+  auto lut = BuildGroundLut(site->LutInputs(), site->grid, site->lut, ctx);
+  ASSERT_TRUE(lut.ok());
+  FastFusion fast(*lut);
+  std::mt19937 rng(7);
+  const int threshold = 25;
+  const Frames f = RandomFrames(*lut, threshold, 0.97, rng);
+  std::vector<uint8_t> changes;
+  const OccupancyMap expected = Reference(*lut, f, threshold, changes);
+  EXPECT_GT(expected.Count(CellState::kOccupied), 0);
+  Context ctx1(1);
+  for (Context* c : {&ctx1, &ctx}) {
+    OccupancyMap map;
+    fast.Fuse(f.frame_views, f.background_views, threshold, *c, map);
+    EXPECT_EQ(map, expected) << c->num_threads() << " threads";
+    OccupancyMap from_changes;
+    fast.FuseChanges(changes, *c, from_changes);
+    EXPECT_EQ(from_changes, expected) << c->num_threads() << " threads (changes)";
+  }
+}
+
+}  // namespace
+}  // namespace occmap::bench

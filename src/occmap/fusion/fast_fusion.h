@@ -1,0 +1,126 @@
+// FastFusion: the paper's image-based AND (k = 0, every camera active) with change detection
+// fused in, for speed. Same result as
+//   DetectChangesGray(frame_n, background_n, T, change_n) for every camera, then
+//   Fusion(lut).Fuse(changes, all active, {kImageBased, k = 0}, map)
+// bit for bit (tests), without ever writing a byte change mask.
+//
+// Tables (built once from a GroundLut). L1 is re-encoded per image row as runs of consecutive
+// pixels that map to the same cell (cell, first column, length <= 64; sentinel pixels are
+// dropped): WILDTRACK's L1 averages ~4.3 pixels per run, so the table shrinks from 4 bytes per
+// pixel to 8 bytes per run. The coverage-fix pairs (extra_pixels / extra_cells) are sorted by
+// the row of their pixel and handled with that row.
+//
+// Per frame. Work items are the rows (of all cameras) that have runs or pairs; they are split
+// over the context's pool, each thread with its own byte map (1 = still occupied, per cell).
+// For a row, the thread computes a bit mask of the UNCHANGED pixels (|I - B| <= T), 64 pixels
+// per 64-bit word (AVX-512BW: two loads, a saturated difference pair and one compare per 64
+// pixels; runtime dispatch with __builtin_cpu_supports, AVX2 and portable fallbacks); a run
+// frees its cell when any of its bits is set. The per-thread maps are AND-reduced into the
+// tri-state map with the per-cell view counts. No allocation per frame once the buffers have
+// been sized on the first call with a given number of threads; the pool's task functor is
+// built once (no std::function allocation per frame).
+//
+//   FastFusion fast(lut);
+//   fast.Fuse(frames, backgrounds, /*threshold=*/30, ctx, map);   // k = 0, all cameras
+//   fast.FuseChanges(changes, ctx, map);     // over a global change buffer (non-zero = changed)
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "occmap/fusion/occupancy_map.h"
+#include "occmap/lut/ground_lut.h"
+#include "occmap/util/image.h"
+#include "occmap/util/thread_pool.h"
+
+namespace occmap {
+
+class FastFusion {
+ public:
+  // One run of pixels of a row mapping to the same cell.
+  struct Run {
+    uint32_t cell;
+    uint16_t column;  // first pixel
+    uint16_t length;  // 1..64
+  };
+  // One coverage-fix pair, within its row. (Grouping a pixel's pairs with consecutive cells
+  // was tried: on WILDTRACK's 1.12 M pairs no two group, each added cell has its own pixel.)
+  struct Pair {
+    uint32_t cell;
+    uint32_t column;
+  };
+
+  // Copies what it needs from lut (which need not outlive this object). Image widths must be
+  // < 65536 (a CHECK).
+  explicit FastFusion(const GroundLut& lut);
+  FastFusion(const FastFusion&) = delete;
+  FastFusion& operator=(const FastFusion&) = delete;
+
+  // frames[n], backgrounds[n]: camera n's grey image and background, at the tables' image
+  // size (any stride). threshold 0..255 (CHECK). `map` is reset to the grid when needed; every
+  // cell is written.
+  void Fuse(std::span<const ImageView<const uint8_t>> frames, std::span<const ImageView<const uint8_t>> backgrounds,
+            int threshold, Context& ctx, OccupancyMap& map);
+  // The same fusion over an existing global change buffer (GroundLut pixel ids; non-zero =
+  // changed), like Fusion::Fuse with image-based, k = 0, all active.
+  void FuseChanges(std::span<const uint8_t> changes, Context& ctx, OccupancyMap& map);
+
+  int num_cameras() const { return static_cast<int>(sizes_.size()); }
+  int64_t num_runs() const { return static_cast<int64_t>(runs_.size()); }
+  int64_t num_pairs() const { return static_cast<int64_t>(pairs_.size()); }
+  int64_t mapped_pixels() const { return mapped_pixels_; }  // pixels in runs (L1 entries not the sentinel)
+  // Bytes of the re-encoded tables (runs, pairs, row index, view counts), not the per-thread
+  // buffers.
+  int64_t MemoryBytes() const;
+  // Bytes read from the tables per frame (runs + pairs + row index).
+  int64_t TableBytesPerFrame() const;
+  // Which kernel the dispatch picked: "avx512bw", "avx2" or "portable".
+  static const char* KernelName();
+  // Tests: selects a kernel ("portable", "avx2", "avx512bw", or "best" = the dispatch's
+  // choice) for every FastFusion of the process; false when this CPU lacks it. Not
+  // thread-safe: call with no fusion running.
+  static bool ForceKernelForTesting(std::string_view name);
+
+ private:
+  struct WorkRow {
+    uint16_t camera;
+    uint16_t row;
+    uint32_t runs_begin, runs_end;
+    uint32_t pairs_begin, pairs_end;
+  };
+  enum class Input { kImages, kChanges };
+
+  void Prepare(Context& ctx, OccupancyMap& map);
+  void Execute(Context& ctx, OccupancyMap& map);
+  void RunTask(int task, int thread);
+  void ReduceTask(int task);
+
+  FloorGrid grid_;
+  std::vector<ImageSize> sizes_;
+  std::vector<uint32_t> pixel_offsets_;
+  std::vector<Run> runs_;
+  std::vector<Pair> pairs_;
+  std::vector<WorkRow> rows_;
+  std::vector<uint8_t> view_count_;  // per cell, cameras that see it
+  int max_width_ = 0;
+  int64_t mapped_pixels_ = 0;
+
+  // Per-frame state (buffers sized once per thread count).
+  std::vector<std::vector<uint8_t>> partial_;   // [thread][cell] 1 = still occupied
+  std::vector<std::vector<uint64_t>> bits_;     // [thread] unchanged bits of one row
+  std::vector<uint8_t> thread_used_;            // [thread] wrote its partial this frame
+  std::function<void(int, int)> task_fn_;       // built once: calls RunTask / ReduceTask
+  int num_tasks_ = 0;
+  bool reducing_ = false;
+  Input input_ = Input::kImages;
+  std::span<const ImageView<const uint8_t>> frames_;
+  std::span<const ImageView<const uint8_t>> backgrounds_;
+  std::span<const uint8_t> changes_;
+  uint8_t threshold_ = 0;
+  CellState* states_ = nullptr;
+};
+
+}  // namespace occmap

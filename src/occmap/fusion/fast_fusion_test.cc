@@ -1,0 +1,204 @@
+#include "occmap/fusion/fast_fusion.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "occmap/fusion/fusion.h"
+#include "occmap/lut/test_scene.h"
+
+namespace occmap {
+namespace {
+
+struct RandomScene {
+  std::vector<std::unique_ptr<CameraModel>> cameras;
+  std::vector<Image<uint8_t>> masks;
+  GroundLut lut;
+};
+
+// The small room at a random image size (often not a multiple of 64), a random grid and
+// random rectangular masks on some cameras.
+RandomScene MakeRandomScene(std::mt19937& rng) {
+  std::uniform_int_distribution<int> width_dist(40, 210), height_dist(30, 120);
+  const int width = width_dist(rng);
+  const int height = height_dist(rng);
+  testing::SmallRoom room(width, height);
+  RandomScene scene;
+  for (const auto& cam : room.cameras) scene.cameras.push_back(cam.Clone());
+  FloorGrid grid = room.grid;
+  std::uniform_real_distribution<double> cell_dist(0.02, 0.12);
+  grid.cell_size_m = cell_dist(rng);
+  grid.cells_x = static_cast<int>(4.0 / grid.cell_size_m) + 1;
+  grid.cells_y = static_cast<int>(3.0 / grid.cell_size_m) + 1;
+  std::vector<LutCameraInput> inputs;
+  scene.masks.resize(scene.cameras.size());
+  for (size_t n = 0; n < scene.cameras.size(); ++n) {
+    if (rng() % 2 == 0) {
+      Image<uint8_t> mask(width, height, 255);
+      std::uniform_int_distribution<int> x_dist(0, width - 1), y_dist(0, height - 1);
+      for (int k = 0; k < 3; ++k) {
+        const int x0 = x_dist(rng), x1 = x_dist(rng), y0 = y_dist(rng), y1 = y_dist(rng);
+        for (int y = std::min(y0, y1); y <= std::max(y0, y1); ++y) {
+          for (int x = std::min(x0, x1); x <= std::max(x0, x1); ++x) mask(x, y) = 0;
+        }
+      }
+      scene.masks[n] = std::move(mask);
+    }
+    inputs.push_back({scene.cameras[n].get(), scene.masks[n].view()});
+  }
+  Context ctx(1);
+  scene.lut = BuildGroundLut(inputs, grid, {}, ctx).value();
+  return scene;
+}
+
+// Background random; each pixel of the frame differs from it by T - 1, T, T + 1 or a random
+// amount (so both sides of the strict comparison occur), with `changed_fraction` of the pixels
+// pushed above T.
+void MakeFrame(std::mt19937& rng, int threshold, double changed_fraction, Image<uint8_t>& frame,
+               Image<uint8_t>& background) {
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (int y = 0; y < frame.height(); ++y) {
+    for (int x = 0; x < frame.width(); ++x) {
+      const int b = byte(rng);
+      background(x, y) = static_cast<uint8_t>(b);
+      const bool change = unit(rng) < changed_fraction;
+      int d = change ? threshold + 1 + static_cast<int>(rng() % 3 == 0 ? byte(rng) : 0) : threshold - static_cast<int>(rng() % 2);
+      if (!change && rng() % 3 == 0) d = byte(rng) % (threshold + 1);
+      const int sign = rng() % 2 == 0 ? 1 : -1;
+      int f = b + sign * d;
+      if (f > 255 || f < 0) f = b - sign * d;
+      frame(x, y) = static_cast<uint8_t>(std::clamp(f, 0, 255));
+    }
+  }
+}
+
+// The reference: change detection per camera into the global buffer, then Fusion.
+OccupancyMap Reference(const GroundLut& lut, const std::vector<Image<uint8_t>>& frames,
+                       const std::vector<Image<uint8_t>>& backgrounds, int threshold, std::vector<uint8_t>& changes) {
+  changes.assign(lut.total_pixels(), 0);
+  for (int n = 0; n < lut.num_cameras(); ++n) {
+    const ImageSize size = lut.image_size(n);
+    ImageView<uint8_t> out(changes.data() + lut.pixel_offset(n), size.width, size.height, size.width);
+    // Equation 4 as detect/change_detection.h computes it (the fusion module does not link
+    // detect; bench_test checks against DetectChangesGray itself).
+    const Image<uint8_t>& f = frames[static_cast<size_t>(n)];
+    const Image<uint8_t>& b = backgrounds[static_cast<size_t>(n)];
+    for (int y = 0; y < size.height; ++y) {
+      for (int x = 0; x < size.width; ++x) out(x, y) = std::abs(int{f(x, y)} - int{b(x, y)}) > threshold ? 1 : 0;
+    }
+  }
+  Fusion fusion(lut);
+  OccupancyMap map;
+  fusion.Fuse(changes, std::vector<bool>(static_cast<size_t>(lut.num_cameras()), true), FusionOptions{}, map);
+  return map;
+}
+
+class FastFusionKernels : public ::testing::TestWithParam<const char*> {
+ protected:
+  void SetUp() override {
+    if (!FastFusion::ForceKernelForTesting(GetParam())) GTEST_SKIP() << GetParam() << " not supported here";
+  }
+  void TearDown() override { FastFusion::ForceKernelForTesting("best"); }
+};
+
+INSTANTIATE_TEST_SUITE_P(AllKernels, FastFusionKernels, ::testing::Values("portable", "avx2", "avx512bw"));
+
+TEST_P(FastFusionKernels, IdenticalToReferenceOnRandomScenesAndFrames) {
+  std::mt19937 rng(1234);
+  Context ctx1(1), ctx2(2);
+  int occupied_total = 0;
+  for (int trial = 0; trial < 24; ++trial) {
+    RandomScene scene = MakeRandomScene(rng);
+    FastFusion fast(scene.lut);
+    for (int frame_index = 0; frame_index < 4; ++frame_index) {
+      const int threshold = static_cast<int>(rng() % 256);
+      const double fractions[] = {0.0, 0.5, 0.95, 0.995, 1.0};
+      const double fraction = threshold == 255 ? 0.0 : fractions[rng() % 5];
+      std::vector<Image<uint8_t>> frames, backgrounds;
+      std::vector<ImageView<const uint8_t>> frame_views, background_views;
+      for (int n = 0; n < scene.lut.num_cameras(); ++n) {
+        const ImageSize size = scene.lut.image_size(n);
+        frames.emplace_back(size.width, size.height);
+        backgrounds.emplace_back(size.width, size.height);
+        MakeFrame(rng, threshold, fraction, frames.back(), backgrounds.back());
+      }
+      for (size_t n = 0; n < frames.size(); ++n) {
+        frame_views.push_back(frames[n].view());
+        background_views.push_back(backgrounds[n].view());
+      }
+      std::vector<uint8_t> changes;
+      const OccupancyMap expected = Reference(scene.lut, frames, backgrounds, threshold, changes);
+      occupied_total += static_cast<int>(expected.Count(CellState::kOccupied));
+      for (Context* ctx : {&ctx1, &ctx2}) {
+        OccupancyMap map;
+        fast.Fuse(frame_views, background_views, threshold, *ctx, map);
+        ASSERT_EQ(map, expected) << "trial " << trial << " frame " << frame_index << " T " << threshold
+                                 << " threads " << ctx->num_threads();
+        OccupancyMap from_changes;
+        fast.FuseChanges(changes, *ctx, from_changes);
+        ASSERT_EQ(from_changes, expected) << "trial " << trial << " (changes)";
+        // PaperImageBasedLoop agrees where some camera sees the cell.
+        const std::vector<uint8_t> paper = PaperImageBasedLoop(scene.lut, changes);
+        for (size_t c = 0; c < expected.states().size(); ++c) {
+          if (expected.states()[c] != CellState::kUnseen) {
+            ASSERT_EQ(paper[c] != 0, expected.states()[c] == CellState::kOccupied);
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(occupied_total, 0);  // the test exercises occupied cells, not only free ones
+}
+
+TEST_P(FastFusionKernels, StridedViewsAndReuse) {
+  std::mt19937 rng(99);
+  RandomScene scene = MakeRandomScene(rng);
+  FastFusion fast(scene.lut);
+  Context ctx(2);
+  OccupancyMap map;  // reused across frames
+  for (int frame_index = 0; frame_index < 3; ++frame_index) {
+    const int threshold = 20;
+    std::vector<Image<uint8_t>> frames, backgrounds, wide_frames, wide_backgrounds;
+    std::vector<ImageView<const uint8_t>> frame_views, background_views;
+    for (int n = 0; n < scene.lut.num_cameras(); ++n) {
+      const ImageSize size = scene.lut.image_size(n);
+      frames.emplace_back(size.width, size.height);
+      backgrounds.emplace_back(size.width, size.height);
+      MakeFrame(rng, threshold, 0.9, frames.back(), backgrounds.back());
+      // Copies inside wider images: views with a stride larger than the width.
+      wide_frames.emplace_back(size.width + 37, size.height, 0);
+      wide_backgrounds.emplace_back(size.width + 37, size.height, 255);
+      for (int y = 0; y < size.height; ++y) {
+        for (int x = 0; x < size.width; ++x) {
+          wide_frames.back()(x, y) = frames.back()(x, y);
+          wide_backgrounds.back()(x, y) = backgrounds.back()(x, y);
+        }
+      }
+    }
+    for (size_t n = 0; n < frames.size(); ++n) {
+      frame_views.emplace_back(wide_frames[n].view().data(), frames[n].width(), frames[n].height(),
+                               wide_frames[n].view().stride_elems());
+      background_views.emplace_back(wide_backgrounds[n].view().data(), frames[n].width(), frames[n].height(),
+                                    wide_backgrounds[n].view().stride_elems());
+    }
+    std::vector<uint8_t> changes;
+    const OccupancyMap expected = Reference(scene.lut, frames, backgrounds, threshold, changes);
+    fast.Fuse(frame_views, background_views, threshold, ctx, map);
+    ASSERT_EQ(map, expected);
+  }
+  EXPECT_GT(fast.MemoryBytes(), 0);
+  EXPECT_GT(fast.num_runs(), 0);
+}
+
+TEST(FastFusion, KernelNameIsKnown) {
+  const std::string name = FastFusion::KernelName();
+  EXPECT_TRUE(name == "avx512bw" || name == "avx2" || name == "portable") << name;
+}
+
+}  // namespace
+}  // namespace occmap
