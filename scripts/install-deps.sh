@@ -3,7 +3,7 @@
 # Uses sudo when not root. Safe to run repeatedly: a no-op once everything is there.
 set -euo pipefail
 packages=(
-  build-essential cmake ninja-build pkg-config ccache
+  build-essential cmake ninja-build pkg-config ccache python3
   libopencv-dev
   libavcodec-dev libavformat-dev libavutil-dev libswscale-dev libavdevice-dev
   libeigen3-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
