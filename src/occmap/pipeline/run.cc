@@ -11,6 +11,7 @@
 
 #include "occmap/detect/background.h"
 #include "occmap/detect/change_detection.h"
+#include "occmap/fusion/fast_fusion.h"
 #include "occmap/fusion/fusion.h"
 #include "occmap/fusion/morphology.h"
 #include "occmap/io/frame_source.h"
@@ -255,6 +256,16 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   summary.lut_seconds = Since(t_lut);
   const GroundLut& lut = cached.lut;
   Fusion fusion(lut);
+  FastFusion fast(lut);  // the paper's AND with every camera active: the fast path
+  // Fully fused (no change buffer at all) when nothing needs the per-pixel changes: grey
+  // differencing without tolerance, no mask sources, and no mosaic video (the mosaic picture
+  // of the best frame gets its changes computed when it is drawn).
+  const bool paper_and = site.fusion.method == FusionMethod::kImageBased && site.fusion.max_free_views == 0;
+  bool any_mask_source = false;
+  for (const auto& c : site.cameras) any_mask_source |= c.source.kind == FrameSourceSpec::Kind::kMasks;
+  const bool fully_fused = paper_and && !colour && site.detection.tolerance_px == 0 && !any_mask_source &&
+                           !options.mosaic_video;
+  std::vector<ImageView<const uint8_t>> frame_views(site.cameras.size()), background_views(site.cameras.size());
   OccupancyMap map(site.grid);
   std::vector<uint8_t> changes(lut.total_pixels(), 0);
 
@@ -431,31 +442,48 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     }
     for (size_t n = 0; n < cams.size(); ++n) active[n] = cams[n].active && cams[n].present;
 
-    // 2. Change detection, cameras in parallel, into the global change buffer.
-    t0 = Clock::now();
-    ParallelFor(ctx, 0, static_cast<int64_t>(cams.size()), [&](int64_t b, int64_t e, int) {
-      for (int64_t n = b; n < e; ++n) {
-        CameraState& c = cams[n];
-        if (!active[n]) continue;
-        const ImageSize size = c.cam->camera->image_size();
-        ImageView<uint8_t> slice(changes.data() + lut.pixel_offset(static_cast<int>(n)), size.width, size.height, size.width);
-        const int r = site.detection.tolerance_px;
-        ImageView<uint8_t> target = r > 0 ? c.raw_changes.view() : slice;
-        if (c.is_mask) {
-          MaskToChanges(c.frame.gray.view(), target);
-        } else if (colour) {
-          DetectChangesRgb(c.frame.rgb.view(), c.background_rgb.view(), site.detection.threshold, target);
-        } else {
-          DetectChangesGray(c.frame.gray.view(), c.background_gray.view(), site.detection.threshold, target);
+    // 2. Change detection, cameras in parallel, into the global change buffer (or fused
+    // with the fusion itself, FastFusion::Fuse, when nothing else needs the changes).
+    const bool all_active = std::all_of(active.begin(), active.end(), [](bool a) { return a; });
+    const bool fused_now = fully_fused && all_active;
+    auto detect_changes = [&] {
+      ParallelFor(ctx, 0, static_cast<int64_t>(cams.size()), [&](int64_t b, int64_t e, int) {
+        for (int64_t n = b; n < e; ++n) {
+          CameraState& c = cams[n];
+          if (!active[n]) continue;
+          const ImageSize size = c.cam->camera->image_size();
+          ImageView<uint8_t> slice(changes.data() + lut.pixel_offset(static_cast<int>(n)), size.width, size.height,
+                                   size.width);
+          const int r = site.detection.tolerance_px;
+          ImageView<uint8_t> target = r > 0 ? c.raw_changes.view() : slice;
+          if (c.is_mask) {
+            MaskToChanges(c.frame.gray.view(), target);
+          } else if (colour) {
+            DetectChangesRgb(c.frame.rgb.view(), c.background_rgb.view(), site.detection.threshold, target);
+          } else {
+            DetectChangesGray(c.frame.gray.view(), c.background_gray.view(), site.detection.threshold, target);
+          }
+          if (r > 0) DilateChanges(c.raw_changes.view(), r, slice, c.dilate_scratch);
         }
-        if (r > 0) DilateChanges(c.raw_changes.view(), r, slice, c.dilate_scratch);
-      }
-    });
+      });
+    };
+    t0 = Clock::now();
+    if (!fused_now) detect_changes();
     summary.detect_s += Since(t0);
 
     // 3. Fusion and blobs.
     t0 = Clock::now();
-    fusion.Fuse(changes, active, site.fusion, map);
+    if (fused_now) {
+      for (size_t n = 0; n < cams.size(); ++n) {
+        frame_views[n] = cams[n].frame.gray.view();
+        background_views[n] = cams[n].background_gray.view();
+      }
+      fast.Fuse(frame_views, background_views, site.detection.threshold, ctx, map);
+    } else if (paper_and && all_active) {
+      fast.FuseChanges(changes, ctx, map);
+    } else {
+      fusion.Fuse(changes, active, site.fusion, map);
+    }
     summary.fuse_s += Since(t0);
     t0 = Clock::now();
     // Detections (BlobSettings in site.h): fragments grouped, described by their footprint,
@@ -567,6 +595,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       tiles.push_back(t);
     }
     if (mosaic_video || best_mosaic.empty() || blobs.size() > best_blobs) {
+      if (fused_now) detect_changes();  // the changes of this frame, for its picture
       Image<Rgb8> picture = mosaic.Render(tiles, map, blobs, frame_index, time_s, tracks, trails.Trails());
       if (mosaic_video) OCCMAP_RETURN_IF_ERROR(mosaic_video->Write(picture.view()));
       if (best_mosaic.empty() || blobs.size() > best_blobs) {

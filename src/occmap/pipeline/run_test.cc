@@ -170,6 +170,28 @@ TEST_F(RunFixture, MapBasedFusionGivesTheSameDetections) {
   EXPECT_EQ(*ReadFileToString(dir_ / "image" / "detections.jsonl"), *ReadFileToString(dir_ / "map" / "detections.jsonl"));
 }
 
+// Three fusion paths, one result: fully fused (FastFusion::Fuse from the frames, no mosaic
+// video), the fast scan of a change buffer (with the mosaic video), and the reference
+// (map-based, in MapBasedFusionGivesTheSameDetections).
+TEST_F(RunFixture, FastPathsGiveTheSameMapsAsWithTheChangeBuffer) {
+  const Site site = LoadSiteText(SiteText());
+  Context ctx(2);
+  RunOptions fused = Options("fused");
+  fused.occupancy_pngs = true;
+  RunOptions buffered = Options("buffered");
+  buffered.occupancy_pngs = true;
+  buffered.mosaic_video = true;
+  ASSERT_TRUE(RunSite(site, fused, ctx).ok());
+  ASSERT_TRUE(RunSite(site, buffered, ctx).ok());
+  EXPECT_EQ(*ReadFileToString(dir_ / "fused" / "detections.jsonl"),
+            *ReadFileToString(dir_ / "buffered" / "detections.jsonl"));
+  for (int f = 0; f < kFrames; ++f) {
+    const std::string name = fmt::format("{:06d}.png", f);
+    ASSERT_EQ(*ReadFileToString(dir_ / "fused" / "occupancy" / name), *ReadFileToString(dir_ / "buffered" / "occupancy" / name))
+        << name;
+  }
+}
+
 TEST_F(RunFixture, EstimatesAndReusesMedianBackgrounds) {
   Site site = LoadSiteText(SiteText(/*with_backgrounds=*/false));
   // The median keeps a little of the walker, which cuts its blob into pieces smaller than a
