@@ -3,9 +3,14 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <deque>
 #include <limits>
+#include <mutex>
+#include <thread>
 #include <nlohmann/json.hpp>
 #include <set>
 
@@ -43,7 +48,6 @@ struct CameraState {
   bool is_mask = false;
   Image<uint8_t> background_gray;
   Image<Rgb8> background_rgb;
-  Frame frame;
   Frame lookahead;  // timestamp sync: the next frame not yet used
   bool has_lookahead = false;
   bool present = false;  // has a frame for the current instant
@@ -202,6 +206,37 @@ Image<Rgb8> OccupancyPicture(const OccupancyMap& map, int scale) {
   return out;
 }
 
+// The frames of all cameras for one instant, filled by the reader thread.
+struct FrameSet {
+  int64_t frame_index = 0;
+  std::vector<Frame> frames;  // per camera; buffers reused from set to set
+  std::vector<bool> active;   // the camera's frame is there (stream not ended, synchronised)
+};
+
+// A blocking FIFO of slot indices between the reader thread and the processing loop.
+class SlotQueue {
+ public:
+  void Push(int slot) {
+    {
+      std::lock_guard lock(mutex_);
+      items_.push_back(slot);
+    }
+    ready_.notify_one();
+  }
+  int Pop() {
+    std::unique_lock lock(mutex_);
+    ready_.wait(lock, [&] { return !items_.empty(); });
+    const int slot = items_.front();
+    items_.pop_front();
+    return slot;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable ready_;
+  std::deque<int> items_;
+};
+
 }  // namespace
 
 Status RunOptions::Validate() const {
@@ -347,9 +382,16 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   if (options.max_frames > 0) total = total ? std::min(*total, options.max_frames) : options.max_frames;
 
   Status failure;  // an error that stopped the run, returned after the outputs are finalised
-  int64_t frame_index = options.start_frame;
-  while (options.max_frames < 0 || summary.frames < options.max_frames) {
-    // 1. One frame per active camera, by index or by timestamp.
+  int64_t next_frame_index = options.start_frame;
+  // 1. The reader: one frame per active camera, by index or by timestamp, on its own thread
+  // (decoding overlaps the processing of the previous frames), into a ring of kSlots frame
+  // sets: memory stays flat. Returns false when the run ends (streams, a failure, the limit).
+  // The reader alone touches the sources, the cameras' active flags and infos, `failure`,
+  // stop_reason and decode_s until it is joined.
+  double decode_s = 0;
+  int64_t frames_read = 0;
+  auto read_step = [&](FrameSet& set) -> bool {
+    if (options.max_frames >= 0 && frames_read >= options.max_frames) return false;
     auto t0 = Clock::now();
     std::vector<std::pair<size_t, Status>> ended;  // camera, status (ok = end of stream)
     for (size_t n = 0; n < cams.size(); ++n) {
@@ -358,12 +400,12 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       if (!c.active) continue;
       const bool by_time = options.sync == FrameSync::kTimestamp && n > 0;
       if (!by_time) {
-        auto got = c.source->Read(c.frame);
+        auto got = c.source->Read(set.frames[n]);
         if (!got.ok() || !*got) {
           ended.emplace_back(n, got.ok() ? Status::Ok() : got.status());
           continue;
         }
-        if (Status s = CheckFrameSize(c, c.frame); !s.ok()) {
+        if (Status s = CheckFrameSize(c, set.frames[n]); !s.ok()) {
           ended.emplace_back(n, s);
           continue;
         }
@@ -371,11 +413,11 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       }
     }
     if (options.sync == FrameSync::kTimestamp && cams[0].present) {
-      const double t_ref = cams[0].frame.timestamp_s;
+      const double t_ref = set.frames[0].timestamp_s;
       if (std::isnan(t_ref)) {
         failure = InvalidInput(fmt::format("camera {}: {} has no timestamps; synchronise by frame index", cams[0].cam->id,
                                            cams[0].source->Describe()));
-        break;
+        return false;
       }
       for (size_t n = 1; n < cams.size(); ++n) {
         CameraState& c = cams[n];
@@ -400,9 +442,9 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
             continue;
           }
           if (dt <= options.sync_tolerance_s) {  // close enough: use it for this instant
-            std::swap(c.frame, c.lookahead);
+            std::swap(set.frames[n], c.lookahead);
             c.has_lookahead = false;
-            if (Status s = CheckFrameSize(c, c.frame); !s.ok()) {
+            if (Status s = CheckFrameSize(c, set.frames[n]); !s.ok()) {
               ended.emplace_back(n, s);
               break;
             }
@@ -412,7 +454,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         }
       }
     }
-    summary.decode_s += Since(t0);
+    decode_s += Since(t0);
     if (!ended.empty()) {
       size_t active_left = 0;
       for (const auto& c : cams) active_left += c.active;
@@ -421,11 +463,11 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       for (const auto& [n, status] : ended) {
         CameraState& c = cams[n];
         if (!all_ended || !status.ok()) {  // a normal end of every stream is not news
-          c.info.ended_at_frame = frame_index;
+          c.info.ended_at_frame = next_frame_index;
           c.info.end_reason = status.ok() ? "end of stream" : status.message();
         }
         if (!status.ok() && options.on_camera_failure == OnCameraFailure::kStop && failure.ok()) {
-          failure = status.WithContext(fmt::format("camera {} at frame {}", c.cam->id, frame_index));
+          failure = status.WithContext(fmt::format("camera {} at frame {}", c.cam->id, next_frame_index));
         }
         c.active = false;
         c.present = false;
@@ -435,12 +477,56 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         if (all_ended) {
           summary.stop_reason = "end of streams";
         } else {
-          summary.stop_reason = fmt::format("camera {} ended at frame {}", cams[ended[0].first].cam->id, frame_index);
+          summary.stop_reason = fmt::format("camera {} ended at frame {}", cams[ended[0].first].cam->id, next_frame_index);
         }
-        break;
+        return false;
       }
     }
-    for (size_t n = 0; n < cams.size(); ++n) active[n] = cams[n].active && cams[n].present;
+    set.frame_index = next_frame_index++;
+    for (size_t n = 0; n < cams.size(); ++n) set.active[n] = cams[n].active && cams[n].present;
+    ++frames_read;
+    return true;
+  };
+
+  constexpr int kSlots = 3;
+  std::vector<FrameSet> slots(kSlots);
+  for (FrameSet& set : slots) {
+    set.frames.resize(cams.size());
+    set.active.assign(cams.size(), false);
+  }
+  SlotQueue free_slots, filled_slots;
+  for (int k = 0; k < kSlots; ++k) free_slots.Push(k);
+  std::atomic<bool> stop_reading{false};
+  std::thread reader([&] {
+    while (true) {
+      const int slot = free_slots.Pop();
+      if (stop_reading.load() || !read_step(slots[slot])) break;
+      filled_slots.Push(slot);
+    }
+    filled_slots.Push(-1);  // the end
+  });
+  // Whatever way the processing loop leaves (an output error returns early), the reader is
+  // told to stop, woken, and joined before the sources it uses are destroyed.
+  struct ReaderGuard {
+    std::thread& thread;
+    std::atomic<bool>& stop;
+    SlotQueue& free_slots;
+    ~ReaderGuard() {
+      if (!thread.joinable()) return;
+      stop = true;
+      free_slots.Push(0);
+      thread.join();
+    }
+  } reader_guard{reader, stop_reading, free_slots};
+
+  while (true) {
+    const int slot = filled_slots.Pop();
+    if (slot < 0) break;
+    FrameSet& set = slots[slot];
+    const std::vector<Frame>& frames = set.frames;
+    const int64_t frame_index_now = set.frame_index;
+    active = set.active;
+    auto t0 = Clock::now();
 
     // 2. Change detection, cameras in parallel, into the global change buffer (or fused
     // with the fusion itself, FastFusion::Fuse, when nothing else needs the changes).
@@ -457,11 +543,11 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
           const int r = site.detection.tolerance_px;
           ImageView<uint8_t> target = r > 0 ? c.raw_changes.view() : slice;
           if (c.is_mask) {
-            MaskToChanges(c.frame.gray.view(), target);
+            MaskToChanges(frames[n].gray.view(), target);
           } else if (colour) {
-            DetectChangesRgb(c.frame.rgb.view(), c.background_rgb.view(), site.detection.threshold, target);
+            DetectChangesRgb(frames[n].rgb.view(), c.background_rgb.view(), site.detection.threshold, target);
           } else {
-            DetectChangesGray(c.frame.gray.view(), c.background_gray.view(), site.detection.threshold, target);
+            DetectChangesGray(frames[n].gray.view(), c.background_gray.view(), site.detection.threshold, target);
           }
           if (r > 0) DilateChanges(c.raw_changes.view(), r, slice, c.dilate_scratch);
         }
@@ -475,7 +561,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     t0 = Clock::now();
     if (fused_now) {
       for (size_t n = 0; n < cams.size(); ++n) {
-        frame_views[n] = cams[n].frame.gray.view();
+        frame_views[n] = frames[n].gray.view();
         background_views[n] = cams[n].background_gray.view();
       }
       fast.Fuse(frame_views, background_views, site.detection.threshold, ctx, map);
@@ -540,8 +626,9 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     }
     groups = std::move(kept_groups);
     summary.blobs_s += Since(t0);
-    const double time_s = std::isnan(cams[0].frame.timestamp_s) ? static_cast<double>(frame_index) / fps
-                                                                : cams[0].frame.timestamp_s;
+    const int64_t frame_index = frame_index_now;
+    const double time_s = std::isnan(frames[0].timestamp_s) ? static_cast<double>(frame_index) / fps
+                                                            : frames[0].timestamp_s;
 
     // 3b. Tracking (the tracker needs strictly increasing times: a repeated timestamp, as some
     // streams give, is nudged forward by a microsecond).
@@ -584,8 +671,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       t.id = c.cam->id;
       t.active = active[n];
       if (active[n]) {
-        t.gray = c.frame.gray.view();
-        if (c.is_mask && (c.frame.gray.width() != size.width || c.frame.gray.height() != size.height)) {
+        t.gray = frames[n].gray.view();
+        if (c.is_mask && (frames[n].gray.width() != size.width || frames[n].gray.height() != size.height)) {
           t.gray = ImageView<const uint8_t>(changes.data() + lut.pixel_offset(static_cast<int>(n)), size.width, size.height, size.width);
         }
         t.changes = ImageView<const uint8_t>(changes.data() + lut.pixel_offset(static_cast<int>(n)), size.width,
@@ -605,9 +692,11 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     }
     summary.output_s += Since(t0);
     ++summary.frames;
-    ++frame_index;
     if (progress) progress({summary.frames, total, Since(t_start)});
+    free_slots.Push(slot);
   }
+  reader.join();  // it has pushed the end: the sources, flags and infos are ours again
+  summary.decode_s = decode_s;
   if (summary.stop_reason.empty()) summary.stop_reason = options.max_frames > 0 && summary.frames >= options.max_frames ? "frame limit" : "stopped";
   if (!failure.ok()) summary.stop_reason = failure.message();
 

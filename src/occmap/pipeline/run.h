@@ -3,6 +3,9 @@
 // mask from another tool), fuse the change masks through the lookup tables into the tri-state
 // occupancy map (equation 5), find blobs, and write the outputs.
 //
+// Frames are read (decoded, synchronised) on a reader thread into a ring of three frame sets
+// while the previous frames are processed: decoding overlaps the work, memory stays flat.
+//
 // Outputs in out_dir (all written atomically; a run that stops early keeps what it finished):
 //   detections.jsonl   one line per frame: {"frame", "time_s", "blobs": [{x_m, y_m, area_m2, ...}]}
 //   tracks.jsonl       one line per frame: {"frame", "time_s", "tracks": [{id, x_m, y_m, vx_mps, ...}]}
