@@ -21,6 +21,7 @@ extern "C" {
 #include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 namespace occmap {
 
@@ -94,6 +95,7 @@ class VideoWriterImpl final : public VideoWriter {
   std::unique_ptr<AVFrame, FrameDeleter> yuv_;
   std::unique_ptr<AVPacket, PacketDeleter> packet_;
   std::unique_ptr<SwsContext, SwsDeleter> sws_;
+  std::vector<uint8_t> staging_;  // padded copy of the RGB frame (see Write)
   AVStream* stream_ = nullptr;  // owned by format_
   int64_t frames_written_ = 0;
   bool closed_ = false;
@@ -228,8 +230,17 @@ Status VideoWriterImpl::Write(ImageView<const Rgb8> frame) {
   int error = av_frame_make_writable(yuv_.get());
   if (error < 0)
     return Fail(ResourceExhausted(fmt::format("{}: cannot allocate a frame: {}", Where(), AvErrorWithLog(error))));
-  const uint8_t* src[4] = {reinterpret_cast<const uint8_t*>(frame.data()), nullptr, nullptr, nullptr};
-  const int src_stride[4] = {static_cast<int>(frame.stride_elems() * 3), 0, 0, 0};
+  // libswscale's SIMD reads may run past the end of a row; an image whose rows end exactly at
+  // the end of its allocation (width * 3 a multiple of the row alignment) would be read out of
+  // bounds. So the rows go through a staging buffer with a padded stride and 64 spare bytes.
+  const size_t row_bytes = static_cast<size_t>(frame.width()) * 3;
+  const size_t staging_stride = (row_bytes + 63) / 64 * 64;
+  staging_.resize(staging_stride * static_cast<size_t>(frame.height()) + 64);
+  for (int y = 0; y < frame.height(); ++y) {
+    std::memcpy(staging_.data() + staging_stride * static_cast<size_t>(y), frame.row(y), row_bytes);
+  }
+  const uint8_t* src[4] = {staging_.data(), nullptr, nullptr, nullptr};
+  const int src_stride[4] = {static_cast<int>(staging_stride), 0, 0, 0};
   sws_scale(sws_.get(), src, src_stride, 0, size_.height, yuv_->data, yuv_->linesize);
   // Odd sizes: repeat the last column and row of luma (libswscale fills the chroma of the
   // half pixel already), which compresses better than black.
