@@ -10,6 +10,7 @@
 #include <deque>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -291,11 +292,14 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   summary.lut_seconds = Since(t_lut);
   const GroundLut& lut = cached.lut;
   Fusion fusion(lut);
-  FastFusion fast(lut);  // the paper's AND with every camera active: the fast path
   // Fully fused (no change buffer at all) when nothing needs the per-pixel changes: grey
   // differencing without tolerance, no mask sources, and no mosaic video (the mosaic picture
   // of the best frame gets its changes computed when it is drawn).
   const bool paper_and = site.fusion.method == FusionMethod::kImageBased && site.fusion.max_free_views == 0;
+  // The paper's AND with every camera active takes the fast path (its tables are built only
+  // when the site's fusion settings can use them).
+  std::optional<FastFusion> fast;
+  if (paper_and) fast.emplace(lut);
   bool any_mask_source = false;
   for (const auto& c : site.cameras) any_mask_source |= c.source.kind == FrameSourceSpec::Kind::kMasks;
   const bool fully_fused = paper_and && !colour && site.detection.tolerance_px == 0 && !any_mask_source &&
@@ -564,9 +568,9 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         frame_views[n] = frames[n].gray.view();
         background_views[n] = cams[n].background_gray.view();
       }
-      fast.Fuse(frame_views, background_views, site.detection.threshold, ctx, map);
+      fast->Fuse(frame_views, background_views, site.detection.threshold, ctx, map);
     } else if (paper_and && all_active) {
-      fast.FuseChanges(changes, ctx, map);
+      fast->FuseChanges(changes, ctx, map);
     } else {
       fusion.Fuse(changes, active, site.fusion, map);
     }
