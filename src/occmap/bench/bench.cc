@@ -14,6 +14,7 @@
 #include <unistd.h>
 #include <opencv2/imgproc.hpp>
 
+#include "occmap/geometry/rotation.h"
 #include "occmap/fusion/fast_fusion.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/pipeline/run.h"
@@ -30,17 +31,12 @@ using Clock = std::chrono::steady_clock;
 
 PinholeCamera LookAt(const Eigen::Vector3d& position_m, const Eigen::Vector3d& target_m, int width, int height,
                      double f_px) {
-  const Eigen::Vector3d z = (target_m - position_m).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d y = z.cross(x);
   PinholeParameters p;
   p.image_size = {width, height};
   p.fx_px = p.fy_px = f_px;
   p.cx_px = (width - 1) / 2.0;
   p.cy_px = (height - 1) / 2.0;
-  p.cam_from_world_rotation.row(0) = x.transpose();
-  p.cam_from_world_rotation.row(1) = y.transpose();
-  p.cam_from_world_rotation.row(2) = z.transpose();
+  p.cam_from_world_rotation = LookAtRotation(position_m, target_m);
   p.cam_from_world_translation_m = -p.cam_from_world_rotation * position_m;
   return PinholeCamera::Create(p).value();
 }

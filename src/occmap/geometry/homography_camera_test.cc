@@ -12,24 +12,12 @@
 #include <string>
 #include <vector>
 
+#include "occmap/geometry/rotation.h"
 #include "occmap/geometry/pinhole_camera.h"
 #include "occmap/util/hash.h"
 
 namespace occmap {
 namespace {
-
-// cam_from_world rotation of a camera at `centre` looking at `target`, image rows pointing down
-// (towards -z of the world) and columns to the right.
-Eigen::Matrix3d LookAt(const Eigen::Vector3d& centre, const Eigen::Vector3d& target) {
-  const Eigen::Vector3d z_c = (target - centre).normalized();
-  const Eigen::Vector3d x_c = z_c.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d y_c = z_c.cross(x_c);
-  Eigen::Matrix3d r;
-  r.row(0) = x_c.transpose();
-  r.row(1) = y_c.transpose();
-  r.row(2) = z_c.transpose();
-  return r;
-}
 
 // A camera 3 m above the floor, pitched 11.3 degrees down: the horizon is the image row
 // v = 539.5 - 1000 * 0.2 = 339.5, so the top rows see the sky.
@@ -42,7 +30,7 @@ PinholeParameters PitchedCameraParameters() {
   p.cy_px = 539.5;
   const Eigen::Vector3d centre(1.0, -2.0, 3.0);
   const Eigen::Vector3d forward(0.3, 1.0, -0.2 * std::hypot(0.3, 1.0));
-  p.cam_from_world_rotation = LookAt(centre, centre + forward);
+  p.cam_from_world_rotation = LookAtRotation(centre, centre + forward);
   p.cam_from_world_translation_m = -p.cam_from_world_rotation * centre;
   return p;
 }

@@ -28,6 +28,19 @@ double OrthonormalityError(const Eigen::Matrix3d& r) {
   return (r * r.transpose() - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
 }
 
+Eigen::Matrix3d LookAtRotation(const Eigen::Vector3d& position_m, const Eigen::Vector3d& target_m) {
+  const Eigen::Vector3d z = (target_m - position_m).normalized();
+  Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ());
+  if (x.norm() < 1e-9) x = Eigen::Vector3d::UnitX();  // looking straight down: image x along world x
+  x.normalize();
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Matrix3d r;
+  r.row(0) = x.transpose();
+  r.row(1) = y.transpose();
+  r.row(2) = z.transpose();
+  return r;
+}
+
 Status ValidateRotation(const Eigen::Matrix3d& r) {
   const double err = OrthonormalityError(r);
   const double det = r.determinant();

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "occmap/geometry/pinhole_camera.h"
+#include "occmap/geometry/rotation.h"
 #include "occmap/lut/floor_grid.h"
 
 namespace occmap::testing {
@@ -13,18 +14,13 @@ namespace occmap::testing {
 // A camera at `position_m` looking at `target_m`, image width x height, focal length f_px.
 inline PinholeCamera LookAtCamera(const Eigen::Vector3d& position_m, const Eigen::Vector3d& target_m, int width,
                                   int height, double f_px, std::array<double, 5> distortion = {0, 0, 0, 0, 0}) {
-  const Eigen::Vector3d z = (target_m - position_m).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();  // image right
-  const Eigen::Vector3d y = z.cross(x);                                        // image down
   PinholeParameters p;
   p.image_size = {width, height};
   p.fx_px = p.fy_px = f_px;
   p.cx_px = (width - 1) / 2.0;
   p.cy_px = (height - 1) / 2.0;
   p.distortion = distortion;
-  p.cam_from_world_rotation.row(0) = x.transpose();
-  p.cam_from_world_rotation.row(1) = y.transpose();
-  p.cam_from_world_rotation.row(2) = z.transpose();
+  p.cam_from_world_rotation = LookAtRotation(position_m, target_m);
   p.cam_from_world_translation_m = -p.cam_from_world_rotation * position_m;
   return PinholeCamera::Create(p).value();
 }

@@ -193,8 +193,8 @@ json BlobJson(const Blob& b) {
           {"area_m2", std::round(b.area_m2 * 1e5) / 1e5}, {"cells", b.cells}};
 }
 
-Image<Rgb8> OccupancyPicture(const OccupancyMap& map, int scale) {
-  const Image<uint8_t> gray = map.ToGrayImage();
+// The map's grey picture (OccupancyMap::ToGrayImage) enlarged by `scale`, in RGB for video.
+Image<Rgb8> OccupancyPicture(const Image<uint8_t>& gray, int scale) {
   Image<Rgb8> out(gray.width() * scale, gray.height() * scale);
   for (int y = 0; y < out.height(); ++y) {
     const uint8_t* src = gray.row(y / scale);
@@ -661,10 +661,10 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     OCCMAP_RETURN_IF_ERROR(detections->Append(line.dump() + "\n"));
     summary.blob_counts.push_back(blobs.size());
     if (occupancy_video || options.occupancy_pngs) {
-      const Image<Rgb8> picture = OccupancyPicture(map, map_scale);
-      if (occupancy_video) OCCMAP_RETURN_IF_ERROR(occupancy_video->Write(picture.view()));
+      const Image<uint8_t> gray = map.ToGrayImage();
+      if (occupancy_video) OCCMAP_RETURN_IF_ERROR(occupancy_video->Write(OccupancyPicture(gray, map_scale).view()));
       if (options.occupancy_pngs) {
-        OCCMAP_RETURN_IF_ERROR(WritePng(out / "occupancy" / fmt::format("{:06d}.png", frame_index), map.ToGrayImage().view()));
+        OCCMAP_RETURN_IF_ERROR(WritePng(out / "occupancy" / fmt::format("{:06d}.png", frame_index), gray.view()));
       }
     }
     std::vector<MosaicCamera> tiles;

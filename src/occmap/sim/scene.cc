@@ -235,19 +235,6 @@ Result<std::unique_ptr<CameraModel>> CameraSpec::Build() const {
   return std::unique_ptr<CameraModel>(std::make_unique<TsaiCamera>(std::move(cam)));
 }
 
-Eigen::Matrix3d LookAtRotation(const Eigen::Vector3d& position_m, const Eigen::Vector3d& target_m) {
-  const Eigen::Vector3d z = (target_m - position_m).normalized();
-  Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ());
-  if (x.norm() < 1e-9) x = Eigen::Vector3d::UnitX();  // looking straight down: image x along world x
-  x.normalize();
-  const Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix3d r;
-  r.row(0) = x.transpose();
-  r.row(1) = y.transpose();
-  r.row(2) = z.transpose();
-  return r;
-}
-
 CameraSpec LookAtPinhole(std::string id, const Eigen::Vector3d& position_m, const Eigen::Vector3d& target_m,
                          ImageSize size, double focal_px, std::array<double, 5> distortion) {
   CameraSpec c;

@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "occmap/geometry/pinhole_camera.h"
+#include "occmap/geometry/rotation.h"
 #include "occmap/geometry/tsai_camera.h"
 #include "occmap/lut/floor_grid.h"
 #include "occmap/sim/ground_truth.h"
@@ -56,10 +57,6 @@ struct CameraSpec {
   Result<std::unique_ptr<CameraModel>> Build() const;
   ImageSize image_size() const { return model == Model::kPinhole ? pinhole.image_size : tsai.image_size; }
 };
-
-// cam_from_world rotation of a camera at `position_m` looking at `target_m`, image x to the
-// right of the view direction, image y down (the horizon level, no roll).
-Eigen::Matrix3d LookAtRotation(const Eigen::Vector3d& position_m, const Eigen::Vector3d& target_m);
 
 // A pinhole camera looking at a point.
 CameraSpec LookAtPinhole(std::string id, const Eigen::Vector3d& position_m, const Eigen::Vector3d& target_m,

@@ -3,23 +3,19 @@
 #include <Eigen/Geometry>
 
 #include "occmap/geometry/pinhole_camera.h"
+#include "occmap/geometry/rotation.h"
 
 namespace occmap {
 namespace {
 
 PinholeCamera WallCamera(const Eigen::Vector3d& position_m, const Eigen::Vector3d& target_m) {
-  const Eigen::Vector3d z = (target_m - position_m).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d y = z.cross(x);
   PinholeParameters p;
   p.image_size = {640, 480};
   p.fx_px = p.fy_px = 350;  // an 85 degree horizontal field of view (a 3.5 mm lens on a 1/2" sensor)
   p.cx_px = 319.5;
   p.cy_px = 239.5;
   p.distortion = {-0.16, 0.035, 0, 0, 0};  // barrel distortion, as a real wide lens
-  p.cam_from_world_rotation.row(0) = x.transpose();
-  p.cam_from_world_rotation.row(1) = y.transpose();
-  p.cam_from_world_rotation.row(2) = z.transpose();
+  p.cam_from_world_rotation = LookAtRotation(position_m, target_m);
   p.cam_from_world_translation_m = -p.cam_from_world_rotation * position_m;
   return PinholeCamera::Create(p).value();
 }
