@@ -22,7 +22,7 @@
 #include "occmap/fusion/morphology.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/io/video_writer.h"
-#include "occmap/pipeline/ghosts.h"
+#include "occmap/pipeline/object_detector.h"
 #include "occmap/pipeline/mosaic.h"
 #include "occmap/track/detections.h"
 #include "occmap/site/site_lut.h"
@@ -335,29 +335,14 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   Image<Rgb8> best_mosaic;
   size_t best_blobs = 0;
 
-  OccupancyMap grown;  // the map with fragments grouped (BlobSettings::group_radius_m)
-  std::vector<int32_t> labels;
   // The tracker sees footprints grown by r, so its idea of one person's size grows with them.
   TrackerOptions tracker_options = site.tracking;
   tracker_options.person_diameter_m += 2 * site.blobs.group_radius_m;
-
-  // Ghost test: what each camera sees (in front, on the image, on an unmasked pixel).
-  std::vector<Viewer> viewer_of;
-  for (const auto& c : cams) {
-    const CameraModel* model = c.cam->camera.get();
-    const Image<uint8_t>* mask = &c.cam->mask;
-    const double z = site.plane_height_m;
-    viewer_of.push_back({model->CenterInWorld().value_or(Eigen::Vector3d::Zero()), [model, mask, z](const Eigen::Vector2d& p) {
-                           const auto px = model->Project(Eigen::Vector3d(p.x(), p.y(), z));
-                           if (!px || !model->InImage(*px)) return false;
-                           if (mask->empty()) return true;
-                           const int x = std::clamp(static_cast<int>(std::lround(px->x())), 0, mask->width() - 1);
-                           const int y = std::clamp(static_cast<int>(std::lround(px->y())), 0, mask->height() - 1);
-                           return (*mask)(x, y) != 0;
-                         }});
-  }
-  const GhostOptions ghost_options{.occluder_radius_m = 0.5 * tracker_options.person_diameter_m,
-                                   .occluder_height_m = site.blobs.occluder_height_m};
+  std::vector<ObjectDetector::CameraView> views;
+  for (const auto& c : cams) views.push_back({c.cam->camera.get(), &c.cam->mask});
+  ObjectDetector detector(site.blobs, tracker_options, site.plane_height_m, std::move(views));
+  DetectedObjects objects;
+  const OccupancyMap& grown = objects.grown;
 
   // Tracking.
   std::optional<AnyTracker> tracker;
@@ -579,56 +564,9 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     // Detections (BlobSettings in site.h): fragments grouped, described by their footprint,
     // too-small groups dropped, large ones split at their necks, ghosts removed. The tracker
     // gets the groups of the grown map (it splits them itself, guided by its tracks).
-    GrowOccupied(map, site.blobs.group_radius_m, grown);
-    std::vector<Blob> groups = FindBlobs(grown, {}, &labels);
-    const std::vector<Blob> footprints = FootprintBlobs(map, labels, groups);
-    std::vector<Blob> kept_groups, kept_footprints;
-    for (size_t k = 0; k < footprints.size(); ++k) {
-      if (footprints[k].cells == 0 || footprints[k].area_m2 < site.blobs.min_area_m2) continue;
-      kept_groups.push_back(groups[k]);
-      kept_footprints.push_back(footprints[k]);
-    }
-    std::vector<Blob> blobs;  // the detections
-    std::vector<int> blob_group;
-    if (site.blobs.split) {
-      for (const Detection& d : DetectionsFromBlobs(kept_groups, grown, tracker_options)) {
-        Blob b = kept_footprints[d.blob_index];  // one part: the group's footprint
-        if (d.parts > 1) {
-          b.x_m = d.x_m;
-          b.y_m = d.y_m;
-          b.area_m2 = d.area_m2 * kept_footprints[d.blob_index].area_m2 / kept_groups[d.blob_index].area_m2;
-          b.cells = d.cells;
-        }
-        blobs.push_back(b);
-        blob_group.push_back(d.blob_index);
-      }
-    } else {
-      blobs = kept_footprints;
-      for (size_t k = 0; k < blobs.size(); ++k) blob_group.push_back(static_cast<int>(k));
-    }
-    if (site.blobs.remove_ghosts && blobs.size() > 1) {
-      std::vector<Viewer> viewers;
-      for (size_t n = 0; n < cams.size(); ++n) {
-        if (active[n] && cams[n].cam->camera->CenterInWorld()) viewers.push_back(viewer_of[n]);
-      }
-      std::vector<Eigen::Vector2d> points;
-      for (const Blob& b : blobs) points.emplace_back(b.x_m, b.y_m);
-      const std::vector<bool> ghost = FindGhosts(points, viewers, ghost_options);
-      std::vector<Blob> real;
-      std::vector<bool> group_real(kept_groups.size(), false);
-      for (size_t k = 0; k < blobs.size(); ++k) {
-        if (ghost[k]) continue;
-        real.push_back(blobs[k]);
-        group_real[blob_group[k]] = true;
-      }
-      blobs = std::move(real);
-      std::vector<Blob> real_groups;
-      for (size_t k = 0; k < kept_groups.size(); ++k) {
-        if (group_real[k]) real_groups.push_back(kept_groups[k]);
-      }
-      kept_groups = std::move(real_groups);
-    }
-    groups = std::move(kept_groups);
+    detector.Detect(map, active, objects);
+    const std::vector<Blob>& blobs = objects.detections;
+    const std::vector<Blob>& groups = objects.groups;
     summary.blobs_s += Since(t0);
     const int64_t frame_index = frame_index_now;
     const double time_s = std::isnan(frames[0].timestamp_s) ? static_cast<double>(frame_index) / fps

@@ -1,0 +1,63 @@
+// ObjectDetector: from an occupancy map to the objects standing on it (BlobSettings in
+// site/site.h), the stage between fusion and tracking:
+//   1. occupied fragments closer than 2 * group_radius_m form one group (GrowOccupied: a
+//      person's two feet, a chair's four legs);
+//   2. groups whose footprint (the occupied cells of the group, FootprintBlobs) is smaller than
+//      min_area_m2 are dropped;
+//   3. with split, a group too large for one object is split at the necks of its shape
+//      (track/detections.h);
+//   4. with remove_ghosts, detections that every camera seeing them sees only through other,
+//      certainly real detections are dropped (pipeline/ghosts.h).
+// A detection is placed at the centroid of its footprint (of its part of the footprint when
+// its group was split). The tracker gets the kept groups of the grown map.
+//
+//   ObjectDetector detector(site.blobs, tracker_options, site.plane_height_m, views);
+//   detector.Detect(map, active, objects);   // objects.detections, objects.groups, objects.grown
+#pragma once
+
+#include <vector>
+
+#include "occmap/fusion/blobs.h"
+#include "occmap/fusion/occupancy_map.h"
+#include "occmap/geometry/camera_model.h"
+#include "occmap/pipeline/ghosts.h"
+#include "occmap/site/site.h"
+#include "occmap/track/tracker_options.h"
+#include "occmap/util/image.h"
+
+namespace occmap {
+
+struct DetectedObjects {
+  std::vector<Blob> detections;  // one per object, at its footprint's centroid
+  std::vector<Blob> groups;      // the groups (of `grown`) the detections come from
+  OccupancyMap grown;            // the map with fragments grouped
+};
+
+class ObjectDetector {
+ public:
+  // What a camera sees, for the ghost test: its model and its floor mask (empty = all pixels).
+  // Both must outlive the detector.
+  struct CameraView {
+    const CameraModel* camera = nullptr;
+    const Image<uint8_t>* mask = nullptr;
+  };
+
+  // tracker_options: the person size the splitter uses (the tracker's, grown by the grouping
+  // radius as the grown map is).
+  ObjectDetector(const BlobSettings& settings, const TrackerOptions& tracker_options, double plane_height_m,
+                 std::vector<CameraView> cameras);
+
+  // active[n]: camera n contributed to this map (size = cameras). Reuses out's buffers.
+  void Detect(const OccupancyMap& map, const std::vector<bool>& active, DetectedObjects& out);
+
+ private:
+  BlobSettings settings_;
+  TrackerOptions tracker_options_;
+  std::vector<CameraView> cameras_;
+  std::vector<Viewer> viewers_;          // per camera (centre at 0 when it has none)
+  std::vector<bool> has_centre_;
+  GhostOptions ghost_options_;
+  std::vector<int32_t> labels_;
+};
+
+}  // namespace occmap
