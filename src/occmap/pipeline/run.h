@@ -3,8 +3,11 @@
 // mask from another tool), fuse the change masks through the lookup tables into the tri-state
 // occupancy map (equation 5), find blobs, and write the outputs.
 //
-// Frames are read (decoded, synchronised) on a reader thread into a ring of three frame sets
-// while the previous frames are processed: decoding overlaps the work, memory stays flat.
+// A run is a pipeline of stages on their own threads joined by bounded queues: a reader
+// (decoding, synchronising) fills a ring of four frame sets; change detection and fusion (on the
+// calling thread, with ctx's pool) make each set's map; a post stage finds the detections,
+// tracks them and draws the pictures; a writer stage writes the outputs in frame order. The
+// stages overlap, so over video files the run is limited by decoding, and memory stays flat.
 //
 // Outputs in out_dir (all written atomically; a run that stops early keeps what it finished):
 //   detections.jsonl   one line per frame: {"frame", "time_s", "blobs": [{x_m, y_m, area_m2, ...}]}
@@ -83,9 +86,21 @@ struct FrameBlobs {
 
 struct RunSummary {
   int64_t frames = 0;
-  double seconds = 0;
-  double frames_per_second = 0;
+  double seconds = 0;            // the whole call: start-up, frames, finalising the outputs
+  double frames_per_second = 0;  // frames / seconds
+  // Start-up: from the call until the first frame set reaches the fusion (sources opened,
+  // backgrounds, tables, the first frames decoded).
+  double startup_s = 0;
+  // The steady-state rate: frames completed after the first 10 (warm-up), over the time
+  // between the 11th and the last completion (short runs: from the first). 0 below 2 frames.
+  int64_t steady_frames = 0;
+  double steady_seconds = 0;
+  double steady_fps = 0;
+  // Time spent inside each stage (wall time of that stage's own thread; the stages overlap, so
+  // they do not add up to `seconds`). decode: the reader; detect and fuse: the fusion stage;
+  // blobs, track: the post stage; output: formatting (post) and writing (writer).
   double decode_s = 0, detect_s = 0, fuse_s = 0, blobs_s = 0, track_s = 0, output_s = 0;
+  int max_queued_outputs = 0;  // the most frames whose outputs waited for the writer at once
   std::string stop_reason;  // "end of streams", "frame limit", "camera C2 ended", ...
   std::vector<CameraRunInfo> cameras;
   std::string lut_cache;    // ToString(LutCacheOutcome)
