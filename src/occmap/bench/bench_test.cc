@@ -193,6 +193,22 @@ TEST(Bench, FastFusionIdenticalToReferenceOnWildtrack) {
     OccupancyMap from_changes;
     fast.FuseChanges(changes, *c, from_changes);
     EXPECT_EQ(from_changes, expected) << c->num_threads() << " threads (changes)";
+    OccupancyMap streamed;
+    fast.FuseWith(FastFusion::Method::kRowStreaming, f.frame_views, f.background_views, threshold, *c, streamed);
+    EXPECT_EQ(streamed, expected) << c->num_threads() << " threads (row streaming)";
+  }
+  // Few changes (the cell probes resolve their failures themselves), and every pixel changed
+  // (the hand-over to row streaming).
+  for (const double fraction : {0.1, 1.0}) {
+    const Frames g = RandomFrames(*lut, threshold, fraction, rng);
+    const OccupancyMap want = Reference(*lut, g, threshold, changes);
+    for (Context* c : {&ctx1, &ctx}) {
+      OccupancyMap map;
+      fast.Fuse(g.frame_views, g.background_views, threshold, *c, map);
+      EXPECT_EQ(map, want) << c->num_threads() << " threads, changed fraction " << fraction;
+      fast.FuseChanges(changes, *c, map);
+      EXPECT_EQ(map, want) << c->num_threads() << " threads, changed fraction " << fraction << " (changes)";
+    }
   }
 }
 

@@ -29,6 +29,7 @@
 #include <functional>
 #include <span>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "occmap/fusion/occupancy_map.h"
@@ -52,6 +53,35 @@ class FastFusion {
     uint32_t cell;
     uint32_t column;
   };
+  // One run of pixels of one camera's row that view the same cell, for the cell-major probes:
+  // pixels (column .. column + length - 1, row) of camera `camera`; length 1..64 (0 = none).
+  struct Probe {
+    uint16_t column;
+    uint16_t row;
+    uint8_t camera;
+    uint8_t length;
+    uint16_t unused = 0;
+  };
+  // A cell's first probe, within its RowGroup; the table is sorted by (camera, row, column).
+  struct PrimaryProbe {
+    uint32_t cell;
+    uint16_t column;
+    uint8_t length;  // 1..64
+    uint8_t unused;
+  };
+  // The primary probes of one image row: [probes_begin, next group's probes_begin), covering
+  // the 64-pixel words [word_begin, word_end) of the row.
+  struct RowGroup {
+    uint32_t probes_begin;
+    uint16_t camera;
+    uint16_t row;
+    uint16_t word_begin;
+    uint16_t word_end;
+  };
+  enum class Method {
+    kCellProbe,     // cell-major, early exit (the default)
+    kRowStreaming,  // row-major over every pixel, per-thread maps and a reduction
+  };
 
   // Copies what it needs from lut (which need not outlive this object). Image widths must be
   // < 65536 (a CHECK).
@@ -64,6 +94,10 @@ class FastFusion {
   // cell is written.
   void Fuse(std::span<const ImageView<const uint8_t>> frames, std::span<const ImageView<const uint8_t>> backgrounds,
             int threshold, Context& ctx, OccupancyMap& map);
+  // Tests and benchmarks: the same with a given method.
+  void FuseWith(Method method, std::span<const ImageView<const uint8_t>> frames,
+                std::span<const ImageView<const uint8_t>> backgrounds, int threshold, Context& ctx, OccupancyMap& map);
+  void FuseChangesWith(Method method, std::span<const uint8_t> changes, Context& ctx, OccupancyMap& map);
   // The same fusion over an existing global change buffer (GroundLut pixel ids; non-zero =
   // changed), like Fusion::Fuse with image-based, k = 0, all active.
   void FuseChanges(std::span<const uint8_t> changes, Context& ctx, OccupancyMap& map);
@@ -83,6 +117,9 @@ class FastFusion {
   // choice) for every FastFusion of the process; false when this CPU lacks it. Not
   // thread-safe: call with no fusion running.
   static bool ForceKernelForTesting(std::string_view name);
+  // Tests: the fraction of failed primary probes above which the cell-probe method hands the
+  // frame to row streaming (default 0.15; 0 = as soon as one probe fails, > 1 = never).
+  void SetStreamingFallbackForTesting(double fraction) { streaming_fallback_ = fraction; }
 
  private:
   struct WorkRow {
@@ -93,6 +130,9 @@ class FastFusion {
   };
   enum class Input { kImages, kChanges };
 
+  void BuildCellTables(const GroundLut& lut);
+  void ExecuteCells(Context& ctx, OccupancyMap& map);
+  void CellTask(int task, int thread);
   void Prepare(Context& ctx, OccupancyMap& map);
   void Execute(Context& ctx, OccupancyMap& map);
   void RunTask(int task, int thread);
@@ -105,6 +145,12 @@ class FastFusion {
   std::vector<Pair> pairs_;
   std::vector<WorkRow> rows_;
   std::vector<uint8_t> view_count_;  // per cell, cameras that see it
+  std::vector<PrimaryProbe> primary_;          // per seen cell, in image order
+  std::vector<RowGroup> row_groups_;           // + an end marker
+  std::vector<std::pair<uint32_t, uint32_t>> unseen_ranges_;  // [begin, end) of cells no camera sees
+  std::vector<uint32_t> secondary_offsets_;    // per primary probe + 1
+  std::vector<Probe> secondary_;
+  std::vector<int> widths_;
   int max_width_ = 0;
   int64_t mapped_pixels_ = 0;
 
@@ -113,6 +159,16 @@ class FastFusion {
   std::vector<std::vector<uint64_t>> bits_;     // [thread] unchanged bits of one row
   std::vector<uint8_t> thread_used_;            // [thread] wrote its partial this frame
   std::function<void(int, int)> task_fn_;       // built once: calls RunTask / ReduceTask
+  std::function<void(int, int)> cell_task_fn_;  // built once: calls CellTask
+  std::vector<uint32_t> fails_;                  // failed primary probes, task t's from its first probe
+  std::vector<int64_t> task_fails_;              // [task] failed probes
+  std::vector<uint8_t> task_deferred_;           // [task] 1 = fails left for after the first pass
+  std::vector<uint32_t> task_groups_;            // [task + 1] first row group of each task
+  std::vector<std::vector<uint64_t>> cell_bits_;  // [thread] unchanged bits of one row
+  bool resolving_ = false;
+  double streaming_fallback_;
+  std::vector<const uint8_t*> probe_frame_, probe_background_;
+  std::vector<ptrdiff_t> probe_frame_stride_, probe_background_stride_;
   int num_tasks_ = 0;
   bool reducing_ = false;
   Input input_ = Input::kImages;

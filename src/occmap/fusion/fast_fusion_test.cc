@@ -117,8 +117,8 @@ TEST_P(FastFusionKernels, IdenticalToReferenceOnRandomScenesAndFrames) {
     FastFusion fast(scene.lut);
     for (int frame_index = 0; frame_index < 4; ++frame_index) {
       const int threshold = static_cast<int>(rng() % 256);
-      const double fractions[] = {0.0, 0.5, 0.95, 0.995, 1.0};
-      const double fraction = threshold == 255 ? 0.0 : fractions[rng() % 5];
+      const double fractions[] = {0.0, 0.05, 0.2, 0.5, 0.95, 0.995, 1.0};
+      const double fraction = threshold == 255 ? 0.0 : fractions[rng() % 7];
       std::vector<Image<uint8_t>> frames, backgrounds;
       std::vector<ImageView<const uint8_t>> frame_views, background_views;
       for (int n = 0; n < scene.lut.num_cameras(); ++n) {
@@ -142,6 +142,22 @@ TEST_P(FastFusionKernels, IdenticalToReferenceOnRandomScenesAndFrames) {
         OccupancyMap from_changes;
         fast.FuseChanges(changes, *ctx, from_changes);
         ASSERT_EQ(from_changes, expected) << "trial " << trial << " (changes)";
+        // Every path of both methods: cell probes resolving every failure themselves (fallback
+        // never taken), handing over to row streaming at the first failure, row streaming.
+        for (const double fallback : {2.0, 0.0, 0.1, 0.3}) {
+          fast.SetStreamingFallbackForTesting(fallback);
+          OccupancyMap probed;
+          fast.FuseWith(FastFusion::Method::kCellProbe, frame_views, background_views, threshold, *ctx, probed);
+          ASSERT_EQ(probed, expected) << "trial " << trial << " fallback " << fallback;
+          fast.FuseChangesWith(FastFusion::Method::kCellProbe, changes, *ctx, probed);
+          ASSERT_EQ(probed, expected) << "trial " << trial << " fallback " << fallback << " (changes)";
+        }
+        fast.SetStreamingFallbackForTesting(0.15);
+        OccupancyMap streamed;
+        fast.FuseWith(FastFusion::Method::kRowStreaming, frame_views, background_views, threshold, *ctx, streamed);
+        ASSERT_EQ(streamed, expected) << "trial " << trial << " (row streaming)";
+        fast.FuseChangesWith(FastFusion::Method::kRowStreaming, changes, *ctx, streamed);
+        ASSERT_EQ(streamed, expected) << "trial " << trial << " (row streaming, changes)";
         // PaperImageBasedLoop agrees where some camera sees the cell.
         const std::vector<uint8_t> paper = PaperImageBasedLoop(scene.lut, changes);
         for (size_t c = 0; c < expected.states().size(); ++c) {
