@@ -87,9 +87,16 @@ struct EndToEndResult {
   std::string note;
   int64_t frames = 0;
   int cameras = 0;
-  double run_fps = 0;     // RunSite's frames_per_second (all cameras per frame)
-  double decode_fps = 0;  // frames (of all cameras) decoded per second
+  int repeats = 0;        // decode and run passes, alternated; the rates are medians
+  double run_fps = 0;     // RunSite's steady-state frame sets per second (RunSummary::steady_fps)
+  double decode_fps = 0;  // steady-state frame sets per second of the faster pure decoding pass
+  double decode_parallel_fps = 0;     // one thread per camera, as RunSite's reader decodes
+  double decode_interleaved_fps = 0;  // one thread reading the cameras in turn, frame-threaded decoders
+  double run_startup_s = 0;           // RunSite's start-up (sources, backgrounds, tables, first frames)
+  double run_overall_fps = 0;         // frames / the whole RunSite call, start-up included
+  double run_cpu_ms_per_frame = 0, decode_cpu_ms_per_frame = 0;  // process CPU time per frame set
   double fuse_s = 0, detect_s = 0, decode_s = 0;  // RunSite's own split
+  double blobs_s = 0, track_s = 0, output_s = 0;
 };
 
 struct BenchResults {
