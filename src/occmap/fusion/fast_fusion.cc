@@ -190,9 +190,6 @@ __attribute__((target("avx512f,avx512bw"))) inline bool ProbeChangesAvx512(const
 // failed cell's secondary runs until one is free.
 // Software prefetch distance (failed cells ahead) of the secondary probes, see ResolveFails.
 constexpr int64_t kFailPrefetch = 8;
-// Prefetch distance (primary probes ahead) of the map's bytes in pass 1 (the primary table has
-// kMapPrefetch spare entries at its end).
-constexpr uint32_t kMapPrefetch = 32;
 // Fraction of failed primary probes above which the row-streaming method finishes the frame.
 constexpr double kDefaultStreamingFallback = 0.15;
 
@@ -475,12 +472,12 @@ void FastFusion::BuildCellTables(const GroundLut& lut) {
   for (size_t i = 0; i < seen_cells.size(); ++i) {
     const uint32_t c = seen_cells[i];
     const Probe& p = cell_primary[c];
+    const int first_word = p.column / 64, last_word = (p.column + p.length - 1) / 64;
     if (row_groups_.empty() || row_groups_.back().camera != p.camera || row_groups_.back().row != p.row) {
-      row_groups_.push_back(RowGroup{static_cast<uint32_t>(i), p.camera, p.row,
-                                     static_cast<uint16_t>(p.column / 64), 0});
+      row_groups_.push_back(RowGroup{static_cast<uint32_t>(i), p.camera, p.row, static_cast<uint16_t>(first_word), 0});
     }
     RowGroup& group = row_groups_.back();
-    group.word_end = std::max<uint16_t>(group.word_end, static_cast<uint16_t>((p.column + p.length - 1) / 64 + 1));
+    group.word_end = std::max<uint16_t>(group.word_end, static_cast<uint16_t>(last_word + 1));
     primary_.push_back(PrimaryProbe{c, p.column, p.length, 0});
     secondary_offsets_[i] = static_cast<uint32_t>(secondary_.size());
     secondary_.insert(secondary_.end(), cell_secondary.begin() + cell_secondary_offsets[c],
@@ -488,7 +485,6 @@ void FastFusion::BuildCellTables(const GroundLut& lut) {
   }
   secondary_offsets_[seen_cells.size()] = static_cast<uint32_t>(secondary_.size());
   row_groups_.push_back(RowGroup{static_cast<uint32_t>(primary_.size()), 0, 0, 0, 0});  // end marker
-  primary_.resize(primary_.size() + kMapPrefetch, PrimaryProbe{0, 0, 0, 0});            // prefetch padding
 }
 
 int64_t FastFusion::MemoryBytes() const {
@@ -603,6 +599,8 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
   fails_.resize(probes);
   task_fails_.assign(static_cast<size_t>(num_tasks_), 0);
   task_deferred_.assign(static_cast<size_t>(num_tasks_), 0);
+  task_stop_.assign(static_cast<size_t>(num_tasks_), 0);
+  task_probed_.assign(static_cast<size_t>(num_tasks_), 0);
   const size_t pool_threads = static_cast<size_t>(std::max(threads, ctx.pool().num_workers() + 1));
   if (cell_bits_.size() < pool_threads) cell_bits_.resize(pool_threads);
   for (auto& b : cell_bits_) b.resize(static_cast<size_t>(max_width_) / 64 + 2);
@@ -615,10 +613,17 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
   };
   resolving_ = false;
   run();
-  int64_t deferred = 0;
-  for (int t = 0; t < num_tasks_; ++t) deferred += task_deferred_[static_cast<size_t>(t)] ? task_fails_[static_cast<size_t>(t)] : 0;
-  if (deferred == 0) return;
-  if (static_cast<double>(deferred) > streaming_fallback_ * static_cast<double>(probes)) {
+  // Tasks stop early when their failures pass the fallback fraction; the failure rate of what
+  // all tasks probed then decides between finishing with cell probes and row streaming.
+  int64_t failed = 0, probed = 0;
+  bool any_deferred = false;
+  for (size_t t = 0; t < static_cast<size_t>(num_tasks_); ++t) {
+    failed += task_fails_[t];
+    probed += task_probed_[t];
+    any_deferred |= task_deferred_[t] != 0;
+  }
+  if (!any_deferred) return;
+  if (static_cast<double>(failed) > streaming_fallback_ * static_cast<double>(probed)) {
     // Most cells failed their primary probe (a lighting change, the camera covered): streaming
     // every pixel once beats probing each cell's secondary runs one by one.
     Execute(ctx, map);
@@ -643,8 +648,13 @@ void FastFusion::CellTask(int task, int thread) {
                         probe_background_stride_.data(), widths_.data(), threshold_};
   job.out = out;
   const FailKernel resolve = input_ == Input::kImages ? kernels.fails_images : kernels.fails_changes;
+  uint64_t* bits = cell_bits_[static_cast<size_t>(thread)].data();
   if (resolving_) {
-    if (task_deferred_[t]) resolve(job, fails, task_fails_[t]);
+    // A task that stopped early: finish its rows, then its failures.
+    if (!task_deferred_[t]) return;
+    int64_t num_fails = task_fails_[t];
+    ProbeRows(task_stop_[t], task_groups_[t + 1], bits, fails, num_fails, /*may_stop=*/false);
+    resolve(job, fails, num_fails);
     return;
   }
   const size_t ranges = unseen_ranges_.size();
@@ -653,13 +663,34 @@ void FastFusion::CellTask(int task, int thread) {
     std::memset(out + unseen_ranges_[r].first, static_cast<int>(CellState::kUnseen),
                 unseen_ranges_[r].second - unseen_ranges_[r].first);
   }
-  // Pass 1: per image row, the unchanged bits of the words the row's probes touch, then one
-  // bit test per probe (branch-free; failures appended to `fails`).
-  uint64_t* bits = cell_bits_[static_cast<size_t>(thread)].data();
-  const PrimaryProbe* primary = primary_.data();
   int64_t num_fails = 0;
-  for (uint32_t g = task_groups_[t]; g < task_groups_[t + 1]; ++g) {
+  const uint32_t stop = ProbeRows(task_groups_[t], task_groups_[t + 1], bits, fails, num_fails, /*may_stop=*/true);
+  task_fails_[t] = num_fails;
+  task_stop_[t] = stop;
+  task_probed_[t] = row_groups_[stop].probes_begin - first_probe;
+  if (stop == task_groups_[t + 1]) {
+    resolve(job, fails, num_fails);  // pass 2 now, while the task's data is in cache
+  } else {
+    task_deferred_[t] = 1;  // decided once every task has counted its failures
+  }
+}
+
+// Pass 1 over the row groups [begin, end): per image row, the unchanged bits of the words the
+// row's probes touch, then one bit test per probe (branch-free; failures appended to fails).
+// With may_stop, returns early (the first group not done) once more than the fallback fraction
+// of at least fallback_sample_ probes (4096) failed.
+uint32_t FastFusion::ProbeRows(uint32_t begin, uint32_t end, uint64_t* bits, uint32_t* fails, int64_t& num_fails,
+                               bool may_stop) {
+  const Kernels& kernels = TheKernels();
+  uint8_t* out = reinterpret_cast<uint8_t*>(states_);
+  const PrimaryProbe* primary = primary_.data();
+  const uint32_t first_probe = row_groups_[begin].probes_begin;
+  for (uint32_t g = begin; g < end; ++g) {
     const RowGroup& group = row_groups_[g];
+    if (may_stop && group.probes_begin - first_probe >= fallback_sample_ &&
+        static_cast<double>(num_fails) > streaming_fallback_ * static_cast<double>(group.probes_begin - first_probe)) {
+      return g;
+    }
     const int x0 = group.word_begin * 64;
     const int columns = std::min(widths_[group.camera], group.word_end * 64) - x0;
     if (input_ == Input::kImages) {
@@ -670,10 +701,9 @@ void FastFusion::CellTask(int task, int thread) {
       kernels.changes(probe_frame_[group.camera] + group.row * probe_frame_stride_[group.camera] + x0, columns, bits);
     }
     bits[(columns + 63) / 64] = 0;  // the window below may read one word past the last
-    const uint32_t end = row_groups_[g + 1].probes_begin;
-    for (uint32_t i = group.probes_begin; i < end; ++i) {
-      // The map is written in image order, not cell order: prefetch its line for writing.
-      __builtin_prefetch(out + primary[i + kMapPrefetch].cell, 1);
+    const uint32_t group_end = row_groups_[g + 1].probes_begin;
+    int64_t n = num_fails;
+    for (uint32_t i = group.probes_begin; i < group_end; ++i) {
       const PrimaryProbe p = primary[i];
       const unsigned column = static_cast<unsigned>(p.column - x0);
       const unsigned shift = column & 63u;
@@ -681,17 +711,12 @@ void FastFusion::CellTask(int task, int thread) {
       const uint64_t v = (bits[word] >> shift) | ((bits[word + 1] << 1) << (63 - shift));
       const bool free = (v & (~uint64_t{0} >> (64 - p.length))) != 0;
       out[p.cell] = static_cast<uint8_t>(2 - static_cast<int>(free));  // kFree 1, kOccupied 2
-      fails[num_fails] = i;
-      num_fails += !free;
+      fails[n] = i;
+      n += !free;
     }
+    num_fails = n;
   }
-  task_fails_[t] = num_fails;
-  const int64_t task_probes = row_groups_[task_groups_[t + 1]].probes_begin - first_probe;
-  if (static_cast<double>(num_fails) <= streaming_fallback_ * static_cast<double>(task_probes)) {
-    resolve(job, fails, num_fails);  // pass 2 now, while the task's data is in cache
-  } else {
-    task_deferred_[t] = 1;  // decided once all tasks have counted theirs
-  }
+  return end;
 }
 
 void FastFusion::Prepare(Context& ctx, OccupancyMap& map) {

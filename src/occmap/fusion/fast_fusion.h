@@ -118,8 +118,12 @@ class FastFusion {
   // thread-safe: call with no fusion running.
   static bool ForceKernelForTesting(std::string_view name);
   // Tests: the fraction of failed primary probes above which the cell-probe method hands the
-  // frame to row streaming (default 0.15; 0 = as soon as one probe fails, > 1 = never).
-  void SetStreamingFallbackForTesting(double fraction) { streaming_fallback_ = fraction; }
+  // frame to row streaming (default 0.15; 0 = as soon as one probe fails, > 1 = never), and the
+  // probes a task tests before it may stop early (default 4096).
+  void SetStreamingFallbackForTesting(double fraction, uint32_t sample = 4096) {
+    streaming_fallback_ = fraction;
+    fallback_sample_ = sample;
+  }
 
  private:
   struct WorkRow {
@@ -133,6 +137,7 @@ class FastFusion {
   void BuildCellTables(const GroundLut& lut);
   void ExecuteCells(Context& ctx, OccupancyMap& map);
   void CellTask(int task, int thread);
+  uint32_t ProbeRows(uint32_t begin, uint32_t end, uint64_t* bits, uint32_t* fails, int64_t& num_fails, bool may_stop);
   void Prepare(Context& ctx, OccupancyMap& map);
   void Execute(Context& ctx, OccupancyMap& map);
   void RunTask(int task, int thread);
@@ -162,11 +167,14 @@ class FastFusion {
   std::function<void(int, int)> cell_task_fn_;  // built once: calls CellTask
   std::vector<uint32_t> fails_;                  // failed primary probes, task t's from its first probe
   std::vector<int64_t> task_fails_;              // [task] failed probes
-  std::vector<uint8_t> task_deferred_;           // [task] 1 = fails left for after the first pass
+  std::vector<uint8_t> task_deferred_;           // [task] 1 = stopped early, rows and fails left
+  std::vector<uint32_t> task_stop_;              // [task] first row group not probed
+  std::vector<int64_t> task_probed_;             // [task] primary probes tested
   std::vector<uint32_t> task_groups_;            // [task + 1] first row group of each task
   std::vector<std::vector<uint64_t>> cell_bits_;  // [thread] unchanged bits of one row
   bool resolving_ = false;
   double streaming_fallback_;
+  uint32_t fallback_sample_ = 4096;
   std::vector<const uint8_t*> probe_frame_, probe_background_;
   std::vector<ptrdiff_t> probe_frame_stride_, probe_background_stride_;
   int num_tasks_ = 0;

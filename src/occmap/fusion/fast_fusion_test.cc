@@ -145,14 +145,14 @@ TEST_P(FastFusionKernels, IdenticalToReferenceOnRandomScenesAndFrames) {
         // Every path of both methods: cell probes resolving every failure themselves (fallback
         // never taken), handing over to row streaming at the first failure, row streaming.
         for (const double fallback : {2.0, 0.0, 0.1, 0.3}) {
-          fast.SetStreamingFallbackForTesting(fallback);
+          fast.SetStreamingFallbackForTesting(fallback, /*sample=*/fallback == 0.3 ? 4096 : 16);
           OccupancyMap probed;
           fast.FuseWith(FastFusion::Method::kCellProbe, frame_views, background_views, threshold, *ctx, probed);
           ASSERT_EQ(probed, expected) << "trial " << trial << " fallback " << fallback;
           fast.FuseChangesWith(FastFusion::Method::kCellProbe, changes, *ctx, probed);
           ASSERT_EQ(probed, expected) << "trial " << trial << " fallback " << fallback << " (changes)";
         }
-        fast.SetStreamingFallbackForTesting(0.15);
+        fast.SetStreamingFallbackForTesting(0.15, 4096);
         OccupancyMap streamed;
         fast.FuseWith(FastFusion::Method::kRowStreaming, frame_views, background_views, threshold, *ctx, streamed);
         ASSERT_EQ(streamed, expected) << "trial " << trial << " (row streaming)";
