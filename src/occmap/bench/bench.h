@@ -5,8 +5,13 @@
 //   (b) opencv:    what a user would write with OpenCV: cv::absdiff + cv::threshold per camera,
 //                  cv::remap of the change mask onto the floor grid (maps = each cell centre
 //                  projected into the camera, INTER_NEAREST), cv::bitwise_and over cameras;
-//   (c) fast_1:    FastFusion on one thread;
-//   (d) fast_all:  FastFusion on all the context's threads.
+//   (c) fast_1:    FastFusion::Fuse on one thread (the cell-probe method: what `occmap run`
+//                  calls);
+//   (d) fast_all:  the same on all the context's threads;
+//   (e) streaming: FastFusion's row-streaming method (every pixel, the previous default) on one
+//                  and all threads, at the same frames;
+//   (f) worst:     FastFusion::Fuse on one and all threads with EVERY pixel changed (frame =
+//                  background XOR 0x80): the cell probes fail and hand over to row streaming.
 // Figures: camera pixels per second (all cameras' pixels / median time per frame over the
 // repetitions) and ratios; table build time and table bytes.
 //
@@ -78,7 +83,15 @@ struct WorkloadResult {
   double opencv_pps = 0;
   double fast_1_pps = 0;
   double fast_all_pps = 0;
-  // Bytes read per frame by the fast path: images + backgrounds + tables.
+  double streaming_1_pps = 0;    // (e)
+  double streaming_all_pps = 0;
+  double worst_1_pps = 0;        // (f) every pixel changed
+  double worst_all_pps = 0;
+  int64_t fast_probe_table_bytes = 0;      // FastFusion::ProbeTableBytes
+  int64_t fast_streaming_table_bytes = 0;  // FastFusion::StreamingTableBytes
+  int64_t primary_probes = 0, secondary_probes = 0, probe_rows = 0;
+  int64_t probe_bytes_read_per_frame = 0;  // FastFusion::ProbeBytesPerFrame (first pass)
+  // Bytes read per frame by row streaming: images + backgrounds + its tables.
   int64_t fast_bytes_read_per_frame = 0;
 };
 

@@ -487,12 +487,29 @@ void FastFusion::BuildCellTables(const GroundLut& lut) {
   row_groups_.push_back(RowGroup{static_cast<uint32_t>(primary_.size()), 0, 0, 0, 0});  // end marker
 }
 
-int64_t FastFusion::MemoryBytes() const {
+int64_t FastFusion::StreamingTableBytes() const {
   return static_cast<int64_t>(runs_.size() * sizeof(Run) + pairs_.size() * sizeof(Pair) +
                               rows_.size() * sizeof(WorkRow) + view_count_.size());
 }
 
-int64_t FastFusion::TableBytesPerFrame() const { return MemoryBytes(); }
+int64_t FastFusion::ProbeTableBytes() const {
+  return static_cast<int64_t>(primary_.size() * sizeof(PrimaryProbe) + row_groups_.size() * sizeof(RowGroup) +
+                              secondary_offsets_.size() * sizeof(uint32_t) + secondary_.size() * sizeof(Probe) +
+                              unseen_ranges_.size() * sizeof(unseen_ranges_[0]));
+}
+
+int64_t FastFusion::MemoryBytes() const { return StreamingTableBytes() + ProbeTableBytes(); }
+
+int64_t FastFusion::TableBytesPerFrame() const { return StreamingTableBytes(); }
+
+int64_t FastFusion::ProbeBytesPerFrame() const {
+  int64_t bytes = static_cast<int64_t>(primary_.size() * sizeof(PrimaryProbe) + row_groups_.size() * sizeof(RowGroup));
+  for (size_t g = 0; g + 1 < row_groups_.size(); ++g) {
+    const RowGroup& group = row_groups_[g];
+    bytes += 2 * (std::min(widths_[group.camera], group.word_end * 64) - group.word_begin * 64);
+  }
+  return bytes;
+}
 
 const char* FastFusion::KernelName() { return TheKernels().name; }
 

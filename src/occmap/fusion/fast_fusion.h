@@ -106,11 +106,20 @@ class FastFusion {
   int64_t num_runs() const { return static_cast<int64_t>(runs_.size()); }
   int64_t num_pairs() const { return static_cast<int64_t>(pairs_.size()); }
   int64_t mapped_pixels() const { return mapped_pixels_; }  // pixels in runs (L1 entries not the sentinel)
-  // Bytes of the re-encoded tables (runs, pairs, row index, view counts), not the per-thread
-  // buffers.
+  int64_t num_primary_probes() const { return row_groups_.empty() ? 0 : row_groups_.back().probes_begin; }
+  int64_t num_secondary_probes() const { return static_cast<int64_t>(secondary_.size()); }
+  int64_t num_probe_rows() const { return static_cast<int64_t>(row_groups_.size()) - 1; }  // image rows probed
+  // Bytes of all tables (both methods), not the per-thread buffers.
   int64_t MemoryBytes() const;
-  // Bytes read from the tables per frame (runs + pairs + row index).
+  // Row streaming's tables (runs, pairs, row index, view counts), all read every frame.
+  int64_t StreamingTableBytes() const;
+  // The cell probes' tables (primary, row groups, secondary CSR, unseen ranges).
+  int64_t ProbeTableBytes() const;
+  // Bytes read per frame by row streaming from its tables (StreamingTableBytes).
   int64_t TableBytesPerFrame() const;
+  // Bytes read per frame by the cell probes' first pass: the primary table and row groups and
+  // the image words (frame and background) of the probed rows' spans; failures read more.
+  int64_t ProbeBytesPerFrame() const;
   // Which kernel the dispatch picked: "avx512bw", "avx2" or "portable".
   static const char* KernelName();
   // Tests: selects a kernel ("portable", "avx2", "avx512bw", or "best" = the dispatch's
