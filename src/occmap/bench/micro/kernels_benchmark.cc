@@ -105,18 +105,26 @@ void BM_FusionReferenceImageBased(benchmark::State& state) {
 }
 BENCHMARK(BM_FusionReferenceImageBased);
 
+// FastFusion's two methods beside the reference above: cell probes (Fuse, the default, what
+// occmap run calls) and row streaming (every pixel), over the change buffer and fused with the
+// change test from the frames; range(0) = threads, range(1) = method (0 cell probes, 1 row
+// streaming).
+FastFusion::Method MethodArg(const benchmark::State& state) {
+  return state.range(1) == 0 ? FastFusion::Method::kCellProbe : FastFusion::Method::kRowStreaming;
+}
+
 void BM_FastFusionChanges(benchmark::State& state) {
   LabFrames& lab = Lab();
   FastFusion fast(lab.lut);
   OccupancyMap map(lab.site.grid);
   Context ctx(static_cast<int>(state.range(0)));
   for (auto _ : state) {
-    fast.FuseChanges(lab.changes, ctx, map);
+    fast.FuseChangesWith(MethodArg(state), lab.changes, ctx, map);
     benchmark::DoNotOptimize(map.states().data());
   }
   state.SetItemsProcessed(state.iterations() * lab.Pixels());
 }
-BENCHMARK(BM_FastFusionChanges)->Arg(1)->Arg(2)->UseRealTime();
+BENCHMARK(BM_FastFusionChanges)->ArgsProduct({{1, 2}, {0, 1}})->ArgNames({"threads", "streaming"})->UseRealTime();
 
 void BM_FastFusionFromFrames(benchmark::State& state) {
   LabFrames& lab = Lab();
@@ -124,12 +132,39 @@ void BM_FastFusionFromFrames(benchmark::State& state) {
   OccupancyMap map(lab.site.grid);
   Context ctx(static_cast<int>(state.range(0)));
   for (auto _ : state) {
-    fast.Fuse(lab.frame_views, lab.background_views, 30, ctx, map);
+    fast.FuseWith(MethodArg(state), lab.frame_views, lab.background_views, 30, ctx, map);
     benchmark::DoNotOptimize(map.states().data());
   }
   state.SetItemsProcessed(state.iterations() * lab.Pixels());
 }
-BENCHMARK(BM_FastFusionFromFrames)->Arg(1)->Arg(2)->UseRealTime();
+BENCHMARK(BM_FastFusionFromFrames)->ArgsProduct({{1, 2}, {0, 1}})->ArgNames({"threads", "streaming"})->UseRealTime();
+
+// The worst case of the cell probes: every pixel changed (they hand the frame to row streaming).
+void BM_FastFusionFromFramesAllChanged(benchmark::State& state) {
+  LabFrames& lab = Lab();
+  FastFusion fast(lab.lut);
+  OccupancyMap map(lab.site.grid);
+  Context ctx(static_cast<int>(state.range(0)));
+  std::vector<Image<uint8_t>> frames;
+  std::vector<ImageView<const uint8_t>> views;
+  for (const Image<uint8_t>& b : lab.backgrounds) {
+    Image<uint8_t> f(b.width(), b.height());
+    for (int y = 0; y < b.height(); ++y) {
+      for (int x = 0; x < b.width(); ++x) f(x, y) = static_cast<uint8_t>(b(x, y) ^ 0x80);
+    }
+    frames.push_back(std::move(f));
+  }
+  for (const Image<uint8_t>& f : frames) views.push_back(f.view());
+  for (auto _ : state) {
+    fast.FuseWith(MethodArg(state), views, lab.background_views, 30, ctx, map);
+    benchmark::DoNotOptimize(map.states().data());
+  }
+  state.SetItemsProcessed(state.iterations() * lab.Pixels());
+}
+BENCHMARK(BM_FastFusionFromFramesAllChanged)
+    ->ArgsProduct({{1, 2}, {0, 1}})
+    ->ArgNames({"threads", "streaming"})
+    ->UseRealTime();
 
 }  // namespace
 }  // namespace occmap
