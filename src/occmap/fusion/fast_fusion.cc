@@ -603,7 +603,9 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
   // Contiguous ranges of row groups with about the same number of probes, several per thread
   // (handed out dynamically); each cell is written by the one task that holds its primary
   // probe, so there is no per-thread map and no reduction.
-  num_tasks_ = threads <= 1 ? 1 : static_cast<int>(std::clamp<size_t>(groups, 1, static_cast<size_t>(threads) * 8));
+  // On one thread too: the tasks' first probes are the sample that decides the fallback, and
+  // they must come from the whole image, not from its first rows.
+  num_tasks_ = static_cast<int>(std::clamp<size_t>(groups, 1, static_cast<size_t>(std::max(threads, 2)) * 8));
   task_groups_.resize(static_cast<size_t>(num_tasks_) + 1);
   for (int t = 0; t < num_tasks_; ++t) {
     const uint32_t first_probe = static_cast<uint32_t>(probes * static_cast<size_t>(t) / static_cast<size_t>(num_tasks_));
@@ -622,8 +624,8 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
   if (cell_bits_.size() < pool_threads) cell_bits_.resize(pool_threads);
   for (auto& b : cell_bits_) b.resize(static_cast<size_t>(max_width_) / 64 + 2);
   auto run = [&] {
-    if (num_tasks_ == 1) {
-      CellTask(0, 0);
+    if (threads <= 1) {
+      for (int t = 0; t < num_tasks_; ++t) CellTask(t, 0);
     } else {
       ctx.pool().Run(num_tasks_, cell_task_fn_);
     }
