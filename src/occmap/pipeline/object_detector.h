@@ -15,6 +15,8 @@
 //   detector.Detect(map, active, objects);   // objects.detections, objects.groups, objects.grown
 #pragma once
 
+#include <functional>
+#include <optional>
 #include <vector>
 
 #include "occmap/fusion/blobs.h"
@@ -47,17 +49,39 @@ class ObjectDetector {
   ObjectDetector(const BlobSettings& settings, const TrackerOptions& tracker_options, double plane_height_m,
                  std::vector<CameraView> cameras);
 
-  // active[n]: camera n contributed to this map (size = cameras). Reuses out's buffers.
-  void Detect(const OccupancyMap& map, const std::vector<bool>& active, DetectedObjects& out);
+  // Whether camera n's pixel (column x, row y) shows a change in the current frame.
+  using ChangeLookup = std::function<bool(int camera, int x, int y)>;
+
+  // active[n]: camera n contributed to this map (size = cameras). `changed` (may be empty)
+  // answers the elevated check. Reuses out's buffers.
+  void Detect(const OccupancyMap& map, const std::vector<bool>& active, const ChangeLookup& changed,
+              DetectedObjects& out);
+  // Without per-pixel changes (no elevated check).
+  void Detect(const OccupancyMap& map, const std::vector<bool>& active, DetectedObjects& out) {
+    Detect(map, active, ChangeLookup(), out);
+  }
 
  private:
+  void PrepareSupport(const FloorGrid& grid);
+  // The plane-h occupancy of a cell: 1 occupied (every active camera seeing it changed), 0
+  // free, -1 no active camera sees it.
+  int SupportAt(size_t h, int64_t cell, const std::vector<bool>& active, const ChangeLookup& changed) const;
+  void RemoveUnsupported(const OccupancyMap& map, const std::vector<bool>& active, const ChangeLookup& changed,
+                         std::vector<int>& blob_group, const std::vector<int>& kept_index, DetectedObjects& out);
+
   BlobSettings settings_;
   TrackerOptions tracker_options_;
+  double plane_height_m_ = 0;
   std::vector<CameraView> cameras_;
   std::vector<Viewer> viewers_;          // per camera (centre at 0 when it has none)
   std::vector<bool> has_centre_;
   GhostOptions ghost_options_;
   std::vector<int32_t> labels_;
+  int32_t labels_max_ = -1;
+  // The elevated check: per camera, the pixel (row * width + column) where each cell's centre
+  // at support_height_m projects, -1 where the camera does not see it (built on first use).
+  std::optional<FloorGrid> support_grid_;
+  std::vector<std::vector<std::vector<int32_t>>> support_pixel_;  // [height][camera][cell]
 };
 
 }  // namespace occmap

@@ -252,10 +252,15 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
   const std::string site = fmt::format(
       "# Written by occmap's scene simulator: scene '{}' (see README.txt and scene.json).\n"
       "version: 1\nname: \"{}\"\nfloor:\n  origin_m: [{}, {}]\n  cells: [{}, {}]\n  cell_size_m: {}\ncameras:\n{}"
-      "detection:\n  threshold: {}\n"
+      "# A pixel sees 2-5 cm of floor, more than a chair's leg: changes are widened by one pixel\n"
+      "# so that thin parts survive the AND (equation 5) on a 2 cm grid.\n"
+      "detection:\n  threshold: {}\n  tolerance_px: 1\n"
       "# A rendered person touches the floor with two feet and a chair with four legs: fragments\n"
-      "# closer than 0.4 m form one detection, and specks under 50 cm^2 are dropped.\n"
-      "blobs:\n  group_radius_m: 0.2\n  min_area_m2: 0.005\n",
+      "# closer than 0.4 m form one detection, and specks under 150 cm^2 are dropped. A detection\n"
+      "# must also stand up: on one of the planes support_heights_m, at least min_support of its\n"
+      "# footprint must be occupied too (ghosts behind people are flat).\n"
+      "blobs:\n  group_radius_m: 0.2\n  min_area_m2: 0.015\n  support_heights_m: [0.35, 0.7, 1.0, 1.3]\n"
+      "  min_support: 0.3\n",
       scene.spec().name, scene.spec().name, g.origin_x_m, g.origin_y_m, g.cells_x, g.cells_y, g.cell_size_m,
       site_cameras, options.detection_threshold);
   summary.site_file = out / "site.yaml";

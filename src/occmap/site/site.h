@@ -59,6 +59,12 @@ struct BlobSettings {
   bool split = true;
   bool remove_ghosts = true;
   double occluder_height_m = 1.8;  // objects that hide the floor behind them (ghost test)
+  // The elevated check (empty = off): a detection is kept only when, on one of the planes
+  // support_heights_m above the floor, at least min_support of its footprint cells are also
+  // occupied within support_slack_m (tested pixel by pixel through each camera's changes).
+  std::vector<double> support_heights_m;
+  double min_support = 0.2;
+  double support_slack_m = 0.05;
 };
 
 struct SiteCamera {

@@ -61,6 +61,12 @@ detection:
 fusion:
   algorithm: map-based
   max_free_views: 1
+blobs:
+  group_radius_m: 0.2
+  min_area_m2: 0.015
+  support_heights_m: [0.35, 1.0]
+  min_support: 0.3
+  support_slack_m: 0.04
 )";
   }
 
@@ -88,6 +94,11 @@ TEST_F(SiteFixture, LoadsAValidSite) {
   EXPECT_EQ(site->detection.tolerance_px, 2);
   EXPECT_EQ(site->fusion.method, FusionMethod::kMapBased);
   EXPECT_EQ(site->fusion.max_free_views, 1);
+  EXPECT_EQ(site->blobs.group_radius_m, 0.2);
+  EXPECT_EQ(site->blobs.min_area_m2, 0.015);
+  EXPECT_EQ(site->blobs.support_heights_m, (std::vector<double>{0.35, 1.0}));
+  EXPECT_EQ(site->blobs.min_support, 0.3);
+  EXPECT_EQ(site->blobs.support_slack_m, 0.04);
 }
 
 TEST_F(SiteFixture, ResizedCameraProjectsToScaledPixels) {
@@ -188,8 +199,16 @@ INSTANTIATE_TEST_SUITE_P(
         BadSite{"algorithm", "algorithm: map-based", "algorithm: fastest",
                 ":28: fusion.algorithm: expected image-based or map-based, found 'fastest'"},
         BadSite{"version", "version: 1", "version: 2", ":1: version: expected site format version 1, found 2"},
-        BadSite{"tracking_speed", "  max_free_views: 1\n", "  max_free_views: 1\ntracking:\n  max_speed_mps: -1\n",
-                ":31: tracking.max_speed_mps: expected a number > 0, found -1"},
+        BadSite{"tracking_speed", "  support_slack_m: 0.04\n", "  support_slack_m: 0.04\ntracking:\n  max_speed_mps: -1\n",
+                ":37: tracking.max_speed_mps: expected a number > 0, found -1"},
+        BadSite{"support_height", "support_heights_m: [0.35, 1.0]", "support_heights_m: [0.35, -1]",
+                ":33: blobs.support_heights_m: expected heights in (0, 10) m, found -1"},
+        BadSite{"support_heights_not_a_list", "support_heights_m: [0.35, 1.0]", "support_heights_m: high",
+                ":33: blobs.support_heights_m: expected a list of numbers, found 'high'"},
+        BadSite{"min_support", "min_support: 0.3", "min_support: 1.5",
+                ":34: blobs.min_support: expected a fraction in [0, 1], found 1.5"},
+        BadSite{"support_slack", "support_slack_m: 0.04", "support_slack_m: -0.1",
+                ":35: blobs.support_slack_m: expected >= 0 m, found -0.1"},
         BadSite{"no_cameras", "cameras:\n  - id: a", "cameras: []\nx:\n  - id: a",
                 ":8: unknown field 'x' (expected one of: version, name, data_root, floor, cameras, detection, fusion, blobs, lut, tracking)"},
         BadSite{"yaml_syntax", "origin_m: [0, 0]", "origin_m: [0, 0",

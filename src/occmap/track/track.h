@@ -25,6 +25,12 @@ struct Track {
   double area_m2 = 0;              // smoothed footprint area (the window tracker: last window's)
 };
 
+// Whether a track is written out (TrackerOptions::report_coasting_s): it had a detection within
+// report_coasting_s (1 us of slack for rounded frame times).
+inline bool IsReported(const Track& track, double report_coasting_s) {
+  return track.time_since_update_s <= report_coasting_s + 1e-6;
+}
+
 // The time step between a tracker's frames: times must be finite and strictly increasing.
 class FrameClock {
  public:

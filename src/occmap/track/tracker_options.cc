@@ -52,6 +52,7 @@ void VisitNumbers(Options& o, Fn&& fn) {
   fn("confirm_hits", o.confirm_hits, kAtLeastOne);
   fn("confirm_frames", o.confirm_frames, kAtLeastOne);
   fn("max_coast_s", o.max_coast_s, kNonNegative);
+  fn("report_coasting_s", o.report_coasting_s, kNonNegative);
   fn("birth_min_separation_m", o.birth_min_separation_m, kNonNegative);
   fn("class_hysteresis", o.class_hysteresis, Range{0, false, 1, true});
   fn("class_area_smoothing", o.class_area_smoothing, Range{0, true, 1, false});

@@ -136,6 +136,12 @@ struct TrackerOptions {
   // A confirmed track without detections coasts on its prediction and ends once this long
   // has passed since its last detection (or at once when the prediction leaves the grid).
   double max_coast_s = 1.0;
+  // A coasting track is written out (tracks.jsonl, the MOT file, the mosaic) only this long
+  // after its last detection (IsReported in track.h); it lives on, resumes its id when its
+  // object is found again within max_coast_s, and counts in zones meanwhile. Without this, a
+  // track whose object was a ghost or was taken by another track would be reported where
+  // nothing is for max_coast_s (SORT-style trackers report matched tracks only: 0).
+  double report_coasting_s = 0.0;
   // No track is born from a detection this close to a confirmed track.
   double birth_min_separation_m = 0.4;
 

@@ -51,6 +51,7 @@ tracking:
   confirm_hits: 2
   confirm_frames: 4
   max_coast_s: 0.75
+  report_coasting_s: 0.25
   zone_count_every_frame: true
   classes: [{name: robot, max_area_m2: 0.14}, {name: person, max_area_m2: 0.45}, {name: cart}]
   zones:
@@ -65,6 +66,7 @@ tracking:
   EXPECT_EQ(options.confirm_hits, 2);
   EXPECT_EQ(options.confirm_frames, 4);
   EXPECT_EQ(options.max_coast_s, 0.75);
+  EXPECT_EQ(options.report_coasting_s, 0.25);
   EXPECT_TRUE(options.zone_count_every_frame);
   EXPECT_EQ(options.person_diameter_m, 0.5) << "absent keys keep their defaults";
   ASSERT_EQ(options.classes.size(), 3u);
@@ -104,10 +106,11 @@ TEST(ParseTrackerOptions, MalformedInputsGiveLocatedMessagesAndLeaveTheOptionsAl
                                    "max_people_per_blob, split_area_margin, split_min_neck_m, split_min_peak_radius_m, "
                                    "acceleration_psd_m2ps3, measurement_sigma_m, spread_noise_weight, guided_split_sigma_m, "
                                    "initial_speed_sigma_mps, gate_chi2, confirm_hits, confirm_frames, max_coast_s, "
-                                   "birth_min_separation_m, class_hysteresis, class_area_smoothing, window_object_radius_m, "
+                                   "report_coasting_s, birth_min_separation_m, class_hysteresis, class_area_smoothing, window_object_radius_m, "
                                    "window_lost_timeout_s, window_min_new_area_m2, trail_length)"},
       {"tracking:\n  algorithm: kalman", "site.yaml:2: tracking.algorithm: expected 'multi_target' or 'window', found 'kalman'"},
       {"tracking:\n  max_speed_mps: fast", "site.yaml:2: tracking.max_speed_mps: expected a finite number, found 'fast'"},
+      {"tracking:\n  report_coasting_s: -0.1", "site.yaml:2: tracking.report_coasting_s: expected a number >= 0, found -0.1"},
       {"tracking:\n  max_speed_mps: -1", "site.yaml:2: tracking.max_speed_mps: expected a number > 0, found -1"},
       {"tracking:\n  max_speed_mps: .nan", "site.yaml:2: tracking.max_speed_mps: expected a finite number, found '.nan'"},
       {"tracking:\n  confirm_hits: 2.5", "site.yaml:2: tracking.confirm_hits: expected an integer, found '2.5'"},

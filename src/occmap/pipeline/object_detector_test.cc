@@ -1,0 +1,120 @@
+#include "occmap/pipeline/object_detector.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <set>
+
+#include "occmap/lut/test_scene.h"
+
+namespace occmap {
+namespace {
+
+// A small room (four cameras in the corners) with two occupied discs on the floor map: a
+// standing object (a 1.7 m cylinder whose silhouette every camera's changes show) and a flat
+// one (occupied on the floor only: what a ghost looks like from the planes above).
+class ObjectDetectorTest : public ::testing::Test {
+ protected:
+  static constexpr double kRadius = 0.2;
+  const Eigen::Vector2d standing_{1.2, 1.5};
+  const Eigen::Vector2d flat_{2.9, 1.4};
+
+  void SetUp() override {
+    map_ = OccupancyMap(room_.grid);
+    for (int64_t i = 0; i < room_.grid.num_cells(); ++i) {
+      const Eigen::Vector2d c = room_.grid.CellCenter(i);
+      const bool on = (c - standing_).norm() < kRadius || (c - flat_).norm() < kRadius;
+      map_.states()[static_cast<size_t>(i)] = on ? CellState::kOccupied : CellState::kFree;
+    }
+    // Each camera's changed pixels: the standing cylinder's silhouette, sampled densely.
+    changed_.resize(room_.cameras.size());
+    for (size_t n = 0; n < room_.cameras.size(); ++n) {
+      for (double z = 0; z <= 1.7; z += 0.01) {
+        for (double r = 0; r <= kRadius; r += 0.01) {
+          for (double a = 0; a < 2 * M_PI; a += 0.05) {
+            const Eigen::Vector3d p(standing_.x() + r * std::cos(a), standing_.y() + r * std::sin(a), z);
+            const auto px = room_.cameras[n].Project(p);
+            if (px) changed_[n].insert({static_cast<int>(std::lround(px->x())), static_cast<int>(std::lround(px->y()))});
+          }
+        }
+      }
+    }
+    for (const PinholeCamera& c : room_.cameras) views_.push_back({&c, nullptr});
+  }
+
+  ObjectDetector::ChangeLookup Lookup() const {
+    return [this](int n, int x, int y) { return changed_[static_cast<size_t>(n)].count({x, y}) > 0; };
+  }
+
+  static BlobSettings Settings(std::vector<double> heights) {
+    BlobSettings s;
+    s.min_area_m2 = 0.01;
+    s.remove_ghosts = false;  // this test is about the elevated check alone
+    s.support_heights_m = std::move(heights);
+    return s;
+  }
+
+  testing::SmallRoom room_{320, 240};
+  OccupancyMap map_;
+  std::vector<std::set<std::pair<int, int>>> changed_;
+  std::vector<ObjectDetector::CameraView> views_;
+  TrackerOptions tracker_;
+  std::vector<bool> all_active_ = std::vector<bool>(4, true);
+};
+
+TEST_F(ObjectDetectorTest, WithoutTheElevatedCheckBothDiscsAreDetections) {
+  ObjectDetector detector(Settings({}), tracker_, 0.0, views_);
+  DetectedObjects out;
+  detector.Detect(map_, all_active_, Lookup(), out);
+  ASSERT_EQ(out.detections.size(), 2u);
+  EXPECT_EQ(out.groups.size(), 2u);
+}
+
+TEST_F(ObjectDetectorTest, AFlatDetectionIsDroppedAndAStandingOneKept) {
+  ObjectDetector detector(Settings({0.35, 1.0}), tracker_, 0.0, views_);
+  DetectedObjects out;
+  detector.Detect(map_, all_active_, Lookup(), out);
+  ASSERT_EQ(out.detections.size(), 1u);
+  EXPECT_NEAR(out.detections[0].x_m, standing_.x(), 0.03);
+  EXPECT_NEAR(out.detections[0].y_m, standing_.y(), 0.03);
+  ASSERT_EQ(out.groups.size(), 1u) << "the tracker gets only the groups that hold a kept detection";
+  EXPECT_NEAR(out.groups[0].x_m, standing_.x(), 0.03);
+}
+
+TEST_F(ObjectDetectorTest, AnyPlaneThatSupportsTheObjectKeepsIt) {
+  // Only a plane above the cylinder (2 m): it is free over both discs, and it drops both;
+  // with a plane at 0.5 m beside it, the standing one is supported again (any plane suffices).
+  DetectedObjects out;
+  ObjectDetector above(Settings({2.0}), tracker_, 0.0, views_);
+  above.Detect(map_, all_active_, Lookup(), out);
+  EXPECT_TRUE(out.detections.empty());
+  ObjectDetector both(Settings({2.0, 0.5}), tracker_, 0.0, views_);
+  both.Detect(map_, all_active_, Lookup(), out);
+  ASSERT_EQ(out.detections.size(), 1u);
+  EXPECT_NEAR(out.detections[0].x_m, standing_.x(), 0.03);
+}
+
+TEST_F(ObjectDetectorTest, WithoutChangesOrCamerasThereIsNoEvidenceAgainst) {
+  ObjectDetector detector(Settings({0.35}), tracker_, 0.0, views_);
+  DetectedObjects out;
+  // No change lookup (a path that has no per-pixel changes): the check is skipped.
+  detector.Detect(map_, all_active_, {}, out);
+  EXPECT_EQ(out.detections.size(), 2u);
+  // No active camera: no plane sees anything, nothing speaks against either.
+  detector.Detect(map_, std::vector<bool>(4, false), Lookup(), out);
+  EXPECT_EQ(out.detections.size(), 2u);
+}
+
+TEST_F(ObjectDetectorTest, ACameraThatSeesTheFlatDiscFreeIsEnoughToDropIt) {
+  // With only one camera active, the flat disc is still seen free above the floor by it.
+  std::vector<bool> one(4, false);
+  one[2] = true;
+  ObjectDetector detector(Settings({0.35}), tracker_, 0.0, views_);
+  DetectedObjects out;
+  detector.Detect(map_, one, Lookup(), out);
+  ASSERT_EQ(out.detections.size(), 1u);
+  EXPECT_NEAR(out.detections[0].x_m, standing_.x(), 0.03);
+}
+
+}  // namespace
+}  // namespace occmap
