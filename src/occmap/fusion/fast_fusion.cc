@@ -283,12 +283,17 @@ constexpr int64_t kReduceBlock = 4096;
 
 }  // namespace
 
-// Measured (occmap bench --workload wildtrack, AMD EPYC with AVX-512BW, 2 cores shared with a
-// CI build, 2026-11): 7 x 1920x1080 onto 480 x 1440, 10 % of pixels changed: 1.3-1.7 Gpixel/s
-// on 1 thread (8-11 ms/frame), 1.8-3.0 Gpixel/s on 2; the paper's loop 0.45-0.58 Gpixel/s.
-// Per frame it reads 29 MB of images + 29.5 MB of tables (2.47 M runs, 1.12 M coverage pairs);
-// the mask kernel is ~20 % of the time, the run / pair loop (scattered byte stores into the
-// 691 KB per-thread map) the rest.
+// Measured (occmap bench --workload wildtrack, AMD EPYC with AVX-512BW, 2 cores shared with
+// other builds and benchmarks, 2026-11, commit after 9f6c13f): 7 x 1920x1080 onto 480 x 1440,
+// 10 % of pixels changed independently. Cell probes: 4.2-4.5 Gpixel/s on 1 thread (3.2-3.5
+// ms/frame), 8.1 Gpixel/s on 2 when the second core is free (1.8x); the first pass reads
+// 15.5 MB per frame (primary table 5.5 MB, the probed rows' image words). Splitting pass 1's
+// time (SKIP experiments, 1 thread): row kernel over the probed spans ~40 %, probe loop ~40 %,
+// failed cells ~20 %. Tried without gain: computing only the words the probes touch (61 305 of
+// ~87 000 per image; slower, the spans stream better), software prefetch of the next rows'
+// spans and of the map's bytes. Row streaming: 1.7-1.9 Gpixel/s on 1 thread; it reads 29 MB of
+// images + 29.5 MB of tables (2.47 M runs, 1.12 M coverage pairs). Every pixel changed (the
+// hand-over): 2.9-3.5 Gpixel/s on 1 thread. The paper's loop 0.57-0.59 Gpixel/s.
 FastFusion::FastFusion(const GroundLut& lut) : grid_(lut.grid()), streaming_fallback_(kDefaultStreamingFallback) {
   const int num_cameras = lut.num_cameras();
   OCCMAP_CHECK(num_cameras > 0, "fast fusion: tables without cameras");
