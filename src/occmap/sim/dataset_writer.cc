@@ -253,7 +253,7 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
       "# Written by occmap's scene simulator: scene '{}' (see README.txt and scene.json).\n"
       "version: 1\nname: \"{}\"\nfloor:\n  origin_m: [{}, {}]\n  cells: [{}, {}]\n  cell_size_m: {}\ncameras:\n{}"
       "# A pixel sees 2-5 cm of floor, more than a chair's leg: changes are widened by one pixel\n"
-      "# so that thin parts survive the AND (equation 5) on a 2 cm grid.\n"
+      "# so that thin parts survive the AND (equation 5) on a fine grid.\n"
       "detection:\n  threshold: {}\n  tolerance_px: 1\n"
       "# A rendered person touches the floor with two feet and a chair with four legs: fragments\n"
       "# closer than 0.4 m form one detection, and specks under 150 cm^2 are dropped. A detection\n"
