@@ -131,10 +131,15 @@ TEST(Bench, JsonHasTheRequiredKeys) {
   for (const char* key :
        {"speedup_vs_opencv", "speedup_vs_paper_loop", "paper_loop_pixels_per_second", "opencv_pixels_per_second",
         "fast_1_thread_pixels_per_second", "fast_all_threads_pixels_per_second", "threads", "machine",
-        "lut_bytes", "fast_bytes", "lut_build_seconds"}) {
+        "lut_bytes", "fast_bytes", "lut_build_seconds", "fast_all_threads_vs_1_thread",
+        "row_streaming_1_thread_pixels_per_second", "row_streaming_all_threads_pixels_per_second",
+        "all_changed_1_thread_pixels_per_second", "all_changed_all_threads_pixels_per_second",
+        "fast_probe_table_bytes", "fast_streaming_table_bytes", "probe_bytes_read_per_frame"}) {
     EXPECT_TRUE(w.contains(key)) << key;
   }
   EXPECT_GT(w["speedup_vs_opencv"].get<double>(), 0.0);
+  EXPECT_GT(w["all_changed_all_threads_pixels_per_second"].get<double>(), 0.0);
+  EXPECT_GT(w["primary_probes"].get<int64_t>(), 0);
   EXPECT_EQ(w["threads"].get<int>(), 2);
   EXPECT_FALSE(BenchTable(*results).empty());
 }
