@@ -1,10 +1,13 @@
 // The simulator's lab scene through the whole system: perfect change masks reproduce the ideal
-// plane hull (the paper's claim), and the demo scores its detections and tracks.
+// plane hull (the paper's claim; with changes widened by one pixel, every boundary footprint
+// cell too), and the demo scores its detections and tracks.
 #include <fmt/core.h>
 #include <gtest/gtest.h>
 
+#include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "occmap/eval/evaluate_run.h"
 #include "occmap/pipeline/demo.h"
 #include "occmap/pipeline/run.h"
 #include "occmap/sim/builtin_scenes.h"
@@ -40,32 +43,28 @@ class LabDataset : public ::testing::Test {
 };
 testing::TempDir* LabDataset::dir_ = nullptr;
 
-TEST_F(LabDataset, PerfectChangeMasksReproduceTheIdealPlaneHull) {
-  auto site = LoadSite(Lab() / "site.yaml");
-  ASSERT_TRUE(site.ok()) << site.status().message();
-  for (auto& cam : site->cameras) {
-    cam.source = {FrameSourceSpec::Kind::kMasks, (Lab() / "gt" / "changes" / cam.id / "%06d.png").string()};
-  }
-  RunOptions o;
-  o.out_dir = Lab() / "perfect";
-  o.occupancy_pngs = true;
-  o.occupancy_video = o.mosaic_video = false;
-  Context ctx(2);
-  auto run = RunSite(*site, o, ctx);
-  ASSERT_TRUE(run.ok()) << run.status().message();
-  ASSERT_EQ(run->frames, kFrames);
-  int64_t seen = 0, agree = 0, boundary = 0, boundary_occupied = 0, interior = 0, interior_occupied = 0;
-  int64_t between_legs_seen = 0, between_legs_free = 0;
+// Agreement of a run's maps with the reference rasters, over its kFrames frames.
+struct HullStats {
+  int64_t seen = 0, agree = 0, beyond_hull = 0;
+  int64_t boundary = 0, boundary_occupied = 0, interior = 0, interior_occupied = 0;
+  double agreement() const { return static_cast<double>(agree) / static_cast<double>(seen); }
+  double boundary_kept() const { return static_cast<double>(boundary_occupied) / static_cast<double>(boundary); }
+  double interior_kept() const { return static_cast<double>(interior_occupied) / static_cast<double>(interior); }
+};
+
+HullStats CompareWithReference(const fs::path& lab, const fs::path& run) {
+  HullStats s;
   for (int f = 0; f < kFrames; ++f) {
     const std::string name = fmt::format("{:06d}.png", f);
-    const Image<uint8_t> map = *ReadGrayImage(Lab() / "perfect" / "occupancy" / name);
-    const Image<uint8_t> hull = *ReadGrayImage(Lab() / "gt" / "hull" / name);
-    const Image<uint8_t> feet = *ReadGrayImage(Lab() / "gt" / "footprint" / name);
+    const Image<uint8_t> map = *ReadGrayImage(run / "occupancy" / name);
+    const Image<uint8_t> hull = *ReadGrayImage(lab / "gt" / "hull" / name);
+    const Image<uint8_t> feet = *ReadGrayImage(lab / "gt" / "footprint" / name);
     for (int y = 0; y < map.height(); ++y) {
       for (int x = 0; x < map.width(); ++x) {
         if (map(x, y) == 128) continue;  // unseen
-        ++seen;
-        agree += (map(x, y) == 0) == (hull(x, y) == 0);
+        ++s.seen;
+        s.agree += (map(x, y) == 0) == (hull(x, y) == 0);
+        s.beyond_hull += map(x, y) == 0 && hull(x, y) != 0;
         // A footprint cell on the object's boundary that the hull shows some camera sees.
         if (feet(x, y) == 255 && hull(x, y) != 128) {
           bool on_boundary = false;
@@ -74,36 +73,71 @@ TEST_F(LabDataset, PerfectChangeMasksReproduceTheIdealPlaneHull) {
             if (nx >= 0 && ny >= 0 && nx < map.width() && ny < map.height()) on_boundary |= feet(nx, ny) == 0;
           }
           if (on_boundary) {
-            ++boundary;
-            boundary_occupied += map(x, y) == 0;
+            ++s.boundary;
+            s.boundary_occupied += map(x, y) == 0;
           } else {
-            ++interior;
-            interior_occupied += map(x, y) == 0;
+            ++s.interior;
+            s.interior_occupied += map(x, y) == 0;
           }
         }
       }
     }
   }
-  const double agreement = static_cast<double>(agree) / static_cast<double>(seen);
-  EXPECT_GE(agreement, 0.995) << agree << " of " << seen << " seen cells";
-  EXPECT_GT(boundary, 100);
+  return s;
+}
+
+TEST_F(LabDataset, PerfectChangeMasksReproduceTheIdealPlaneHull) {
+  auto site = LoadSite(Lab() / "site.yaml");
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  for (auto& cam : site->cameras) {
+    cam.source = {FrameSourceSpec::Kind::kMasks, (Lab() / "gt" / "changes" / cam.id / "%06d.png").string()};
+  }
+  RunOptions o;
+  o.occupancy_pngs = true;
+  o.occupancy_video = o.mosaic_video = false;
+  Context ctx(2);
+  // The paper's AND exactly (no tolerance), then with the one-pixel tolerance the simulator's
+  // site.yaml sets.
+  std::vector<HullStats> stats;
+  for (int tolerance_px : {0, 1}) {
+    site->detection.tolerance_px = tolerance_px;
+    o.out_dir = Lab() / fmt::format("perfect_t{}", tolerance_px);
+    auto run = RunSite(*site, o, ctx);
+    ASSERT_TRUE(run.ok()) << run.status().message();
+    ASSERT_EQ(run->frames, kFrames);
+    stats.push_back(CompareWithReference(Lab(), o.out_dir));
+  }
+  const HullStats& exact = stats[0];
+  const HullStats& widened = stats[1];
+  EXPECT_GE(exact.agreement(), 0.995) << exact.agree << " of " << exact.seen << " seen cells";
+  EXPECT_GT(exact.boundary, 100);
   // The footprint's inside is occupied. On its boundary, a 2 cm cell is only partly under the
   // object and a pixel sees 3-5 cm of floor at these distances: any pixel whose ray lands on
-  // the cell's free part frees it (the AND), so the discrete map loses about a third of the
-  // boundary cells (measured: 1394 of 2099 kept, interior 4994 of 5058). The continuous claim
-  // (every visible boundary point is a hard point) holds on the ideal hull computed at cell
-  // centres: sim's HullOccupiesEveryBoundaryFootprintCellThatSomeCameraSees.
-  EXPECT_GE(static_cast<double>(interior_occupied) / static_cast<double>(interior), 0.98)
-      << interior_occupied << " of " << interior << " interior footprint cells";
-  EXPECT_GE(static_cast<double>(boundary_occupied) / static_cast<double>(boundary), 0.6)
-      << boundary_occupied << " of " << boundary << " boundary footprint cells";
+  // the cell's free part frees it (the AND), so the exact discrete map loses about a third of
+  // the boundary cells (measured: 1394 of 2099 kept, interior 4994 of 5058). The continuous
+  // claim (every visible boundary point is a hard point) holds on the ideal hull computed at
+  // cell centres (sim's HullOccupiesEveryBoundaryFootprintCellThatSomeCameraSees), and on the
+  // grid once changes are widened by the one pixel a cell can straddle: then every boundary
+  // footprint cell is kept, for a few cells beyond the hull.
+  EXPECT_GE(exact.interior_kept(), 0.98) << exact.interior_occupied << " of " << exact.interior;
+  EXPECT_GE(exact.boundary_kept(), 0.6) << exact.boundary_occupied << " of " << exact.boundary;
+  EXPECT_GE(widened.agreement(), 0.995) << widened.agree << " of " << widened.seen << " seen cells";
+  EXPECT_EQ(widened.boundary_occupied, widened.boundary);
+  EXPECT_GE(widened.boundary_kept(), 0.999) << widened.boundary_occupied << " of " << widened.boundary;
+  EXPECT_GE(widened.interior_kept(), 0.999) << widened.interior_occupied << " of " << widened.interior;
+  std::cout << fmt::format("exact: agreement {:.4f}, boundary {}/{}, interior {}/{}; widened by 1 px: agreement "
+                           "{:.4f}, boundary {}/{}, interior {}/{}, {} cells beyond the hull\n",
+                           exact.agreement(), exact.boundary_occupied, exact.boundary, exact.interior_occupied,
+                           exact.interior, widened.agreement(), widened.boundary_occupied, widened.boundary,
+                           widened.interior_occupied, widened.interior, widened.beyond_hull);
+  int64_t between_legs_seen = 0, between_legs_free = 0;
 
   // The chair (the only "chair" object): the floor between its legs is free where it is seen.
   const auto gt_lines = *ReadFileToString(Lab() / "ground_truth.jsonl");
   const auto first = nlohmann::json::parse(gt_lines.substr(0, gt_lines.find('\n')));
   for (const auto& obj : first["objects"]) {
     if (obj["class"] != "chair") continue;
-    const Image<uint8_t> map = *ReadGrayImage(Lab() / "perfect" / "occupancy" / "000000.png");
+    const Image<uint8_t> map = *ReadGrayImage(Lab() / "perfect_t0" / "occupancy" / "000000.png");
     const FloorGrid& g = site->grid;
     const double cx = obj["x_m"].get<double>(), cy = obj["y_m"].get<double>();
     // Cells within 0.1 m of the chair's centre: under the seat, between the legs.
@@ -135,14 +169,52 @@ TEST(Demo, RendersRunsAndScoresTheLab) {
     ASSERT_TRUE(summary.contains(key)) << key;
     ASSERT_TRUE(summary[key].is_number()) << key << ": " << summary[key];
   }
-  // Measured on the full 100 frames: MODA 0.88, MODP 0.84 (see the README); on this shorter
-  // run the chair (four 3.5 cm legs) is harder, so the bar here is lower.
-  EXPECT_GE(summary["moda"].get<double>(), 0.7);
-  EXPECT_GE(summary["modp"].get<double>(), 0.75);
-  EXPECT_GE(summary["mota"].get<double>(), 0.6);
+  // The bars of the full 100 frames are checked by FullLabMeetsTheBars; these 30 frames
+  // start with tracks still unconfirmed.
+  EXPECT_GE(summary["moda"].get<double>(), 0.9);
+  EXPECT_GE(summary["modp"].get<double>(), 0.8);
+  EXPECT_GE(summary["mota"].get<double>(), 0.8);
   EXPECT_TRUE(fs::exists(dir / "mosaic.mp4"));
   EXPECT_TRUE(fs::exists(dir / "mosaic.png"));
   EXPECT_TRUE(fs::exists(dir / "run" / "tracks.jsonl"));
+}
+
+
+// The bars on the whole lab scene (100 frames, rendered H.264, noise on, shadows off,
+// the project's own change detection): MODA >= 0.95, MODP >= 0.8; the multi-target tracker
+// MOTA >= 0.9, IDF1 >= 0.85 and better than the paper's window tracker on both.
+TEST(Demo, FullLabMeetsTheBars) {
+  testing::TempDir dir;
+  Context ctx(2);
+  DemoOptions o;
+  o.out_dir = dir.path();
+  auto r = RunDemo(o, ctx);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  ASSERT_TRUE(r->evaluation.detection.has_value());
+  ASSERT_TRUE(r->evaluation.tracking.has_value());
+  const DetectionMetrics& det = *r->evaluation.detection;
+  const TrackingMetrics& mtt = *r->evaluation.tracking;
+  EXPECT_GE(det.moda, 0.95);
+  EXPECT_GE(det.modp, 0.8);
+  EXPECT_GE(mtt.mota, 0.9);
+  EXPECT_GE(mtt.idf1, 0.85);
+
+  // The same dataset through the paper's window tracker.
+  auto site = LoadSite(dir.path() / "dataset" / "site.yaml");
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  site->tracking.algorithm = TrackerAlgorithm::kWindow;
+  RunOptions run;
+  run.out_dir = dir.path() / "run_window";
+  run.occupancy_video = run.mosaic_video = false;
+  ASSERT_TRUE(RunSite(*site, run, ctx).ok());
+  auto window = EvaluateRun(dir.path() / "dataset", run.out_dir, EvalOptions{});
+  ASSERT_TRUE(window.ok()) << window.status().message();
+  ASSERT_TRUE(window->tracking.has_value());
+  EXPECT_GT(mtt.mota, window->tracking->mota);
+  EXPECT_GT(mtt.idf1, window->tracking->idf1);
+  std::cout << fmt::format("lab, 100 frames: MODA {:.3f} MODP {:.3f}; multi-target MOTA {:.3f} IDF1 {:.3f}; window "
+                           "tracker MOTA {:.3f} IDF1 {:.3f}\n",
+                           det.moda, det.modp, mtt.mota, mtt.idf1, window->tracking->mota, window->tracking->idf1);
 }
 
 }  // namespace

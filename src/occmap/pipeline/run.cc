@@ -564,7 +564,19 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         // Detections (ObjectDetector: fragments grouped, described by their footprint, small
         // ones dropped, large ones split at their necks, ghosts removed). The tracker gets the
         // groups of the grown map (it splits them itself, guided by its tracks).
-        detector.Detect(map, active, objects);
+        // The elevated check reads single pixels' changes: from the change buffer when this
+        // frame has one, else (fully fused: grey, no tolerance, no masks) from frame and background.
+        const ObjectDetector::ChangeLookup changed = [&](int n, int x, int y) {
+          const CameraState& c = cams[static_cast<size_t>(n)];
+          if (set.changes_ready) {
+            const size_t width = static_cast<size_t>(c.cam->camera->image_size().width);
+            return set.changes[lut.pixel_offset(n) + static_cast<size_t>(y) * width + static_cast<size_t>(x)] != 0;
+          }
+          const int d = static_cast<int>(frames[static_cast<size_t>(n)].gray.view()(x, y)) -
+                        static_cast<int>(c.background_gray.view()(x, y));
+          return std::abs(d) > site.detection.threshold;
+        };
+        detector.Detect(map, active, changed, objects);
         const std::vector<Blob>& blobs = objects.detections;
         const std::vector<Blob>& groups = objects.groups;
         summary.blobs_s += Since(t0);
@@ -582,11 +594,13 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
           const double track_time_s = std::max(time_s, last_track_time_s + 1e-6);
           last_track_time_s = track_time_s;
           OCCMAP_ASSIGN_OR_RETURN(tracks, tracker->Update(groups, grown, track_time_s));
+          // Zones count every live track; the outputs get the reported ones.
+          const ZoneFrame z = zones->Update(frame_index, time_s, tracks);
+          std::erase_if(tracks, [&](const Track& t) { return !IsReported(t, site.tracking.report_coasting_s); });
           trails.Update(tracks);
           for (const Track& t : tracks) track_ids.insert(t.id);
           output.tracks_line = TracksJsonLine(frame_index, time_s, tracks) + "\n";
           output.mot_rows = MotGroundPlaneRows(frame_index, tracks);
-          const ZoneFrame z = zones->Update(frame_index, time_s, tracks);
           for (const ZoneEvent& e : z.events) {
             output.event_lines += ZoneEventJsonLine(e) + "\n";
             ++summary.zone_events;
