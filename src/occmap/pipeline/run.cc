@@ -231,6 +231,10 @@ constexpr int64_t kWarmUpFrames = 10;
 
 }  // namespace
 
+int DecoderThreadsPerCamera(int num_threads, int num_cameras) {
+  return std::max(1, num_threads / std::max(1, num_cameras));
+}
+
 Status RunOptions::Validate() const {
   if (out_dir.empty()) return InvalidInput("--out: expected a folder");
   if (start_frame < 0) return InvalidInput(fmt::format("--start: expected >= 0, found {}", start_frame));
@@ -257,7 +261,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   src_opts.colour = colour;
   // The cameras decode side by side (the reader stage below): each decoder gets its share of the
   // threads, at least one. A background estimated from one camera's frames uses them all.
-  src_opts.decoder_threads = std::max(1, ctx.num_threads() / std::max(1, static_cast<int>(site.cameras.size())));
+  src_opts.decoder_threads = DecoderThreadsPerCamera(ctx.num_threads(), static_cast<int>(site.cameras.size()));
   FrameSourceOptions background_opts = src_opts;
   background_opts.decoder_threads = ctx.num_threads();
   for (size_t n = 0; n < cams.size(); ++n) {

@@ -111,6 +111,10 @@ struct RunSummary {
   std::vector<std::string> outputs;  // files written
 };
 
+// The FFmpeg threads of each camera's decoder in a run: the cameras decode side by side, one
+// thread per camera, so each gets its share of num_threads, at least one.
+int DecoderThreadsPerCamera(int num_threads, int num_cameras);
+
 // Runs the site; on a failed frame with OnCameraFailure::kStop, the outputs of the frames
 // processed so far are written, then the error is returned.
 Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context& ctx,
