@@ -547,6 +547,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   };
 
   // Post stage: detections, tracking and the frame's outputs, in frame order.
+  std::vector<size_t> camera_width;  // read per pixel by the elevated check: no virtual call there
+  for (const auto& c : cams) camera_width.push_back(static_cast<size_t>(c.cam->camera->image_size().width));
   double post_output_s = 0;
   int64_t frames_done = 0;
   Clock::time_point t_first_done, t_warm_done, t_last_done;
@@ -573,7 +575,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         const ObjectDetector::ChangeLookup changed = [&](int n, int x, int y) {
           const CameraState& c = cams[static_cast<size_t>(n)];
           if (set.changes_ready) {
-            const size_t width = static_cast<size_t>(c.cam->camera->image_size().width);
+            const size_t width = camera_width[static_cast<size_t>(n)];
             return set.changes[lut.pixel_offset(n) + static_cast<size_t>(y) * width + static_cast<size_t>(x)] != 0;
           }
           const int d = static_cast<int>(frames[static_cast<size_t>(n)].gray.view()(x, y)) -
