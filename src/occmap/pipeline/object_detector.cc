@@ -36,36 +36,38 @@ ObjectDetector::ObjectDetector(const BlobSettings& settings, const TrackerOption
 void ObjectDetector::PrepareSupport(const FloorGrid& grid) {
   if (support_grid_ && *support_grid_ == grid) return;
   support_grid_ = grid;
-  support_pixel_.assign(settings_.support_heights_m.size(), std::vector<std::vector<int32_t>>(cameras_.size()));
-  for (size_t h = 0; h < settings_.support_heights_m.size(); ++h) {
-  const double z = plane_height_m_ + settings_.support_heights_m[h];
-  for (size_t n = 0; n < cameras_.size(); ++n) {
-    const CameraModel& model = *cameras_[n].camera;
-    const Image<uint8_t>* mask = cameras_[n].mask;
-    std::vector<int32_t>& pixel = support_pixel_[h][n];
-    pixel.assign(static_cast<size_t>(grid.num_cells()), -1);
-    for (int64_t i = 0; i < grid.num_cells(); ++i) {
-      const Eigen::Vector2d c = grid.CellCenter(i);
-      const auto px = model.Project(Eigen::Vector3d(c.x(), c.y(), z));
-      if (!px || !model.InImage(*px)) continue;
-      const int x = static_cast<int>(std::lround(px->x()));
-      const int y = static_cast<int>(std::lround(px->y()));
-      const ImageSize size = model.image_size();
-      if (x < 0 || y < 0 || x >= size.width || y >= size.height) continue;
-      // A masked pixel (outside the floor, or a static object in front) tells nothing.
-      if (mask != nullptr && !mask->empty() && (*mask)(x, y) == 0) continue;
-      pixel[static_cast<size_t>(i)] = y * size.width + x;
-    }
-  }
-  }
+  // Filled on first use, in tiles of kTileCells cells: a frame needs the cells under and
+  // beside its detections only.
+  const size_t tiles = static_cast<size_t>((grid.num_cells() + kTileCells - 1) / kTileCells);
+  support_pixel_.assign(settings_.support_heights_m.size() * cameras_.size(), std::vector<std::vector<int32_t>>(tiles));
 }
 
-int ObjectDetector::SupportAt(size_t h, int64_t cell, const std::vector<bool>& active,
-                              const ChangeLookup& changed) const {
+int32_t ObjectDetector::SupportPixel(size_t h, size_t n, int64_t cell) {
+  std::vector<int32_t>& tile = support_pixel_[h * cameras_.size() + n][static_cast<size_t>(cell / kTileCells)];
+  if (tile.empty()) tile.assign(kTileCells, kNotProjected);
+  int32_t& pixel = tile[static_cast<size_t>(cell % kTileCells)];
+  if (pixel != kNotProjected) return pixel;
+  pixel = -1;
+  const CameraModel& model = *cameras_[n].camera;
+  const Eigen::Vector2d c = support_grid_->CellCenter(cell);
+  const auto px = model.Project(Eigen::Vector3d(c.x(), c.y(), plane_height_m_ + settings_.support_heights_m[h]));
+  if (!px || !model.InImage(*px)) return pixel;
+  const int x = static_cast<int>(std::lround(px->x()));
+  const int y = static_cast<int>(std::lround(px->y()));
+  const ImageSize size = model.image_size();
+  if (x < 0 || y < 0 || x >= size.width || y >= size.height) return pixel;
+  // A masked pixel (outside the floor, or a static object in front) tells nothing.
+  const Image<uint8_t>* mask = cameras_[n].mask;
+  if (mask != nullptr && !mask->empty() && (*mask)(x, y) == 0) return pixel;
+  pixel = y * size.width + x;
+  return pixel;
+}
+
+int ObjectDetector::SupportAt(size_t h, int64_t cell, const std::vector<bool>& active, const ChangeLookup& changed) {
   int seeing = 0;
   for (size_t n = 0; n < cameras_.size(); ++n) {
     if (n >= active.size() || !active[n]) continue;
-    const int32_t p = support_pixel_[h][n][static_cast<size_t>(cell)];
+    const int32_t p = SupportPixel(h, n, cell);
     if (p < 0) continue;
     ++seeing;
     const int width = cameras_[n].camera->image_size().width;
@@ -76,67 +78,74 @@ int ObjectDetector::SupportAt(size_t h, int64_t cell, const std::vector<bool>& a
 
 void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const std::vector<bool>& active,
                                        const ChangeLookup& changed, std::vector<int>& blob_group,
-                                       const std::vector<int>& kept_index, DetectedObjects& out) {
+                                       const std::vector<int>& kept_index, const std::vector<Blob>& kept_groups,
+                                       DetectedObjects& out) {
   const FloorGrid& grid = map.grid();
   PrepareSupport(grid);
   std::vector<Blob>& blobs = out.detections;
-  // The detections of each kept group, to give each footprint cell to the nearest one.
-  std::vector<int> group_of_label(static_cast<size_t>(labels_max_ + 1), -1);
-  for (size_t g = 0; g < kept_index.size(); ++g) group_of_label[static_cast<size_t>(kept_index[g])] = static_cast<int>(g);
+  // Each detection's footprint cells: the occupied cells of its group (within the group's
+  // box), each given to the group's nearest detection.
   std::vector<std::vector<int>> detections_of(kept_index.size());
   for (size_t d = 0; d < blobs.size(); ++d) detections_of[static_cast<size_t>(blob_group[d])].push_back(static_cast<int>(d));
-  const size_t heights = settings_.support_heights_m.size();
-  std::vector<int> cells(blobs.size(), 0), seen(blobs.size() * heights, 0), supported(blobs.size() * heights, 0);
-  const int reach = std::max(0, static_cast<int>(std::lround(settings_.support_slack_m / grid.cell_size_m)));
-  for (int j = 0; j < grid.cells_y; ++j) {
-    for (int i = 0; i < grid.cells_x; ++i) {
-      const int64_t cell = int64_t{j} * grid.cells_x + i;
-      const int32_t label = labels_[static_cast<size_t>(cell)];
-      if (label < 0 || map.state(cell) != CellState::kOccupied) continue;
-      const int g = group_of_label[static_cast<size_t>(label)];
-      if (g < 0) continue;
-      const Eigen::Vector2d c = grid.CellCenter(cell);
-      int best = -1;
-      double best_d2 = std::numeric_limits<double>::infinity();
-      for (int d : detections_of[static_cast<size_t>(g)]) {
-        const double d2 = (Eigen::Vector2d(blobs[d].x_m, blobs[d].y_m) - c).squaredNorm();
-        if (d2 < best_d2) {
-          best_d2 = d2;
-          best = d;
-        }
-      }
-      if (best < 0) continue;
-      ++cells[best];
-      // Per plane: occupied when the plane shows the object over this cell or beside it
-      // (within the slack: legs lean, a foot is ahead of the knee); free when some camera
-      // sees that neighbourhood free; unknown when no camera sees it.
-      for (size_t h = 0; h < heights; ++h) {
-        int state = -1;
-        for (int dj = -reach; dj <= reach && state < 1; dj += std::max(1, reach)) {
-          for (int di = -reach; di <= reach && state < 1; di += std::max(1, reach)) {
-            const int ii = i + di, jj = j + dj;
-            if (ii < 0 || jj < 0 || ii >= grid.cells_x || jj >= grid.cells_y) continue;
-            state = std::max(state, SupportAt(h, int64_t{jj} * grid.cells_x + ii, active, changed));
+  std::vector<std::vector<std::pair<int, int>>> footprint(blobs.size());
+  for (size_t g = 0; g < kept_index.size(); ++g) {
+    const Blob& box = kept_groups[g];
+    for (int j = box.min_j; j <= box.max_j; ++j) {
+      for (int i = box.min_i; i <= box.max_i; ++i) {
+        const int64_t cell = int64_t{j} * grid.cells_x + i;
+        if (labels_[static_cast<size_t>(cell)] != kept_index[g] || map.state(cell) != CellState::kOccupied) continue;
+        const Eigen::Vector2d c = grid.CellCenter(cell);
+        int best = -1;
+        double best_d2 = std::numeric_limits<double>::infinity();
+        for (int d : detections_of[g]) {
+          const double d2 = (Eigen::Vector2d(blobs[d].x_m, blobs[d].y_m) - c).squaredNorm();
+          if (d2 < best_d2) {
+            best_d2 = d2;
+            best = d;
           }
         }
-        const size_t k = static_cast<size_t>(best) * heights + h;
-        seen[k] += state >= 0;
-        supported[k] += state == 1;
+        if (best >= 0) footprint[static_cast<size_t>(best)].push_back({i, j});
       }
     }
   }
-  // A detection is dropped when some plane saw enough of it and none of those planes
-  // supports it; with no plane seeing it, nothing speaks against it.
+  const int reach = std::max(0, static_cast<int>(std::lround(settings_.support_slack_m / grid.cell_size_m)));
+  // The plane-h state of footprint cell (i, j): occupied when the plane shows the object over
+  // it or beside it (within the slack: legs lean, a foot is ahead of the knee); free when some
+  // camera sees that neighbourhood free; unknown (-1) when no camera sees it.
+  auto state_near = [&](size_t h, int i, int j) {
+    int state = -1;
+    for (int dj = -reach; dj <= reach && state < 1; dj += std::max(1, reach)) {
+      for (int di = -reach; di <= reach && state < 1; di += std::max(1, reach)) {
+        const int ii = i + di, jj = j + dj;
+        if (ii < 0 || jj < 0 || ii >= grid.cells_x || jj >= grid.cells_y) continue;
+        state = std::max(state, SupportAt(h, int64_t{jj} * grid.cells_x + ii, active, changed));
+      }
+    }
+    return state;
+  };
+  // A detection is dropped when some plane saw at least half of its footprint and no such
+  // plane shows the object over min_support of what it saw; with no plane seeing it, nothing
+  // speaks against it. Planes are tried in order and the first that supports it ends the test;
+  // at most kSupportSamples footprint cells, evenly spread, are tested.
+  constexpr size_t kSupportSamples = 64;
   std::vector<Blob> kept;
   std::vector<int> kept_group;
   for (size_t d = 0; d < blobs.size(); ++d) {
+    const std::vector<std::pair<int, int>>& cells = footprint[d];
+    const size_t stride = std::max<size_t>(1, (cells.size() + kSupportSamples - 1) / kSupportSamples);
+    size_t samples = 0;
+    for (size_t k = 0; k < cells.size(); k += stride) ++samples;
     bool evidence = false, support = false;
-    for (size_t h = 0; h < heights; ++h) {
-      const size_t k = d * heights + h;
-      // A plane counts when it sees at least half of the footprint.
-      if (2 * seen[k] < cells[d] || seen[k] == 0) continue;
+    for (size_t h = 0; h < settings_.support_heights_m.size() && !support; ++h) {
+      int seen = 0, supported = 0;
+      for (size_t k = 0; k < cells.size(); k += stride) {
+        const int state = state_near(h, cells[k].first, cells[k].second);
+        seen += state >= 0;
+        supported += state == 1;
+      }
+      if (seen == 0 || 2 * static_cast<size_t>(seen) < samples) continue;
       evidence = true;
-      support |= supported[k] >= settings_.min_support * seen[k];
+      support = supported >= settings_.min_support * seen;
     }
     if (evidence && !support) continue;
     kept.push_back(blobs[d]);
@@ -150,7 +159,6 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
                             DetectedObjects& out) {
   GrowOccupied(map, settings_.group_radius_m, out.grown);
   const std::vector<Blob> groups = FindBlobs(out.grown, {}, &labels_);
-  labels_max_ = static_cast<int32_t>(groups.size()) - 1;
   const std::vector<Blob> footprints = FootprintBlobs(map, labels_, groups);
   std::vector<Blob> kept_groups, kept_footprints;
   std::vector<int> kept_index;  // the group's index in `groups` (its label)
@@ -180,7 +188,7 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
     for (size_t k = 0; k < blobs.size(); ++k) blob_group.push_back(static_cast<int>(k));
   }
   if (!settings_.support_heights_m.empty() && changed && !blobs.empty()) {
-    RemoveUnsupported(map, active, changed, blob_group, kept_index, out);
+    RemoveUnsupported(map, active, changed, blob_group, kept_index, kept_groups, out);
   }
   if (settings_.remove_ghosts && blobs.size() > 1) {
     std::vector<Viewer> viewers;

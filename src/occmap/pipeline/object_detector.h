@@ -65,9 +65,13 @@ class ObjectDetector {
   void PrepareSupport(const FloorGrid& grid);
   // The plane-h occupancy of a cell: 1 occupied (every active camera seeing it changed), 0
   // free, -1 no active camera sees it.
-  int SupportAt(size_t h, int64_t cell, const std::vector<bool>& active, const ChangeLookup& changed) const;
+  int SupportAt(size_t h, int64_t cell, const std::vector<bool>& active, const ChangeLookup& changed);
+  // Camera n's pixel (row * width + column) where the cell's centre at plane h projects, -1
+  // when it does not see it; projected on first use.
+  int32_t SupportPixel(size_t h, size_t n, int64_t cell);
   void RemoveUnsupported(const OccupancyMap& map, const std::vector<bool>& active, const ChangeLookup& changed,
-                         std::vector<int>& blob_group, const std::vector<int>& kept_index, DetectedObjects& out);
+                         std::vector<int>& blob_group, const std::vector<int>& kept_index,
+                         const std::vector<Blob>& kept_groups, DetectedObjects& out);
 
   BlobSettings settings_;
   TrackerOptions tracker_options_;
@@ -77,11 +81,11 @@ class ObjectDetector {
   std::vector<bool> has_centre_;
   GhostOptions ghost_options_;
   std::vector<int32_t> labels_;
-  int32_t labels_max_ = -1;
-  // The elevated check: per camera, the pixel (row * width + column) where each cell's centre
-  // at support_height_m projects, -1 where the camera does not see it (built on first use).
+  // The elevated check's projections (SupportPixel), kNotProjected until first used.
+  static constexpr int32_t kNotProjected = -2;
+  static constexpr int64_t kTileCells = 4096;
   std::optional<FloorGrid> support_grid_;
-  std::vector<std::vector<std::vector<int32_t>>> support_pixel_;  // [height][camera][cell]
+  std::vector<std::vector<std::vector<int32_t>>> support_pixel_;  // [height * cameras + camera][tile][cell]
 };
 
 }  // namespace occmap

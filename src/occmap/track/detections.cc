@@ -226,9 +226,18 @@ std::vector<Eigen::Vector2d> DistancePeaks(const FloorGrid& grid, const std::vec
   // Cells from the highest distance down (ties: lower index first); union-find of processed
   // cells; each component remembers its peak. When components meet at cell c, all but the
   // one with the highest peak end there, with persistence peak - dist(c).
-  std::sort(locals.begin(), locals.end(), [&](int a, int b) {
-    return dist_m[a] != dist_m[b] ? dist_m[a] > dist_m[b] : a < b;
-  });
+  // (A counting sort on the squared distances, whole numbers of cells^2: locals are in
+  // increasing index order, and each bucket keeps that order.)
+  {
+    int max_key = 0;
+    for (int c : locals) max_key = std::max(max_key, static_cast<int>(d2[c]));
+    std::vector<int> start(static_cast<size_t>(max_key) + 2, 0);
+    for (int c : locals) ++start[static_cast<size_t>(max_key - static_cast<int>(d2[c])) + 1];
+    for (size_t k = 1; k < start.size(); ++k) start[k] += start[k - 1];
+    std::vector<int> sorted(locals.size());
+    for (int c : locals) sorted[static_cast<size_t>(start[static_cast<size_t>(max_key - static_cast<int>(d2[c]))]++)] = c;
+    locals = std::move(sorted);
+  }
   std::vector<int> parent(inside.size(), -1), peak(inside.size(), -1), rank_of(inside.size(), 0);
   for (size_t r = 0; r < locals.size(); ++r) rank_of[locals[r]] = static_cast<int>(r);
   auto find = [&](int x) {
