@@ -92,6 +92,10 @@ void DetectChangesRgbReference(ImageView<const Rgb8> frame, ImageView<const Rgb8
   }
 }
 
+// Up to this radius the dilation ORs shifted rows (cost grows with r); beyond, running counts
+// (cost independent of r).
+constexpr int kSmallDilationRadius = 4;
+
 void DilateChanges(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t> out,
                    std::vector<uint8_t>& scratch) {
   OCCMAP_CHECK(SameSize(in, out), "dilation: image sizes differ");
@@ -106,7 +110,36 @@ void DilateChanges(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t
   uint8_t* counts = scratch.data() + w * static_cast<size_t>(height);
   const int r = radius_px;
 
-  // Row pass: a running count of the non-zero pixels in [x - r, x + r] clipped to the row.
+  if (r <= kSmallDilationRadius) {
+    // Small radii: ORs of shifted rows, which the compiler vectorises (64 pixels per
+    // instruction with AVX-512) where running counts go pixel by pixel. Row pass: 1 where any
+    // pixel of [x - r, x + r], clipped to the row, is set.
+    for (int y = 0; y < height; ++y) {
+      const uint8_t* src = in.row(y);
+      uint8_t* dst = rows + static_cast<size_t>(y) * w;
+      for (size_t x = 0; x < w; ++x) dst[x] = src[x];
+      for (int k = 1; k <= r && k < width; ++k) {
+        const size_t shift = static_cast<size_t>(k);
+        for (size_t x = 0; x + shift < w; ++x) dst[x] |= src[x + shift];  // right neighbours
+        for (size_t x = shift; x < w; ++x) dst[x] |= src[x - shift];      // left neighbours
+      }
+      for (size_t x = 0; x < w; ++x) dst[x] = static_cast<uint8_t>(dst[x] != 0);
+    }
+    // Column pass: the OR of the row-pass rows [y - r, y + r], clipped to the image.
+    for (int y = 0; y < height; ++y) {
+      uint8_t* dst = out.row(y);
+      const int lo = std::max(0, y - r), hi = std::min(height - 1, y + r);
+      const uint8_t* first = rows + static_cast<size_t>(lo) * w;
+      for (size_t x = 0; x < w; ++x) dst[x] = first[x];
+      for (int v = lo + 1; v <= hi; ++v) {
+        const uint8_t* add = rows + static_cast<size_t>(v) * w;
+        for (size_t x = 0; x < w; ++x) dst[x] |= add[x];
+      }
+    }
+    return;
+  }
+
+  // Larger radii. Row pass: a running count of the non-zero pixels in [x - r, x + r] clipped to the row.
   for (int y = 0; y < height; ++y) {
     const uint8_t* src = in.row(y);
     uint8_t* dst = rows + static_cast<size_t>(y) * w;

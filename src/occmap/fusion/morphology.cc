@@ -1,7 +1,8 @@
 #include "occmap/fusion/morphology.h"
 
 #include <cmath>
-#include <opencv2/imgproc.hpp>
+#include <cstdlib>
+#include <vector>
 
 #include "occmap/util/status.h"
 
@@ -10,20 +11,41 @@ namespace occmap {
 void GrowOccupied(const OccupancyMap& map, double radius_m, OccupancyMap& out) {
   const FloorGrid& g = map.grid();
   out = map;
-  const double r_cells = radius_m / g.cell_size_m;
-  if (!(r_cells > 0)) return;
-  // Exact Euclidean distance (OpenCV's DIST_MASK_PRECISE) from every cell to the nearest
-  // occupied one; rows are cell rows j, columns cells i.
-  cv::Mat not_occupied(g.cells_y, g.cells_x, CV_8UC1);
-  const auto& s = map.states();
-  for (int64_t c = 0; c < g.num_cells(); ++c) not_occupied.data[c] = s[c] == CellState::kOccupied ? 0 : 255;
-  cv::Mat dist;
-  cv::distanceTransform(not_occupied, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE, CV_32F);
-  const float limit = static_cast<float>(r_cells + 1e-4);
-  const float* d = reinterpret_cast<const float*>(dist.data);
-  auto& o = out.states();
-  for (int64_t c = 0; c < g.num_cells(); ++c) {
-    if (s[c] == CellState::kFree && d[c] <= limit) o[c] = CellState::kOccupied;
+  const double r = radius_m / g.cell_size_m;
+  if (!(r > 0)) return;
+  // A free cell becomes occupied when an occupied cell centre lies within r (+1e-4) of its
+  // own, as GrowOccupiedReference. Occupied cells are few: each run of them along a row stamps,
+  // on every row dj within reach, the span widened by that row's half-width of the disc.
+  const int reach = static_cast<int>(std::floor(r + 1e-4));
+  std::vector<int> half_width(static_cast<size_t>(reach) + 1);
+  for (int dj = 0; dj <= reach; ++dj) {
+    int w = 0;
+    while (w + 1 <= reach && std::hypot(w + 1, dj) <= r + 1e-4) ++w;
+    half_width[static_cast<size_t>(dj)] = w;
+  }
+  const std::vector<CellState>& s = map.states();
+  std::vector<CellState>& o = out.states();
+  for (int j = 0; j < g.cells_y; ++j) {
+    const CellState* row = s.data() + static_cast<size_t>(j) * g.cells_x;
+    for (int i = 0; i < g.cells_x;) {
+      if (row[i] != CellState::kOccupied) {
+        ++i;
+        continue;
+      }
+      int end = i;
+      while (end + 1 < g.cells_x && row[end + 1] == CellState::kOccupied) ++end;
+      for (int dj = -reach; dj <= reach; ++dj) {
+        const int jj = j + dj;
+        if (jj < 0 || jj >= g.cells_y) continue;
+        const int w = half_width[static_cast<size_t>(std::abs(dj))];
+        const int lo = std::max(0, i - w), hi = std::min(g.cells_x - 1, end + w);
+        CellState* target = o.data() + static_cast<size_t>(jj) * g.cells_x;
+        for (int ii = lo; ii <= hi; ++ii) {
+          if (target[ii] == CellState::kFree) target[ii] = CellState::kOccupied;
+        }
+      }
+      i = end + 1;
+    }
   }
 }
 
