@@ -174,6 +174,11 @@ class ProgressBar {
   ~ProgressBar() { Finish(); }
   void Update(const RunProgress& p, const std::string& label = "") {
     if (!enabled_) return;
+    // Redrawn at most 10 times a second (a terminal write per frame costs a fast run time),
+    // and always at the last frame.
+    const bool last = p.frames_total && p.frames_done >= *p.frames_total;
+    if (shown_ && !last && p.elapsed_s - drawn_s_ < 0.1) return;
+    drawn_s_ = p.elapsed_s;
     const double fps = p.elapsed_s > 0 ? static_cast<double>(p.frames_done) / p.elapsed_s : 0;
     std::string line;
     if (p.frames_total && *p.frames_total > 0) {
@@ -198,6 +203,7 @@ class ProgressBar {
  private:
   bool enabled_;
   bool shown_ = false;
+  double drawn_s_ = 0;
 };
 
 struct RunCommand {
