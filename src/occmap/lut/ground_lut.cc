@@ -10,7 +10,7 @@
 namespace occmap {
 namespace {
 
-constexpr uint32_t kLutFormatVersion = 1;
+constexpr uint32_t kLutFormatVersion = 2;  // 2: the cache file holds no L2 (derived on load)
 
 struct CameraTables {
   std::vector<uint32_t> l1;
@@ -143,7 +143,6 @@ Result<GroundLut> BuildGroundLut(const std::vector<LutCameraInput>& cameras, con
   const size_t num_cells = static_cast<size_t>(grid.num_cells());
   lut.view_count_.assign(num_cells, 0);
   lut.pixel_offsets_.push_back(0);
-  std::vector<uint32_t> counts(num_cells + 1, 0);
   for (const auto& input : cameras) {
     CameraTables t;
     BuildL1(input, grid, options.plane_height_m, ctx, t);
@@ -155,8 +154,6 @@ Result<GroundLut> BuildGroundLut(const std::vector<LutCameraInput>& cameras, con
     if (options.add_cell_projections) AddCellProjections(input, grid, options.plane_height_m, ctx, t);
     t.coverage.cells_seen = t.coverage.cells_from_rays + t.coverage.cells_added;
     for (size_t c = 0; c < num_cells; ++c) lut.view_count_[c] = static_cast<uint8_t>(lut.view_count_[c] + t.seen[c]);
-    for (uint32_t cell : t.l1) ++counts[cell];  // the sentinel counts into counts[num_cells]
-    for (uint32_t cell : t.extra_cells) ++counts[cell];
 
     const ImageSize size = input.camera->image_size();
     lut.image_sizes_.push_back(size);
@@ -167,27 +164,7 @@ Result<GroundLut> BuildGroundLut(const std::vector<LutCameraInput>& cameras, con
     lut.coverage_.push_back(t.coverage);
   }
 
-  // L2 by counting sort: offsets from the counts, then every (pixel, cell) pair in camera and
-  // pixel order (L1 pairs of a camera, then its extra pairs).
-  lut.l2_offsets_.assign(num_cells + 1, 0);
-  uint64_t running = 0;
-  for (size_t c = 0; c < num_cells; ++c) {
-    lut.l2_offsets_[c] = static_cast<uint32_t>(running);
-    running += counts[c];
-  }
-  lut.l2_offsets_[num_cells] = static_cast<uint32_t>(running);
-  lut.l2_pixels_.resize(running);
-  std::vector<uint32_t> cursor(lut.l2_offsets_.begin(), lut.l2_offsets_.end() - 1);
-  for (int n = 0; n < lut.num_cameras(); ++n) {
-    const uint32_t base = lut.pixel_offsets_[n];
-    const auto& l1 = lut.l1_[n];
-    for (size_t p = 0; p < l1.size(); ++p) {
-      if (l1[p] < num_cells) lut.l2_pixels_[cursor[l1[p]]++] = base + static_cast<uint32_t>(p);
-    }
-    for (size_t e = 0; e < lut.extra_cells_[n].size(); ++e) {
-      lut.l2_pixels_[cursor[lut.extra_cells_[n][e]]++] = base + lut.extra_pixels_[n][e];
-    }
-  }
+  lut.DeriveL2();
   return lut;
 }
 
@@ -200,7 +177,7 @@ int64_t GroundLut::MemoryBytes() const {
   return bytes;
 }
 
-Status GroundLut::CheckConsistency() const {
+Status GroundLut::CheckCameraTables() const {
   OCCMAP_RETURN_IF_ERROR(grid_.Validate());
   const size_t n = image_sizes_.size();
   const uint64_t num_cells = static_cast<uint64_t>(grid_.num_cells());
@@ -223,6 +200,43 @@ Status GroundLut::CheckConsistency() const {
       if (extra_pixels_[c][e] >= pixels || extra_cells_[c][e] >= num_cells) return DataLoss("extra entry out of range");
     }
   }
+  return Status::Ok();
+}
+
+void GroundLut::DeriveL2() {
+  // L2 by counting sort: offsets from the counts, then every (pixel, cell) pair in camera and
+  // pixel order (L1 pairs of a camera, then its extra pairs).
+  const size_t num_cells = static_cast<size_t>(grid_.num_cells());
+  std::vector<uint32_t> counts(num_cells + 1, 0);
+  for (int n = 0; n < num_cameras(); ++n) {
+    for (uint32_t cell : l1_[n]) ++counts[cell];  // the sentinel counts into counts[num_cells]
+    for (uint32_t cell : extra_cells_[n]) ++counts[cell];
+  }
+  l2_offsets_.assign(num_cells + 1, 0);
+  uint64_t running = 0;
+  for (size_t c = 0; c < num_cells; ++c) {
+    l2_offsets_[c] = static_cast<uint32_t>(running);
+    running += counts[c];
+  }
+  l2_offsets_[num_cells] = static_cast<uint32_t>(running);
+  l2_pixels_.resize(running);
+  std::vector<uint32_t> cursor(l2_offsets_.begin(), l2_offsets_.end() - 1);
+  for (int n = 0; n < num_cameras(); ++n) {
+    const uint32_t base = pixel_offsets_[n];
+    const auto& l1 = l1_[n];
+    for (size_t p = 0; p < l1.size(); ++p) {
+      if (l1[p] < num_cells) l2_pixels_[cursor[l1[p]]++] = base + static_cast<uint32_t>(p);
+    }
+    for (size_t e = 0; e < extra_cells_[n].size(); ++e) {
+      l2_pixels_[cursor[extra_cells_[n][e]]++] = base + extra_pixels_[n][e];
+    }
+  }
+}
+
+Status GroundLut::CheckConsistency() const {
+  OCCMAP_RETURN_IF_ERROR(CheckCameraTables());
+  const size_t n = image_sizes_.size();
+  const uint64_t num_cells = static_cast<uint64_t>(grid_.num_cells());
   if (l2_offsets_.size() != num_cells + 1 || view_count_.size() != num_cells) return DataLoss("per-cell table sizes disagree");
   if (l2_offsets_[0] != 0 || l2_offsets_.back() != l2_pixels_.size()) return DataLoss("L2 offsets do not span L2");
   for (size_t c = 0; c < num_cells; ++c) {

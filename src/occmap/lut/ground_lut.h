@@ -100,6 +100,11 @@ class GroundLut {
                                           const LutOptions&, Context&);
   friend class LutFileCodec;
 
+  // L2 (CSR) from L1 and the coverage-fix pairs, which must pass CheckCameraTables.
+  void DeriveL2();
+  // The per-camera half of CheckConsistency (sizes, offsets, L1 and extra entries in range).
+  Status CheckCameraTables() const;
+
   FloorGrid grid_;
   double plane_height_m_ = 0;
   std::vector<ImageSize> image_sizes_;

@@ -34,9 +34,7 @@ class LutFileCodec {
       Array(out, lut.extra_cells_[c]);
     }
     Array(out, lut.pixel_offsets_);
-    Array(out, lut.l2_offsets_);
-    Array(out, lut.l2_pixels_);
-    Array(out, lut.view_count_);
+    Array(out, lut.view_count_);  // L2 is not stored: DeriveL2 rebuilds it on load
     return out;
   }
 
@@ -56,10 +54,11 @@ class LutFileCodec {
       ok = r.Pod(lut.image_sizes_[c]) && r.Pod(lut.coverage_[c]) && r.Array(lut.l1_[c]) &&
            r.Array(lut.extra_pixels_[c]) && r.Array(lut.extra_cells_[c]);
     }
-    ok = ok && r.Array(lut.pixel_offsets_) && r.Array(lut.l2_offsets_) && r.Array(lut.l2_pixels_) &&
-         r.Array(lut.view_count_);
+    ok = ok && r.Array(lut.pixel_offsets_) && r.Array(lut.view_count_);
     if (!ok) return DataLoss("payload ends early");
     if (r.pos != in.size()) return DataLoss("payload has trailing bytes");
+    OCCMAP_RETURN_IF_ERROR(lut.CheckCameraTables());  // before L2 is derived from them
+    lut.DeriveL2();
     OCCMAP_RETURN_IF_ERROR(lut.CheckConsistency());
     return lut;
   }

@@ -21,7 +21,7 @@
 
 namespace occmap {
 
-inline constexpr uint32_t kLutFileVersion = 1;
+inline constexpr uint32_t kLutFileVersion = 2;  // 2: no L2 in the file (derived on load)
 
 Status SaveGroundLut(const std::filesystem::path& path, const GroundLut& lut, uint64_t key);
 

@@ -63,7 +63,7 @@ TEST(LutFile, StaleCorruptAndTruncatedFilesAreNeverTrusted) {
   version[8] = 99;
   ASSERT_TRUE(WriteFileAtomic(dir / "t.lut", version).ok());
   r = LoadGroundLut(dir / "t.lut", 42);
-  EXPECT_NE(r.status().message().find("has format version 99, expected 1"), std::string::npos);
+  EXPECT_NE(r.status().message().find("has format version 99, expected 2"), std::string::npos);
   EXPECT_EQ(r.status().code(), StatusCode::kDataLoss);
 }
 
