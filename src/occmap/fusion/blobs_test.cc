@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
 #include <string>
 #include <vector>
 
@@ -150,6 +151,56 @@ TEST(FindBlobs, AMillionCellBlobNeedsNoRecursion) {
   blobs = FindBlobs(map);
   ASSERT_EQ(blobs.size(), 1u);
   EXPECT_EQ(blobs[0].cells, 500 * 1000 + 500);
+}
+
+
+void ExpectSameBlob(const Blob& a, const Blob& b) {
+  EXPECT_EQ(a.x_m, b.x_m);
+  EXPECT_EQ(a.y_m, b.y_m);
+  EXPECT_EQ(a.area_m2, b.area_m2);
+  EXPECT_EQ(a.cells, b.cells);
+  EXPECT_EQ(a.min_i, b.min_i);
+  EXPECT_EQ(a.min_j, b.min_j);
+  EXPECT_EQ(a.max_i, b.max_i);
+  EXPECT_EQ(a.max_j, b.max_j);
+}
+
+TEST(NextOccupied, FindsTheFirstOccupiedCellAfterLongFreeAndUnseenSpans) {
+  std::vector<CellState> s(200, CellState::kFree);
+  for (size_t k = 0; k < s.size(); k += 3) s[k] = CellState::kUnseen;
+  EXPECT_EQ(NextOccupied(s.data(), 0, 200), 200);
+  for (int64_t at : {0, 7, 8, 31, 32, 33, 150, 199}) {
+    std::vector<CellState> t = s;
+    t[static_cast<size_t>(at)] = CellState::kOccupied;
+    for (int64_t from : {int64_t{0}, at / 2, at}) EXPECT_EQ(NextOccupied(t.data(), from, 200), at) << at << " " << from;
+    EXPECT_EQ(NextOccupied(t.data(), 0, at), at);  // `to` bounds the search
+  }
+}
+
+TEST(BlobFinder, EqualsFindBlobsOnRandomMapsCallAfterCall) {
+  std::mt19937 rng(5);
+  BlobFinder finder;  // one finder for all maps: its reused labels must not leak between calls
+  for (int trial = 0; trial < 60; ++trial) {
+    const int nx = trial < 50 ? 30 + static_cast<int>(rng() % 50) : 64;
+    const int ny = trial < 50 ? 20 + static_cast<int>(rng() % 30) : 48;
+    OccupancyMap map(FloorGrid{.origin_x_m = -1, .origin_y_m = 0.5, .cells_x = nx, .cells_y = ny, .cell_size_m = 0.05});
+    const unsigned occupied_percent = trial % 3 == 0 ? 2 : trial % 3 == 1 ? 15 : 55;
+    for (auto& c : map.states()) {
+      const auto u = rng() % 100;
+      c = u < occupied_percent ? CellState::kOccupied : u < occupied_percent + 10 ? CellState::kUnseen : CellState::kFree;
+    }
+    const BlobOptions options{.min_area_m2 = trial % 2 == 0 ? 0.0 : 0.0075};  // odd trials drop 1-2 cell blobs
+    std::vector<int32_t> labels;
+    const std::vector<Blob> reference = FindBlobs(map, options, &labels);
+    const std::vector<Blob>& fast = finder.Find(map, options);
+    ASSERT_EQ(fast.size(), reference.size()) << "trial " << trial;
+    for (size_t k = 0; k < fast.size(); ++k) ExpectSameBlob(fast[k], reference[k]);
+    ASSERT_EQ(finder.labels(), labels) << "trial " << trial;
+    for (size_t k = 0; k < fast.size(); ++k) {
+      EXPECT_EQ(static_cast<int64_t>(finder.cells(k).size()), fast[k].cells);
+      for (int64_t c : finder.cells(k)) EXPECT_EQ(labels[static_cast<size_t>(c)], static_cast<int32_t>(k));
+    }
+  }
 }
 
 }  // namespace

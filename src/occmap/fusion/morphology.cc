@@ -27,11 +27,8 @@ void GrowOccupied(const OccupancyMap& map, double radius_m, OccupancyMap& out) {
   std::vector<CellState>& o = out.states();
   for (int j = 0; j < g.cells_y; ++j) {
     const CellState* row = s.data() + static_cast<size_t>(j) * g.cells_x;
-    for (int i = 0; i < g.cells_x;) {
-      if (row[i] != CellState::kOccupied) {
-        ++i;
-        continue;
-      }
+    for (int i = static_cast<int>(NextOccupied(row, 0, g.cells_x)); i < g.cells_x;
+         i = static_cast<int>(NextOccupied(row, i, g.cells_x))) {
       int end = i;
       while (end + 1 < g.cells_x && row[end + 1] == CellState::kOccupied) ++end;
       for (int dj = -reach; dj <= reach; ++dj) {
@@ -100,6 +97,32 @@ std::vector<Blob> FootprintBlobs(const OccupancyMap& original, const std::vector
     out[k].y_m = g.origin_y_m + (static_cast<double>(sum_j[k]) / cells + 0.5) * g.cell_size_m;
   }
   return out;
+}
+
+void FootprintBlobs(const OccupancyMap& original, const BlobFinder& groups, std::vector<Blob>& out) {
+  const FloorGrid& g = original.grid();
+  OCCMAP_CHECK(static_cast<int64_t>(groups.labels().size()) == g.num_cells(), "FootprintBlobs: groups of another grid");
+  const auto& s = original.states();
+  out = groups.blobs();
+  for (size_t k = 0; k < out.size(); ++k) {
+    int64_t n = 0, sum_i = 0, sum_j = 0;  // exact: the order of the cells does not matter
+    for (int64_t c : groups.cells(k)) {
+      if (s[static_cast<size_t>(c)] != CellState::kOccupied) continue;
+      ++n;
+      sum_i += c % g.cells_x;
+      sum_j += c / g.cells_x;
+    }
+    if (n == 0) {  // grown around an unseen gap, away from its source: no footprint
+      out[k].cells = 0;
+      out[k].area_m2 = 0;
+      continue;
+    }
+    const double cells = static_cast<double>(n);
+    out[k].cells = n;
+    out[k].area_m2 = cells * g.cell_size_m * g.cell_size_m;
+    out[k].x_m = g.origin_x_m + (static_cast<double>(sum_i) / cells + 0.5) * g.cell_size_m;
+    out[k].y_m = g.origin_y_m + (static_cast<double>(sum_j) / cells + 0.5) * g.cell_size_m;
+  }
 }
 
 }  // namespace occmap

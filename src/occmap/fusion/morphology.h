@@ -33,4 +33,8 @@ void GrowOccupiedReference(const OccupancyMap& map, double radius_m, OccupancyMa
 std::vector<Blob> FootprintBlobs(const OccupancyMap& original, const std::vector<int32_t>& labels,
                                  const std::vector<Blob>& groups);
 
+// The same for the groups a BlobFinder found in the grown map, from each group's cells (no scan
+// of the whole map); equal to FootprintBlobs(original, groups.labels(), groups.blobs()).
+void FootprintBlobs(const OccupancyMap& original, const BlobFinder& groups, std::vector<Blob>& out);
+
 }  // namespace occmap

@@ -83,5 +83,36 @@ TEST(FindBlobs, LabelsEachCellWithItsBlob) {
   EXPECT_EQ(labels[2], -1);
 }
 
+
+TEST(FootprintBlobs, FromTheFindersCellsEqualsTheScanOfAllLabels) {
+  std::mt19937 rng(23);
+  BlobFinder finder;
+  std::vector<Blob> fast;
+  for (int trial = 0; trial < 30; ++trial) {
+    OccupancyMap m = Empty(40 + static_cast<int>(rng() % 40), 30 + static_cast<int>(rng() % 30));
+    const unsigned occupied_percent = trial % 2 == 0 ? 2 : 10;
+    for (auto& s : m.states()) {
+      const auto u = rng() % 100;
+      s = u < occupied_percent ? CellState::kOccupied : u < occupied_percent + 8 ? CellState::kUnseen : CellState::kFree;
+    }
+    OccupancyMap grown;
+    GrowOccupied(m, 0.05 * static_cast<double>(rng() % 4), grown);
+    std::vector<int32_t> labels;
+    const std::vector<Blob> groups = FindBlobs(grown, {}, &labels);
+    const std::vector<Blob> reference = FootprintBlobs(m, labels, groups);
+    finder.Find(grown);
+    FootprintBlobs(m, finder, fast);
+    ASSERT_EQ(fast.size(), reference.size());
+    for (size_t k = 0; k < fast.size(); ++k) {
+      EXPECT_EQ(fast[k].x_m, reference[k].x_m);
+      EXPECT_EQ(fast[k].y_m, reference[k].y_m);
+      EXPECT_EQ(fast[k].area_m2, reference[k].area_m2);
+      EXPECT_EQ(fast[k].cells, reference[k].cells);
+      EXPECT_EQ(fast[k].min_i, reference[k].min_i);
+      EXPECT_EQ(fast[k].max_j, reference[k].max_j);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace occmap

@@ -83,6 +83,7 @@ void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const std::vecto
   const FloorGrid& grid = map.grid();
   PrepareSupport(grid);
   std::vector<Blob>& blobs = out.detections;
+  const std::vector<int32_t>& labels = groups_.labels();
   // Each detection's footprint cells: the occupied cells of its group (within the group's
   // box), each given to the group's nearest detection.
   std::vector<std::vector<int>> detections_of(kept_index.size());
@@ -93,7 +94,7 @@ void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const std::vecto
     for (int j = box.min_j; j <= box.max_j; ++j) {
       for (int i = box.min_i; i <= box.max_i; ++i) {
         const int64_t cell = int64_t{j} * grid.cells_x + i;
-        if (labels_[static_cast<size_t>(cell)] != kept_index[g] || map.state(cell) != CellState::kOccupied) continue;
+        if (labels[static_cast<size_t>(cell)] != kept_index[g] || map.state(cell) != CellState::kOccupied) continue;
         const Eigen::Vector2d c = grid.CellCenter(cell);
         int best = -1;
         double best_d2 = std::numeric_limits<double>::infinity();
@@ -158,8 +159,9 @@ void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const std::vecto
 void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& active, const ChangeLookup& changed,
                             DetectedObjects& out) {
   GrowOccupied(map, settings_.group_radius_m, out.grown);
-  const std::vector<Blob> groups = FindBlobs(out.grown, {}, &labels_);
-  const std::vector<Blob> footprints = FootprintBlobs(map, labels_, groups);
+  const std::vector<Blob>& groups = groups_.Find(out.grown);
+  FootprintBlobs(map, groups_, footprints_);
+  const std::vector<Blob>& footprints = footprints_;
   std::vector<Blob> kept_groups, kept_footprints;
   std::vector<int> kept_index;  // the group's index in `groups` (its label)
   for (size_t k = 0; k < footprints.size(); ++k) {

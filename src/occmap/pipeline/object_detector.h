@@ -80,7 +80,8 @@ class ObjectDetector {
   std::vector<Viewer> viewers_;          // per camera (centre at 0 when it has none)
   std::vector<bool> has_centre_;
   GhostOptions ghost_options_;
-  std::vector<int32_t> labels_;
+  BlobFinder groups_;                     // the groups of the grown map, buffers kept
+  std::vector<Blob> footprints_;
   // The elevated check's projections (SupportPixel), kNotProjected until first used.
   static constexpr int32_t kNotProjected = -2;
   static constexpr int64_t kTileCells = 4096;
