@@ -174,7 +174,10 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
   blobs.clear();
   std::vector<int> blob_group;
   if (settings_.split) {
-    for (const Detection& d : DetectionsFromBlobs(kept_groups, out.grown, tracker_options_)) {
+    // Each group split once (SplitBlob): the tracker gets the splits of the groups kept.
+    splits_.clear();
+    for (const Blob& g : kept_groups) splits_.push_back(SplitBlob(g, out.grown, tracker_options_));
+    for (const Detection& d : DetectionsFromSplits(kept_groups, splits_, out.grown, tracker_options_)) {
       Blob b = kept_footprints[d.blob_index];  // one part: the group's footprint
       if (d.parts > 1) {
         b.x_m = d.x_m;
@@ -214,8 +217,11 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
   std::vector<bool> group_real(kept_groups.size(), false);
   for (int g : blob_group) group_real[static_cast<size_t>(g)] = true;
   out.groups.clear();
+  out.splits.clear();
   for (size_t k = 0; k < kept_groups.size(); ++k) {
-    if (group_real[k]) out.groups.push_back(kept_groups[k]);
+    if (!group_real[k]) continue;
+    out.groups.push_back(kept_groups[k]);
+    if (settings_.split) out.splits.push_back(std::move(splits_[k]));
   }
 }
 

@@ -24,6 +24,7 @@
 #include "occmap/geometry/camera_model.h"
 #include "occmap/pipeline/ghosts.h"
 #include "occmap/site/site.h"
+#include "occmap/track/detections.h"
 #include "occmap/track/tracker_options.h"
 #include "occmap/util/image.h"
 
@@ -32,6 +33,9 @@ namespace occmap {
 struct DetectedObjects {
   std::vector<Blob> detections;  // one per object, at its footprint's centroid
   std::vector<Blob> groups;      // the groups (of `grown`) the detections come from
+  // With BlobSettings::split, each group's split (SplitBlob of groups[k] on `grown` with the
+  // detector's tracker options), for MultiTargetTracker::Update; empty otherwise.
+  std::vector<BlobSplit> splits;
   OccupancyMap grown;            // the map with fragments grouped
 };
 
@@ -82,6 +86,7 @@ class ObjectDetector {
   GhostOptions ghost_options_;
   BlobFinder groups_;                     // the groups of the grown map, buffers kept
   std::vector<Blob> footprints_;
+  std::vector<BlobSplit> splits_;         // per kept group, this frame
   // The elevated check's projections (SupportPixel), kNotProjected until first used.
   static constexpr int32_t kNotProjected = -2;
   static constexpr int64_t kTileCells = 4096;

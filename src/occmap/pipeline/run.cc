@@ -178,8 +178,11 @@ class AnyTracker {
     }
     return t;
   }
-  Result<std::vector<Track>> Update(const std::vector<Blob>& blobs, const OccupancyMap& map, double time_s) {
-    return window_ ? window_->Update(blobs, map, time_s) : multi_->Update(blobs, map, time_s);
+  // splits: the ObjectDetector's (same map, same options), or empty for the tracker to split.
+  Result<std::vector<Track>> Update(const std::vector<Blob>& blobs, const std::vector<BlobSplit>& splits,
+                                    const OccupancyMap& map, double time_s) {
+    if (window_) return window_->Update(blobs, map, time_s);
+    return splits.empty() ? multi_->Update(blobs, map, time_s) : multi_->Update(blobs, splits, map, time_s);
   }
 
  private:
@@ -599,7 +602,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         if (tracker) {
           const double track_time_s = std::max(time_s, last_track_time_s + 1e-6);
           last_track_time_s = track_time_s;
-          OCCMAP_ASSIGN_OR_RETURN(tracks, tracker->Update(groups, grown, track_time_s));
+          OCCMAP_ASSIGN_OR_RETURN(tracks, tracker->Update(groups, objects.splits, grown, track_time_s));
           // Zones count every live track; the outputs get the reported ones.
           const ZoneFrame z = zones->Update(frame_index, time_s, tracks);
           std::erase_if(tracks, [&](const Track& t) { return !IsReported(t, site.tracking.report_coasting_s); });

@@ -372,4 +372,98 @@ std::vector<Detection> DetectionsFromBlobs(const std::vector<Blob>& blobs, const
   return detections;
 }
 
+BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOptions& options) {
+  BlobSplit split;
+  if (blob.area_m2 < options.min_detection_area_m2 || blob.cells <= 0) return split;
+  const FloorGrid& grid = map.grid();
+  split.cells = BlobCells(map, blob);
+  const std::vector<int64_t>& cells = split.cells;
+  split.max_people = MaxPeopleInArea(blob.area_m2, options);
+  std::vector<std::vector<int64_t>> parts;
+  if (split.max_people >= 2) {
+    std::vector<Eigen::Vector2d> seeds = DistancePeaks(grid, cells, options);
+    if (static_cast<int>(seeds.size()) > split.max_people) seeds.resize(static_cast<size_t>(split.max_people));
+    split.peaks = seeds.size();
+    if (seeds.size() >= 2) {
+      std::vector<Eigen::Vector2d> points;
+      points.reserve(cells.size());
+      for (int64_t c : cells) points.push_back(grid.CellCenter(c));
+      const std::vector<int> label = KMeans(points, seeds);
+      const size_t num_parts = static_cast<size_t>(*std::max_element(label.begin(), label.end())) + 1;
+      if (num_parts >= 2) {
+        parts.resize(num_parts);
+        for (size_t p = 0; p < cells.size(); ++p) parts[static_cast<size_t>(label[p])].push_back(cells[p]);
+      }
+    }
+  }
+  auto add = [&](const std::vector<int64_t>& part) {
+    if (part.empty()) return;
+    Detection d = DetectionFromCells(grid, part);
+    if (d.area_m2 < options.min_detection_area_m2) return;
+    d.blob_index = 0;
+    split.detections.push_back(d);
+  };
+  if (parts.empty()) {
+    add(cells);
+  } else {
+    for (const std::vector<int64_t>& part : parts) add(part);
+  }
+  for (Detection& d : split.detections) d.parts = static_cast<int>(split.detections.size());
+  return split;
+}
+
+std::vector<Detection> DetectionsFromSplits(const std::vector<Blob>& blobs, const std::vector<BlobSplit>& splits,
+                                            const OccupancyMap& map, const TrackerOptions& options,
+                                            const std::vector<Eigen::Vector2d>& predicted_positions_m) {
+  OCCMAP_CHECK(splits.size() == blobs.size(), "DetectionsFromSplits: one split per blob");
+  const FloorGrid& grid = map.grid();
+  const double radius_m = options.person_radius_m();
+  std::vector<Detection> detections;
+  for (size_t b = 0; b < blobs.size(); ++b) {
+    const Blob& blob = blobs[b];
+    const BlobSplit& split = splits[b];
+    if (split.cells.empty()) continue;
+    // Step 5 (as DetectionsFromBlobs): predictions within a person's radius of the blob's cells.
+    std::vector<Eigen::Vector2d> inside;
+    if (split.max_people >= 2 && !predicted_positions_m.empty()) {
+      const double x_lo = grid.origin_x_m + blob.min_i * grid.cell_size_m - radius_m;
+      const double x_hi = grid.origin_x_m + (blob.max_i + 1) * grid.cell_size_m + radius_m;
+      const double y_lo = grid.origin_y_m + blob.min_j * grid.cell_size_m - radius_m;
+      const double y_hi = grid.origin_y_m + (blob.max_j + 1) * grid.cell_size_m + radius_m;
+      for (const Eigen::Vector2d& p : predicted_positions_m) {
+        if (static_cast<int>(inside.size()) == split.max_people) break;
+        if (p.x() < x_lo || p.x() > x_hi || p.y() < y_lo || p.y() > y_hi) continue;
+        const bool near = std::any_of(split.cells.begin(), split.cells.end(), [&](int64_t c) {
+          return (grid.CellCenter(c) - p).squaredNorm() <= radius_m * radius_m;
+        });
+        if (near) inside.push_back(p);
+      }
+    }
+    if (inside.size() >= 2 && inside.size() > split.peaks) {
+      const Detection whole = DetectionFromCells(grid, split.cells);
+      Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+      for (const Eigen::Vector2d& p : inside) mean += p;
+      const Eigen::Vector2d shift = Eigen::Vector2d(whole.x_m, whole.y_m) - mean / static_cast<double>(inside.size());
+      const double share = 1.0 / static_cast<double>(inside.size());
+      for (const Eigen::Vector2d& p : inside) {
+        Detection d;
+        d.x_m = p.x() + shift.x();
+        d.y_m = p.y() + shift.y();
+        d.area_m2 = whole.area_m2 * share;
+        d.cells = whole.cells / static_cast<int64_t>(inside.size());
+        d.blob_index = static_cast<int>(b);
+        d.parts = static_cast<int>(inside.size());
+        d.guided = true;
+        detections.push_back(d);
+      }
+      continue;
+    }
+    for (Detection d : split.detections) {
+      d.blob_index = static_cast<int>(b);
+      detections.push_back(d);
+    }
+  }
+  return detections;
+}
+
 }  // namespace occmap

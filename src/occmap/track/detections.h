@@ -71,4 +71,22 @@ std::vector<Detection> DetectionsFromBlobs(const std::vector<Blob>& blobs, const
                                            const TrackerOptions& options,
                                            const std::vector<Eigen::Vector2d>& predicted_positions_m = {});
 
+// DetectionsFromBlobs in two halves, so that a blob is split once per frame although both the
+// detector (without predictions) and the tracker (with them) need its detections: SplitBlob
+// does what does not depend on predictions (its cells, the peaks, the k-means split), and
+// DetectionsFromSplits adds the predictions (step 5), which only matter when more of them
+// than peaks fall on a blob. DetectionsFromSplits(blobs, splits, map, options, predictions)
+// == DetectionsFromBlobs(blobs, map, options, predictions) when splits[b] ==
+// SplitBlob(blobs[b], map, options) for every b (tested).
+struct BlobSplit {
+  std::vector<int64_t> cells;          // BlobCells (none when the blob is too small to detect)
+  int max_people = 1;                  // MaxPeopleInArea
+  size_t peaks = 0;                    // distance peaks kept (at most max_people; 0 if max_people < 2)
+  std::vector<Detection> detections;   // without predictions, blob_index 0
+};
+BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOptions& options);
+std::vector<Detection> DetectionsFromSplits(const std::vector<Blob>& blobs, const std::vector<BlobSplit>& splits,
+                                            const OccupancyMap& map, const TrackerOptions& options,
+                                            const std::vector<Eigen::Vector2d>& predicted_positions_m = {});
+
 }  // namespace occmap

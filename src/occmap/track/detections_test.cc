@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <random>
 
 #include "occmap/track/test_floor.h"
 
@@ -160,6 +161,51 @@ TEST(DetectionsFromBlobs, BlobsSmallerThanTheMinimumAreaAreIgnored) {
   const std::vector<Detection> d = DetectionsFromBlobs(blobs, map, TrackerOptions{});
   ASSERT_EQ(d.size(), 1u);
   EXPECT_NEAR(d[0].x_m, 2.0, 0.01);
+}
+
+
+TEST(DetectionsFromSplits, EqualsDetectionsFromBlobsWithAndWithoutPredictions) {
+  // Random groups of 1-4 people (close together, overlapping or apart), noisy discs, and
+  // predictions near and away from them: the split made once gives what the reference gives.
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> x(1.0, 7.0), y(1.0, 5.0), near(-0.35, 0.35);
+  TrackerOptions options;
+  int guided = 0, split = 0;
+  for (int trial = 0; trial < 120; ++trial) {
+    std::vector<Eigen::Vector2d> people, predictions;
+    for (int g = 0; g < 3; ++g) {
+      const Eigen::Vector2d centre(x(rng), y(rng));
+      const int members = 1 + static_cast<int>(rng() % 4);
+      for (int m = 0; m < members; ++m) people.push_back(centre + Eigen::Vector2d(near(rng), near(rng)));
+    }
+    for (const Eigen::Vector2d& p : people) {
+      if (rng() % 4 != 0) predictions.push_back(p + Eigen::Vector2d(0.3 * near(rng), 0.3 * near(rng)));
+    }
+    predictions.emplace_back(x(rng), y(rng));
+    const OccupancyMap map = testing::FloorWithDiscs(TestGrid(), people, 0.25, testing::kNoisy, rng);
+    const std::vector<Blob> blobs = FindBlobs(map);
+    std::vector<BlobSplit> splits;
+    for (const Blob& b : blobs) splits.push_back(SplitBlob(b, map, options));
+    for (const auto& given : {std::vector<Eigen::Vector2d>{}, predictions}) {
+      const std::vector<Detection> reference = DetectionsFromBlobs(blobs, map, options, given);
+      const std::vector<Detection> fast = DetectionsFromSplits(blobs, splits, map, options, given);
+      ASSERT_EQ(fast.size(), reference.size()) << "trial " << trial;
+      for (size_t k = 0; k < fast.size(); ++k) {
+        EXPECT_EQ(fast[k].x_m, reference[k].x_m);
+        EXPECT_EQ(fast[k].y_m, reference[k].y_m);
+        EXPECT_EQ(fast[k].area_m2, reference[k].area_m2);
+        EXPECT_EQ(fast[k].cells, reference[k].cells);
+        EXPECT_EQ(fast[k].spread_m2, reference[k].spread_m2);
+        EXPECT_EQ(fast[k].blob_index, reference[k].blob_index);
+        EXPECT_EQ(fast[k].parts, reference[k].parts);
+        EXPECT_EQ(fast[k].guided, reference[k].guided);
+        guided += fast[k].guided;
+        split += fast[k].parts > 1 && !fast[k].guided;
+      }
+    }
+  }
+  EXPECT_GT(guided, 20);  // both kinds of cut were tested
+  EXPECT_GT(split, 20);
 }
 
 }  // namespace

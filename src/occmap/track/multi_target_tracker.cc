@@ -115,6 +115,18 @@ Track MultiTargetTracker::Report(const TrackState& state, double time_s) const {
 
 Result<std::vector<Track>> MultiTargetTracker::Update(const std::vector<Blob>& blobs, const OccupancyMap& map,
                                                       double time_s) {
+  return Step(blobs, nullptr, map, time_s);
+}
+
+Result<std::vector<Track>> MultiTargetTracker::Update(const std::vector<Blob>& blobs,
+                                                      const std::vector<BlobSplit>& splits, const OccupancyMap& map,
+                                                      double time_s) {
+  OCCMAP_CHECK(splits.size() == blobs.size(), "MultiTargetTracker::Update: one split per blob");
+  return Step(blobs, &splits, map, time_s);
+}
+
+Result<std::vector<Track>> MultiTargetTracker::Step(const std::vector<Blob>& blobs, const std::vector<BlobSplit>* splits,
+                                                    const OccupancyMap& map, double time_s) {
   OCCMAP_ASSIGN_OR_RETURN(const double dt_s, clock_.Advance(time_s));
   const FloorGrid& grid = map.grid();
 
@@ -132,7 +144,8 @@ Result<std::vector<Track>> MultiTargetTracker::Update(const std::vector<Blob>& b
                    [&](size_t a, size_t b) { return tracks_[a].hits > tracks_[b].hits; });
   std::vector<Eigen::Vector2d> predictions;
   for (size_t k : confirmed) predictions.push_back(tracks_[k].filter.position_m());
-  detections_ = DetectionsFromBlobs(blobs, map, options_, predictions);
+  detections_ = splits != nullptr ? DetectionsFromSplits(blobs, *splits, map, options_, predictions)
+                                 : DetectionsFromBlobs(blobs, map, options_, predictions);
   std::vector<Eigen::Matrix2d> covariances;
   covariances.reserve(detections_.size());
   for (const Detection& d : detections_) covariances.push_back(MeasurementCovariance(d, grid));

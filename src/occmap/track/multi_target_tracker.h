@@ -60,6 +60,10 @@ class MultiTargetTracker {
   // One frame: `blobs` must be FindBlobs of `map` (the tracker reads their cells); time_s
   // must increase from frame to frame (an error otherwise, and nothing changes).
   Result<std::vector<Track>> Update(const std::vector<Blob>& blobs, const OccupancyMap& map, double time_s);
+  // The same with each blob's split already made (splits[b] = SplitBlob(blobs[b], map, options()),
+  // e.g. by the ObjectDetector): the blobs are not split again.
+  Result<std::vector<Track>> Update(const std::vector<Blob>& blobs, const std::vector<BlobSplit>& splits,
+                                    const OccupancyMap& map, double time_s);
 
   // The detections of the last frame (for drawing and debugging).
   const std::vector<Detection>& detections() const { return detections_; }
@@ -91,6 +95,8 @@ class MultiTargetTracker {
                  std::vector<uint8_t>& detection_used, double time_s);
   void UpdateClass(TrackState& track, double area_m2) const;
   Track Report(const TrackState& track, double time_s) const;
+  Result<std::vector<Track>> Step(const std::vector<Blob>& blobs, const std::vector<BlobSplit>* splits,
+                                  const OccupancyMap& map, double time_s);
 
   TrackerOptions options_;
   std::vector<TrackState> tracks_;  // in order of birth
