@@ -18,6 +18,7 @@
 #include <chrono>
 #include <filesystem>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "occmap/bench/bench.h"
@@ -91,6 +92,26 @@ Result<DecodePass> Decode(const Site& site, const FrameSourceOptions& options, b
   return pass;
 }
 
+// How RunSite computes changes and fuses on this site without video outputs (its own test, in
+// pipeline/run.cc): fully fused only for the paper's AND on grey frames without tolerance and
+// without mask sources; otherwise change buffers first.
+std::string FusionPath(const Site& site) {
+  const bool paper_and = site.fusion.method == FusionMethod::kImageBased && site.fusion.max_free_views == 0;
+  bool any_mask_source = false;
+  for (const SiteCamera& c : site.cameras) any_mask_source |= c.source.kind == FrameSourceSpec::Kind::kMasks;
+  const int r = site.detection.tolerance_px;
+  if (paper_and && !site.detection.colour && r == 0 && !any_mask_source) {
+    return "fully fused FastFusion::Fuse, no change buffer";
+  }
+  const std::string changes =
+      fmt::format("{} change detection{} into change buffers", site.detection.colour ? "colour" : "grey",
+                  r > 0 ? fmt::format(" dilated by tolerance_px {}", r) : std::string());
+  if (paper_and) return changes + ", FastFusion::FuseChanges";
+  return fmt::format("{}, Fusion::Fuse ({}, max_free_views {})", changes,
+                     site.fusion.method == FusionMethod::kImageBased ? "image-based" : "map-based",
+                     site.fusion.max_free_views);
+}
+
 }  // namespace
 
 Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx) {
@@ -162,10 +183,9 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx) {
   e.output_s = run.output_s;
   e.measured = true;
   e.note = fmt::format("lab scene, {} cameras 640x480 H.264, {} frames, {} threads; steady state (after {} frames), "
-                       "medians of {} alternated passes; RunSite without video outputs (fully fused FastFusion, "
-                       "detections, tracking, text outputs); decoding: the faster of one thread per camera and "
-                       "the cameras in turn",
-                       e.cameras, e.frames, ctx.num_threads(), kWarmUp, kRepeats);
+                       "medians of {} alternated passes; RunSite without video outputs ({}, detections, tracking, "
+                       "text outputs); decoding: the faster of one thread per camera and the cameras in turn",
+                       e.cameras, e.frames, ctx.num_threads(), kWarmUp, kRepeats, FusionPath(site));
   return e;
 }
 
