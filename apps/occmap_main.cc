@@ -375,6 +375,8 @@ struct BenchCommand {
   bool json_to_stdout = false;
   std::string site = "sites/wildtrack.yaml";
   int end_to_end_frames = 60;
+  double changed_fraction = 0.10;
+  int rendered_frames = 4;
 };
 
 Status RunBenchCommand(const CommonOptions& common, const BenchCommand& cmd) {
@@ -383,6 +385,8 @@ Status RunBenchCommand(const CommonOptions& common, const BenchCommand& cmd) {
   o.frames = cmd.frames;
   o.wildtrack_site = cmd.site;
   o.end_to_end_frames = cmd.end_to_end_frames;
+  o.changed_fraction = cmd.changed_fraction;
+  o.rendered_frames = cmd.rendered_frames;
   if (!common.data_root.empty()) o.data_root = common.data_root;
   OCCMAP_RETURN_IF_ERROR(o.Validate());
   Context ctx(common.threads);
@@ -483,6 +487,14 @@ int main(int argc, char** argv) {
                         "lab frames rendered to H.264 for RunSite vs decode (0 = skip)")
       ->capture_default_str()
       ->check(CLI::Range(0, 10000));
+  bench_cmd->add_option("--changed-fraction", bench_opts.changed_fraction,
+                        "fraction of pixels changed in the random frames, 0..1")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
+  bench_cmd->add_option("--rendered-frames", bench_opts.rendered_frames,
+                        "WILDTRACK frames rendered by the simulator for the wildtrack workload (0 = skip)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 100));
   bench_cmd->add_flag("--json", bench_opts.json_to_stdout, "print one JSON object with a record per workload");
 
   try {

@@ -13,6 +13,7 @@
 #include <thread>
 #include <unistd.h>
 #include <opencv2/imgproc.hpp>
+#include <yaml-cpp/yaml.h>
 
 #include "occmap/geometry/rotation.h"
 #include "occmap/fusion/fast_fusion.h"
@@ -20,6 +21,7 @@
 #include "occmap/pipeline/run.h"
 #include "occmap/sim/builtin_scenes.h"
 #include "occmap/sim/dataset_writer.h"
+#include "occmap/sim/renderer.h"
 #include "occmap/sim/scene.h"
 #include "occmap/geometry/pinhole_camera.h"
 #include "occmap/site/site.h"
@@ -47,6 +49,7 @@ struct Workload {
   std::vector<Image<uint8_t>> masks;  // per camera, may be empty
   FloorGrid grid;
   double plane_height_m = 0;
+  std::filesystem::path wildtrack_dir;  // the dataset folder (calibrations, annotations), wildtrack only
 };
 
 // `count` cameras on the walls of a room of size_x x size_y m at 2.8 m, looking across it.
@@ -92,6 +95,20 @@ Result<std::optional<Workload>> MakeWorkload(const std::string& name, const Benc
   }
   Workload w;
   w.name = "wildtrack";
+  // The dataset folder: the data root (--data-root, else the site file's data_root against
+  // the file's folder) + wildtrack/, as the site's calibration paths resolve.
+  std::filesystem::path root = options.data_root;
+  if (root.empty()) {
+    const std::filesystem::path site_dir = options.wildtrack_site.parent_path();
+    root = site_dir;
+    try {
+      const YAML::Node node = YAML::LoadFile(options.wildtrack_site.string())["data_root"];
+      if (node && node.IsScalar()) root = site_dir / node.as<std::string>();
+    } catch (const YAML::Exception&) {
+      // LoadSite read the file just above; keep the file's folder.
+    }
+  }
+  w.wildtrack_dir = root / "wildtrack";
   w.grid = site->grid;
   w.plane_height_m = site->plane_height_m;
   for (SiteCamera& cam : site->cameras) {
@@ -126,6 +143,16 @@ void MakeFrames(std::mt19937& rng, ImageSize size, int threshold, double changed
   }
 }
 
+Image<uint8_t> Grey(const Image<Rgb8>& rgb) {
+  Image<uint8_t> out(rgb.width(), rgb.height());
+  for (int y = 0; y < rgb.height(); ++y) {
+    const Rgb8* in = rgb.row(y);
+    uint8_t* o = out.row(y);
+    for (int x = 0; x < rgb.width(); ++x) o[x] = static_cast<uint8_t>((77 * in[x].r + 150 * in[x].g + 29 * in[x].b + 128) >> 8);
+  }
+  return out;
+}
+
 // Median over repetitions of the time per frame of fn(frame index), in seconds.
 double MedianSecondsPerFrame(int repetitions, int frames, const std::function<void(int)>& fn) {
   fn(0);  // warm-up
@@ -137,6 +164,64 @@ double MedianSecondsPerFrame(int repetitions, int frames, const std::function<vo
   }
   std::sort(times.begin(), times.end());
   return times[times.size() / 2];
+}
+
+struct FrameRates {
+  double paper_pps = 0, opencv_pps = 0, fast_1_pps = 0, fast_all_pps = 0, streaming_1_pps = 0, streaming_all_pps = 0;
+  double primary_failure_fraction = 0, secondary_probes_per_frame = 0, streamed_frame_fraction = 0;
+};
+
+// (a) to (e) on the frames frame_views[f] (options.frames of them) against one background set.
+FrameRates MeasureFrames(const GroundLut& lut, OpenCvFusion& opencv, FastFusion& fast,
+                         const std::vector<std::vector<ImageView<const uint8_t>>>& frame_views,
+                         const std::vector<ImageView<const uint8_t>>& background_views, const BenchOptions& options,
+                         Context& ctx, int& opencv_threads) {
+  FrameRates rates;
+  const double pixels = static_cast<double>(lut.total_pixels());
+  const int frames = static_cast<int>(frame_views.size());
+  std::vector<uint8_t> occupancy;
+  rates.paper_pps = pixels / MedianSecondsPerFrame(options.repetitions, frames, [&](int f) {
+                      PaperLoop(lut, frame_views[static_cast<size_t>(f)], background_views, options.threshold, occupancy);
+                    });
+  cv::Mat cv_out;
+  // OpenCV parallelises absdiff / threshold / remap itself: give it the same threads as (d).
+  const int saved_cv_threads = cv::getNumThreads();
+  cv::setNumThreads(ctx.num_threads());
+  opencv_threads = cv::getNumThreads();
+  rates.opencv_pps = pixels / MedianSecondsPerFrame(options.repetitions, frames, [&](int f) {
+                       opencv.Fuse(frame_views[static_cast<size_t>(f)], background_views, options.threshold, cv_out);
+                     });
+  cv::setNumThreads(saved_cv_threads);
+  OccupancyMap map;
+  Context one(1);
+  // The probe statistics of one pass over the frames on one thread.
+  int64_t probed = 0, failed = 0, secondary = 0, streamed = 0;
+  for (int f = 0; f < frames; ++f) {
+    fast.Fuse(frame_views[static_cast<size_t>(f)], background_views, options.threshold, one, map);
+    const FastFusion::FrameStats& stats = fast.last_frame_stats();
+    probed += stats.primary_probed;
+    failed += stats.primary_failed;
+    secondary += stats.secondary_probed;
+    streamed += stats.streamed ? 1 : 0;
+  }
+  rates.primary_failure_fraction = probed > 0 ? static_cast<double>(failed) / static_cast<double>(probed) : 0.0;
+  rates.secondary_probes_per_frame = static_cast<double>(secondary) / frames;
+  rates.streamed_frame_fraction = static_cast<double>(streamed) / frames;
+  rates.fast_1_pps = pixels / MedianSecondsPerFrame(options.repetitions, frames, [&](int f) {
+                       fast.Fuse(frame_views[static_cast<size_t>(f)], background_views, options.threshold, one, map);
+                     });
+  rates.fast_all_pps = pixels / MedianSecondsPerFrame(options.repetitions, frames, [&](int f) {
+                         fast.Fuse(frame_views[static_cast<size_t>(f)], background_views, options.threshold, ctx, map);
+                       });
+  rates.streaming_1_pps = pixels / MedianSecondsPerFrame(options.repetitions, frames, [&](int f) {
+                            fast.FuseWith(FastFusion::Method::kRowStreaming, frame_views[static_cast<size_t>(f)],
+                                          background_views, options.threshold, one, map);
+                          });
+  rates.streaming_all_pps = pixels / MedianSecondsPerFrame(options.repetitions, frames, [&](int f) {
+                              fast.FuseWith(FastFusion::Method::kRowStreaming, frame_views[static_cast<size_t>(f)],
+                                            background_views, options.threshold, ctx, map);
+                            });
+  return rates;
 }
 
 Result<WorkloadResult> RunWorkload(Workload& w, const BenchOptions& options, Context& ctx) {
@@ -191,35 +276,17 @@ Result<WorkloadResult> RunWorkload(Workload& w, const BenchOptions& options, Con
   }
 
   const double pixels = static_cast<double>(result.camera_pixels);
-  std::vector<uint8_t> occupancy;
-  result.paper_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
-                       PaperLoop(lut, frame_views[static_cast<size_t>(f)], background_views, options.threshold, occupancy);
-                     });
-  cv::Mat cv_out;
-  // OpenCV parallelises absdiff / threshold / remap itself: give it the same threads as (d).
-  const int saved_cv_threads = cv::getNumThreads();
-  cv::setNumThreads(ctx.num_threads());
-  result.opencv_threads = cv::getNumThreads();
-  result.opencv_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
-                        opencv.Fuse(frame_views[static_cast<size_t>(f)], background_views, options.threshold, cv_out);
-                      });
-  cv::setNumThreads(saved_cv_threads);
   OccupancyMap map;
   Context one(1);
-  result.fast_1_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
-                        fast.Fuse(frame_views[static_cast<size_t>(f)], background_views, options.threshold, one, map);
-                      });
-  result.fast_all_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
-                          fast.Fuse(frame_views[static_cast<size_t>(f)], background_views, options.threshold, ctx, map);
-                        });
-  result.streaming_1_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
-                             fast.FuseWith(FastFusion::Method::kRowStreaming, frame_views[static_cast<size_t>(f)],
-                                           background_views, options.threshold, one, map);
-                           });
-  result.streaming_all_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
-                               fast.FuseWith(FastFusion::Method::kRowStreaming, frame_views[static_cast<size_t>(f)],
-                                             background_views, options.threshold, ctx, map);
-                             });
+  const FrameRates random_rates =
+      MeasureFrames(lut, opencv, fast, frame_views, background_views, options, ctx, result.opencv_threads);
+  result.paper_pps = random_rates.paper_pps;
+  result.opencv_pps = random_rates.opencv_pps;
+  result.fast_1_pps = random_rates.fast_1_pps;
+  result.fast_all_pps = random_rates.fast_all_pps;
+  result.streaming_1_pps = random_rates.streaming_1_pps;
+  result.streaming_all_pps = random_rates.streaming_all_pps;
+  result.primary_failure_fraction = random_rates.primary_failure_fraction;
   // Worst case: every pixel changed (|I - B| = 128 > T), as many distinct frames.
   std::vector<std::vector<Image<uint8_t>>> changed(static_cast<size_t>(options.frames));
   std::vector<std::vector<ImageView<const uint8_t>>> changed_views(static_cast<size_t>(options.frames));
@@ -240,6 +307,54 @@ Result<WorkloadResult> RunWorkload(Workload& w, const BenchOptions& options, Con
   result.worst_all_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
                            fast.Fuse(changed_views[static_cast<size_t>(f)], background_views, options.threshold, ctx, map);
                          });
+  if (w.name == "wildtrack") {
+    RenderedResult& rendered = result.rendered;
+    if (options.rendered_frames <= 0) {
+      rendered.note = "not measured (no rendered frames asked for)";
+      return result;
+    }
+    std::vector<ImageSize> sizes;
+    for (int n = 0; n < lut.num_cameras(); ++n) sizes.push_back(lut.image_size(n));
+    t0 = Clock::now();
+    auto frames = RenderWildtrackFrames(w.wildtrack_dir, options.rendered_frames, sizes, ctx);
+    rendered.render_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    if (!frames.ok()) {
+      rendered.note = "skipped: " + frames.status().message();
+      return result;
+    }
+    std::vector<ImageView<const uint8_t>> rendered_backgrounds;
+    for (const auto& b : frames->backgrounds) rendered_backgrounds.push_back(b.view());
+    std::vector<std::vector<ImageView<const uint8_t>>> rendered_views(frames->frames.size());
+    int64_t changed_pixels = 0;
+    for (size_t f = 0; f < frames->frames.size(); ++f) {
+      for (size_t n = 0; n < frames->frames[f].size(); ++n) {
+        const Image<uint8_t>& frame = frames->frames[f][n];
+        const Image<uint8_t>& background = frames->backgrounds[n];
+        rendered_views[f].push_back(frame.view());
+        for (int y = 0; y < frame.height(); ++y) {
+          for (int x = 0; x < frame.width(); ++x) changed_pixels += std::abs(frame(x, y) - background(x, y)) > options.threshold;
+        }
+      }
+    }
+    BenchOptions rendered_options = options;
+    rendered_options.frames = static_cast<int>(frames->frames.size());
+    const FrameRates rates = MeasureFrames(lut, opencv, fast, rendered_views, rendered_backgrounds, rendered_options,
+                                           ctx, result.opencv_threads);
+    rendered.measured = true;
+    rendered.frames = static_cast<int>(frames->frames.size());
+    rendered.note = "scene frames";
+    for (const int64_t f : frames->scene_frames) rendered.note += fmt::format(" {}", f);
+    rendered.changed_fraction = static_cast<double>(changed_pixels) / (pixels * static_cast<double>(rendered.frames));
+    rendered.paper_pps = rates.paper_pps;
+    rendered.opencv_pps = rates.opencv_pps;
+    rendered.fast_1_pps = rates.fast_1_pps;
+    rendered.fast_all_pps = rates.fast_all_pps;
+    rendered.streaming_1_pps = rates.streaming_1_pps;
+    rendered.streaming_all_pps = rates.streaming_all_pps;
+    rendered.primary_failure_fraction = rates.primary_failure_fraction;
+    rendered.secondary_probes_per_frame = rates.secondary_probes_per_frame;
+    rendered.streamed_frame_fraction = rates.streamed_frame_fraction;
+  }
   return result;
 }
 
@@ -248,13 +363,47 @@ double Mega(int64_t n) { return static_cast<double>(n) / 1e6; }
 
 }  // namespace
 
+Result<RenderedFrames> RenderWildtrackFrames(const std::filesystem::path& dataset_dir, int count,
+                                             const std::vector<ImageSize>& sizes, Context& ctx) {
+  sim::WildtrackSceneOptions wt;
+  wt.dataset_dir = dataset_dir;
+  OCCMAP_ASSIGN_OR_RETURN(sim::SceneSpec spec, sim::MakeWildtrackSceneSpec(sim::BuiltinSceneOptions{}, wt));
+  OCCMAP_ASSIGN_OR_RETURN(sim::Scene scene, sim::Scene::Create(std::move(spec)));
+  if (scene.num_cameras() != sizes.size()) {
+    return InvalidInput(fmt::format("wildtrack scene: {} cameras, the site has {}", scene.num_cameras(), sizes.size()));
+  }
+  RenderedFrames r;
+  const int64_t n = scene.num_frames();
+  for (int k = 0; k < count; ++k) r.scene_frames.push_back((2 * k + 1) * n / (2 * count));
+  r.frames.resize(static_cast<size_t>(count));
+  for (size_t c = 0; c < scene.num_cameras(); ++c) {
+    const sim::CameraRenderer renderer(scene, c, ctx);
+    if (!(renderer.size() == sizes[c])) {
+      return InvalidInput(fmt::format("wildtrack scene: camera {} renders {}x{}, the site's is {}x{}", c + 1,
+                                      renderer.size().width, renderer.size().height, sizes[c].width, sizes[c].height));
+    }
+    r.backgrounds.push_back(Grey(renderer.Background()));
+    sim::RenderedView view;
+    for (int k = 0; k < count; ++k) {
+      renderer.Render(scene.StateAt(r.scene_frames[static_cast<size_t>(k)]), ctx, &view);
+      r.frames[static_cast<size_t>(k)].push_back(Grey(view.rgb));
+    }
+  }
+  return r;
+}
+
 Status BenchOptions::Validate() const {
   if (workload != "paper" && workload != "wildtrack" && workload != "all" && workload != "tiny") {
     return InvalidInput(fmt::format("--workload: expected paper, wildtrack or all, found '{}'", workload));
   }
   if (frames < 1 || frames > 1000) return InvalidInput(fmt::format("--frames: expected 1..1000, found {}", frames));
   if (repetitions < 1) return InvalidInput("repetitions: expected at least 1");
-  if (!(changed_fraction >= 0 && changed_fraction <= 1)) return InvalidInput("changed fraction: expected 0..1");
+  if (!(changed_fraction >= 0 && changed_fraction <= 1)) {
+    return InvalidInput(fmt::format("--changed-fraction: expected 0..1, found {}", changed_fraction));
+  }
+  if (rendered_frames < 0 || rendered_frames > 100) {
+    return InvalidInput(fmt::format("--rendered-frames: expected 0..100, found {}", rendered_frames));
+  }
   if (threshold < 0 || threshold > 127) return InvalidInput("threshold: expected 0..127");
   return Status::Ok();
 }
@@ -415,6 +564,30 @@ std::string BenchTable(const BenchResults& all) {
     s += fmt::format("  all pixels changed (hand-over to row streaming): vs OpenCV {:.2f}x, vs paper loop {:.2f}x "
                      "(OpenCV and the paper loop measured at the normal frames)\n",
                      Ratio(r.worst_all_pps, r.opencv_pps), Ratio(r.worst_all_pps, r.paper_pps));
+    const RenderedResult& rr = r.rendered;
+    if (r.name == "wildtrack" && !rr.measured) {
+      s += fmt::format("  rendered frames: {}\n", rr.note);
+    } else if (rr.measured) {
+      s += fmt::format("  rendered frames (simulator, WILDTRACK trajectories; {}; rendered in {:.1f} s): {:.2f} % of "
+                       "pixels changed, {:.2f} % of primary probes failed, {:.0f} secondary probes per frame, {:.0f} % "
+                       "of frames handed to row streaming\n",
+                       rr.note, rr.render_seconds, 100 * rr.changed_fraction, 100 * rr.primary_failure_fraction,
+                       rr.secondary_probes_per_frame, 100 * rr.streamed_frame_fraction);
+      auto rendered_row = [&](const std::string& name, double pps) {
+        s += fmt::format("  {:<28} {:>10.3f} {:>10.3f} {:>11.2f}x\n", name, pps / 1e9,
+                         pps > 0 ? 1e3 * static_cast<double>(r.camera_pixels) / pps : 0.0, Ratio(pps, rr.paper_pps));
+      };
+      rendered_row("(a) paper loop", rr.paper_pps);
+      rendered_row(fmt::format("(b) OpenCV remap, {} threads", r.opencv_threads), rr.opencv_pps);
+      rendered_row("(c) FastFusion 1 thread", rr.fast_1_pps);
+      rendered_row(fmt::format("(d) FastFusion {} threads", r.threads), rr.fast_all_pps);
+      rendered_row("(e) row streaming 1 thread", rr.streaming_1_pps);
+      rendered_row(fmt::format("(e) row streaming {} threads", r.threads), rr.streaming_all_pps);
+      s += fmt::format("  FastFusion on rendered frames: speedup vs OpenCV {:.2f}x, vs paper loop {:.2f}x, {} threads "
+                       "vs 1 {:.2f}x\n",
+                       Ratio(rr.fast_all_pps, rr.opencv_pps), Ratio(rr.fast_all_pps, rr.paper_pps), r.threads,
+                       Ratio(rr.fast_all_pps, rr.fast_1_pps));
+    }
   }
   const EndToEndResult& e = all.end_to_end;
   if (e.measured) {
@@ -454,8 +627,11 @@ nlohmann::json BenchJson(const BenchResults& all) {
                         {{"decode", e.decode_s}, {"detect", e.detect_s}, {"fuse", e.fuse_s}, {"blobs", e.blobs_s},
                          {"track", e.track_s}, {"output", e.output_s}}}};
   out["notes"] = {
-      "pixels_per_second = all cameras' pixels / median time per frame; frames: random background, 10% of pixels "
-      "changed by more than T = 30 (independently: few cells fail their first probe)",
+      "pixels_per_second = all cameras' pixels / median time per frame; frames: random background, --changed-fraction "
+      "(default 10%) of pixels changed by more than T = 30, independently (few cells fail their first probe)",
+      "rendered (wildtrack): the same measurements on frames rendered by the simulator from WILDTRACK's calibrations "
+      "and annotated trajectories (grey, empty-scene backgrounds; changes clustered on people: more cells fail their "
+      "first probe); rendered once per run, render_seconds apart",
       "fast_* = FastFusion::Fuse, the cell-probe method occmap run uses; row_streaming_* = its row-streaming "
       "method; all_changed_* = FastFusion::Fuse with every pixel changed (the worst case)",
       "end_to_end_vs_decode = RunSite steady-state frames/s / the faster pure decoding pass's steady-state "
@@ -503,6 +679,30 @@ nlohmann::json BenchJson(const BenchResults& all) {
     j["fast_pairs"] = r.fast_pairs;
     j["mapped_pixels"] = r.mapped_pixels;
     j["fast_bytes_read_per_frame"] = r.fast_bytes_read_per_frame;
+    j["primary_failure_fraction"] = r.primary_failure_fraction;
+    const RenderedResult& rr = r.rendered;
+    if (rr.measured) {
+      j["rendered"] = {{"skipped", false},
+                       {"frames", rr.frames},
+                       {"note", rr.note},
+                       {"render_seconds", rr.render_seconds},
+                       {"changed_fraction", rr.changed_fraction},
+                       {"paper_loop_pixels_per_second", rr.paper_pps},
+                       {"opencv_pixels_per_second", rr.opencv_pps},
+                       {"fast_1_thread_pixels_per_second", rr.fast_1_pps},
+                       {"fast_all_threads_pixels_per_second", rr.fast_all_pps},
+                       {"row_streaming_1_thread_pixels_per_second", rr.streaming_1_pps},
+                       {"row_streaming_all_threads_pixels_per_second", rr.streaming_all_pps},
+                       {"fast_all_threads_vs_1_thread", Ratio(rr.fast_all_pps, rr.fast_1_pps)},
+                       {"speedup_vs_opencv", Ratio(rr.fast_all_pps, rr.opencv_pps)},
+                       {"speedup_vs_paper_loop", Ratio(rr.fast_all_pps, rr.paper_pps)},
+                       {"speedup_1_thread_vs_paper_loop", Ratio(rr.fast_1_pps, rr.paper_pps)},
+                       {"primary_failure_fraction", rr.primary_failure_fraction},
+                       {"secondary_probes_per_frame", rr.secondary_probes_per_frame},
+                       {"streamed_frame_fraction", rr.streamed_frame_fraction}};
+    } else if (r.name == "wildtrack") {
+      j["rendered"] = {{"skipped", true}, {"note", rr.note}};
+    }
     j["end_to_end_vs_decode"] = out["end_to_end_vs_decode"];
     list.push_back(j);
   }

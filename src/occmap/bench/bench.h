@@ -21,7 +21,10 @@
 // skipped with a note when the data is absent. "tiny" (tests): 4 cameras 96x72.
 // Frames: background uniform random bytes; the frame equals the background but for
 // `changed_fraction` (default 10 %) of its pixels, chosen at random, which differ by more than
-// T (T = 30); `frames` such frames are cycled through.
+// T (T = 30); `frames` such frames are cycled through. The wildtrack workload also measures
+// (a)-(e) on `rendered_frames` frames rendered by the simulator (RenderWildtrackFrames: real
+// trajectories, changes clustered on people), rendered once per run (render time reported apart);
+// WorkloadResult::rendered, skipped with a note when the dataset is absent.
 //
 //   BenchOptions o; o.workload = "all";
 //   OCCMAP_ASSIGN_OR_RETURN(std::vector<WorkloadResult> r, RunBench(o, ctx));
@@ -58,7 +61,30 @@ struct BenchOptions {
   // (in a temporary folder), RunSite (no video outputs) frames/s against a pure decode pass
   // over the same files with the same decoder threads. 0 = not measured (null in the JSON).
   int end_to_end_frames = 0;
+  // Frames rendered by the simulator for the wildtrack workload (0 = none).
+  int rendered_frames = 4;
   Status Validate() const;
+};
+
+// The same measurements on frames rendered by the simulator (the wildtrack workload: the
+// dataset's calibrations and annotated trajectories, people clustered where they walk): a few
+// frames spread over the sequence, rendered once per bench run at full size and kept in memory,
+// turned grey; the backgrounds are the empty scene's render.
+struct RenderedResult {
+  bool measured = false;
+  std::string note;             // why not measured, or which frames
+  int frames = 0;
+  double render_seconds = 0;    // scene set-up + static casts + the frames, all cameras
+  double changed_fraction = 0;  // pixels with |I - B| > T, over all cameras and frames
+  double paper_pps = 0;
+  double opencv_pps = 0;
+  double fast_1_pps = 0;
+  double fast_all_pps = 0;
+  double streaming_1_pps = 0;
+  double streaming_all_pps = 0;
+  double primary_failure_fraction = 0;  // failed primary probes / probes tested
+  double secondary_probes_per_frame = 0;  // secondary probes tested per frame (1 thread)
+  double streamed_frame_fraction = 0;   // frames handed to row streaming (1 thread)
 };
 
 struct WorkloadResult {
@@ -93,6 +119,8 @@ struct WorkloadResult {
   int64_t probe_bytes_read_per_frame = 0;  // FastFusion::ProbeBytesPerFrame (first pass)
   // Bytes read per frame by row streaming: images + backgrounds + its tables.
   int64_t fast_bytes_read_per_frame = 0;
+  double primary_failure_fraction = 0;  // failed primary probes / probes tested, (c)'s frames
+  RenderedResult rendered;              // wildtrack only
 };
 
 struct EndToEndResult {
@@ -127,6 +155,18 @@ std::string BenchTable(const BenchResults& results);
 // *_pixels_per_second, threads, ...}], "end_to_end_vs_decode": null, "notes": [...]}.
 nlohmann::json BenchJson(const BenchResults& results);
 std::string MachineName();  // /proc/cpuinfo's model name
+
+// Frames rendered by the simulator's wildtrack scene (sim::MakeWildtrackSceneSpec on
+// dataset_dir: the real calibrations and annotated trajectories): `count` frames spread over the
+// sequence, every camera at full size, grey (BT.601 luma, rounded), and the empty scene's render
+// as the background. sizes: the tables' image sizes (checked). frames[f][n], backgrounds[n].
+struct RenderedFrames {
+  std::vector<Image<uint8_t>> backgrounds;
+  std::vector<std::vector<Image<uint8_t>>> frames;
+  std::vector<int64_t> scene_frames;
+};
+Result<RenderedFrames> RenderWildtrackFrames(const std::filesystem::path& dataset_dir, int count,
+                                             const std::vector<ImageSize>& sizes, Context& ctx);
 
 // (a) The paper's image-based loop with the change test inside, all cameras, AND. `occupancy`
 // is resized to num_cells + 1 (the sentinel) and gets 1 = occupied (also for unseen cells),

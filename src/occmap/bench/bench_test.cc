@@ -217,5 +217,78 @@ TEST(Bench, FastFusionIdenticalToReferenceOnWildtrack) {
   }
 }
 
+// FastFusion on frames rendered by the simulator (WILDTRACK trajectories: changes clustered on
+// people, 13-15 % of the primary probes fail) against DetectChangesGray + Fusion, every path.
+TEST(Bench, FastFusionIdenticalToReferenceOnRenderedWildtrackFrames) {
+  OCCMAP_REQUIRE_DATASETS(root);
+  const std::filesystem::path site_file = std::filesystem::path(OCCMAP_SOURCE_DIR) / "sites" / "wildtrack.yaml";
+  auto site = LoadSite(site_file, SiteLoadOptions{root});
+  ASSERT_TRUE(site.ok()) << site.status().ToString();
+  Context ctx(2), ctx1(1);
+  auto lut = BuildGroundLut(site->LutInputs(), site->grid, site->lut, ctx);
+  ASSERT_TRUE(lut.ok());
+  std::vector<ImageSize> sizes;
+  for (int n = 0; n < lut->num_cameras(); ++n) sizes.push_back(lut->image_size(n));
+  auto rendered = RenderWildtrackFrames(root / "wildtrack", /*count=*/1, sizes, ctx);
+  ASSERT_TRUE(rendered.ok()) << rendered.status().ToString();
+  Frames f;
+  for (size_t n = 0; n < sizes.size(); ++n) {
+    f.frame_views.push_back(rendered->frames[0][n].view());
+    f.background_views.push_back(rendered->backgrounds[n].view());
+  }
+  const int threshold = 30;
+  std::vector<uint8_t> changes;
+  const OccupancyMap expected = Reference(*lut, f, threshold, changes);
+  EXPECT_GT(expected.Count(CellState::kOccupied), 1000);
+  FastFusion fast(*lut);
+  for (Context* c : {&ctx1, &ctx}) {
+    for (const double fallback : {0.15, 2.0, 0.0}) {
+      fast.SetStreamingFallbackForTesting(fallback, 4096);
+      OccupancyMap map;
+      fast.Fuse(f.frame_views, f.background_views, threshold, *c, map);
+      EXPECT_EQ(map, expected) << c->num_threads() << " threads, fallback " << fallback;
+      if (fallback == 2.0) {
+        EXPECT_GT(fast.last_frame_stats().primary_failed, 10000);
+      }
+      fast.FuseChanges(changes, *c, map);
+      EXPECT_EQ(map, expected) << c->num_threads() << " threads, fallback " << fallback << " (changes)";
+    }
+    OccupancyMap streamed;
+    fast.FuseWith(FastFusion::Method::kRowStreaming, f.frame_views, f.background_views, threshold, *c, streamed);
+    EXPECT_EQ(streamed, expected) << c->num_threads() << " threads (row streaming)";
+  }
+}
+
+TEST(Bench, JsonHasTheRenderedFramesRecord) {
+  BenchResults all;
+  WorkloadResult w;
+  w.name = "wildtrack";
+  w.rendered.measured = true;
+  w.rendered.frames = 4;
+  w.rendered.opencv_pps = 1e9;
+  w.rendered.paper_pps = 1e9;
+  w.rendered.fast_1_pps = 2e9;
+  w.rendered.fast_all_pps = 4e9;
+  all.workloads.push_back(w);
+  WorkloadResult missing;
+  missing.name = "wildtrack";
+  missing.rendered.note = "skipped: no data";
+  all.workloads.push_back(missing);
+  const nlohmann::json j = BenchJson(all);
+  const nlohmann::json& r = j["workloads"][0]["rendered"];
+  for (const char* key : {"frames", "render_seconds", "changed_fraction", "paper_loop_pixels_per_second",
+                          "opencv_pixels_per_second", "fast_1_thread_pixels_per_second",
+                          "fast_all_threads_pixels_per_second", "fast_all_threads_vs_1_thread", "speedup_vs_opencv",
+                          "speedup_vs_paper_loop", "primary_failure_fraction", "secondary_probes_per_frame",
+                          "streamed_frame_fraction", "row_streaming_1_thread_pixels_per_second"}) {
+    EXPECT_TRUE(r.contains(key)) << key;
+  }
+  EXPECT_DOUBLE_EQ(r["speedup_vs_opencv"].get<double>(), 4.0);
+  EXPECT_DOUBLE_EQ(r["fast_all_threads_vs_1_thread"].get<double>(), 2.0);
+  EXPECT_TRUE(j["workloads"][1]["rendered"]["skipped"].get<bool>());
+  EXPECT_NE(BenchTable(all).find("rendered frames"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace occmap::bench
+

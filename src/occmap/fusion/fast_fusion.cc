@@ -209,7 +209,8 @@ struct FailJob {
 };
 
 template <bool (*kProbe)(const ProbeSource&, FastFusion::Probe), bool kImages>
-inline void ResolveFailsImpl(const FailJob& job, const uint32_t* fails, int64_t num_fails) {
+inline int64_t ResolveFailsImpl(const FailJob& job, const uint32_t* fails, int64_t num_fails) {
+  int64_t tested = 0;
   const uint32_t* offsets = job.secondary_offsets;
   const FastFusion::Probe* secondary = job.secondary;
   for (int64_t k = 0; k < num_fails; ++k) {
@@ -221,36 +222,38 @@ inline void ResolveFailsImpl(const FailJob& job, const uint32_t* fails, int64_t 
     }
     const uint32_t i = fails[k];
     for (uint32_t r = offsets[i]; r < offsets[i + 1]; ++r) {
+      ++tested;
       if (kProbe(job.src, secondary[r])) {
         job.out[job.primary[i].cell] = static_cast<uint8_t>(CellState::kFree);
         break;
       }
     }
   }
+  return tested;
 }
 
-using FailKernel = void (*)(const FailJob& job, const uint32_t* fails, int64_t num_fails);
+using FailKernel = int64_t (*)(const FailJob& job, const uint32_t* fails, int64_t num_fails);
 
-void FailsImagesPortable(const FailJob& job, const uint32_t* fails, int64_t n) {
-  ResolveFailsImpl<ProbeImagesPortable, true>(job, fails, n);
+int64_t FailsImagesPortable(const FailJob& job, const uint32_t* fails, int64_t n) {
+  return ResolveFailsImpl<ProbeImagesPortable, true>(job, fails, n);
 }
-void FailsChangesPortable(const FailJob& job, const uint32_t* fails, int64_t n) {
-  ResolveFailsImpl<ProbeChangesPortable, false>(job, fails, n);
+int64_t FailsChangesPortable(const FailJob& job, const uint32_t* fails, int64_t n) {
+  return ResolveFailsImpl<ProbeChangesPortable, false>(job, fails, n);
 }
-__attribute__((target("avx2"), flatten)) void FailsImagesAvx2(const FailJob& job, const uint32_t* fails, int64_t n) {
-  ResolveFailsImpl<ProbeImagesAvx2, true>(job, fails, n);
+__attribute__((target("avx2"), flatten)) int64_t FailsImagesAvx2(const FailJob& job, const uint32_t* fails, int64_t n) {
+  return ResolveFailsImpl<ProbeImagesAvx2, true>(job, fails, n);
 }
-__attribute__((target("avx2"), flatten)) void FailsChangesAvx2(const FailJob& job, const uint32_t* fails,
+__attribute__((target("avx2"), flatten)) int64_t FailsChangesAvx2(const FailJob& job, const uint32_t* fails,
                                                                int64_t n) {
-  ResolveFailsImpl<ProbeChangesAvx2, false>(job, fails, n);
+  return ResolveFailsImpl<ProbeChangesAvx2, false>(job, fails, n);
 }
-__attribute__((target("avx512f,avx512bw"), flatten)) void FailsImagesAvx512(const FailJob& job, const uint32_t* fails,
+__attribute__((target("avx512f,avx512bw"), flatten)) int64_t FailsImagesAvx512(const FailJob& job, const uint32_t* fails,
                                                                             int64_t n) {
-  ResolveFailsImpl<ProbeImagesAvx512, true>(job, fails, n);
+  return ResolveFailsImpl<ProbeImagesAvx512, true>(job, fails, n);
 }
-__attribute__((target("avx512f,avx512bw"), flatten)) void FailsChangesAvx512(const FailJob& job,
+__attribute__((target("avx512f,avx512bw"), flatten)) int64_t FailsChangesAvx512(const FailJob& job,
                                                                              const uint32_t* fails, int64_t n) {
-  ResolveFailsImpl<ProbeChangesAvx512, false>(job, fails, n);
+  return ResolveFailsImpl<ProbeChangesAvx512, false>(job, fails, n);
 }
 
 struct Kernels {
@@ -562,6 +565,7 @@ void FastFusion::FuseWith(Method method, std::span<const ImageView<const uint8_t
   if (method == Method::kCellProbe) {
     ExecuteCells(ctx, map);
   } else {
+    stats_ = FrameStats{};
     Execute(ctx, map);
   }
 }
@@ -575,6 +579,7 @@ void FastFusion::FuseChangesWith(Method method, std::span<const uint8_t> changes
   if (method == Method::kCellProbe) {
     ExecuteCells(ctx, map);
   } else {
+    stats_ = FrameStats{};
     Execute(ctx, map);
   }
 }
@@ -625,6 +630,8 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
   task_deferred_.assign(static_cast<size_t>(num_tasks_), 0);
   task_stop_.assign(static_cast<size_t>(num_tasks_), 0);
   task_probed_.assign(static_cast<size_t>(num_tasks_), 0);
+  task_secondary_.assign(static_cast<size_t>(num_tasks_), 0);
+  stats_ = FrameStats{};
   const size_t pool_threads = static_cast<size_t>(std::max(threads, ctx.pool().num_workers() + 1));
   if (cell_bits_.size() < pool_threads) cell_bits_.resize(pool_threads);
   for (auto& b : cell_bits_) b.resize(static_cast<size_t>(max_width_) / 64 + 2);
@@ -646,16 +653,31 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
     probed += task_probed_[t];
     any_deferred |= task_deferred_[t] != 0;
   }
-  if (!any_deferred) return;
+  auto gather = [&] {
+    stats_.primary_probed = 0;
+    stats_.primary_failed = 0;
+    stats_.secondary_probed = 0;
+    for (size_t t = 0; t < static_cast<size_t>(num_tasks_); ++t) {
+      stats_.primary_probed += task_probed_[t];
+      stats_.primary_failed += task_fails_[t];
+      stats_.secondary_probed += task_secondary_[t];
+    }
+  };
+  if (!any_deferred) {
+    gather();
+    return;
+  }
   if (static_cast<double>(failed) > streaming_fallback_ * static_cast<double>(probed)) {
     // Most cells failed their primary probe (a lighting change, the camera covered): streaming
     // every pixel once beats probing each cell's secondary runs one by one.
+    gather();
     Execute(ctx, map);
     return;
   }
   resolving_ = true;
   run();
   resolving_ = false;
+  gather();
 }
 
 void FastFusion::CellTask(int task, int thread) {
@@ -678,7 +700,9 @@ void FastFusion::CellTask(int task, int thread) {
     if (!task_deferred_[t]) return;
     int64_t num_fails = task_fails_[t];
     ProbeRows(task_stop_[t], task_groups_[t + 1], bits, fails, num_fails, /*may_stop=*/false);
-    resolve(job, fails, num_fails);
+    task_fails_[t] = num_fails;
+    task_probed_[t] = row_groups_[task_groups_[t + 1]].probes_begin - first_probe;
+    task_secondary_[t] = resolve(job, fails, num_fails);
     return;
   }
   const size_t ranges = unseen_ranges_.size();
@@ -693,7 +717,7 @@ void FastFusion::CellTask(int task, int thread) {
   task_stop_[t] = stop;
   task_probed_[t] = row_groups_[stop].probes_begin - first_probe;
   if (stop == task_groups_[t + 1]) {
-    resolve(job, fails, num_fails);  // pass 2 now, while the task's data is in cache
+    task_secondary_[t] = resolve(job, fails, num_fails);  // pass 2 now, while the task's data is in cache
   } else {
     task_deferred_[t] = 1;  // decided once every task has counted its failures
   }
@@ -763,6 +787,7 @@ void FastFusion::Prepare(Context& ctx, OccupancyMap& map) {
 
 void FastFusion::Execute(Context& ctx, OccupancyMap& map) {
   Prepare(ctx, map);
+  stats_.streamed = true;
   const int threads = ctx.num_threads();
   // Several tasks per thread: the pool hands them out dynamically (rows differ in cost).
   reducing_ = false;

@@ -116,6 +116,15 @@ class FastFusion {
   // changed), like Fusion::Fuse with image-based, k = 0, all active.
   void FuseChanges(std::span<const uint8_t> changes, Context& ctx, OccupancyMap& map);
 
+  // What the last Fuse / FuseChanges call did.
+  struct FrameStats {
+    int64_t primary_probed = 0;    // primary probes tested (cell probes)
+    int64_t primary_failed = 0;    // of which all changed
+    int64_t secondary_probed = 0;  // secondary probes tested
+    bool streamed = false;         // row streaming did the frame (asked for, or the hand-over)
+  };
+  const FrameStats& last_frame_stats() const { return stats_; }
+
   int num_cameras() const { return static_cast<int>(sizes_.size()); }
   int64_t num_runs() const { return static_cast<int64_t>(runs_.size()); }
   int64_t num_pairs() const { return static_cast<int64_t>(pairs_.size()); }
@@ -193,6 +202,8 @@ class FastFusion {
   std::vector<uint8_t> task_deferred_;           // [task] 1 = stopped early, rows and fails left
   std::vector<uint32_t> task_stop_;              // [task] first row group not probed
   std::vector<int64_t> task_probed_;             // [task] primary probes tested
+  std::vector<int64_t> task_secondary_;          // [task] secondary probes tested
+  FrameStats stats_;
   std::vector<uint32_t> task_groups_;            // [task + 1] first row group of each task
   std::vector<std::vector<uint64_t>> cell_bits_;  // [thread] unchanged bits of one row
   bool resolving_ = false;

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <memory>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "occmap/fusion/fusion.h"
@@ -73,6 +74,32 @@ void MakeFrame(std::mt19937& rng, int threshold, double changed_fraction, Image<
       int f = b + sign * d;
       if (f > 255 || f < 0) f = b - sign * d;
       frame(x, y) = static_cast<uint8_t>(std::clamp(f, 0, 255));
+    }
+  }
+}
+
+// Changes clustered like people's silhouettes: the background random, the frame equal to it up
+// to T (both sides of the comparison) but inside `discs` random discs and upright ellipses
+// (radius 1 .. a quarter of the image height), where it differs by more than T; plus a few
+// isolated changed pixels. Cells under a disc fail their first probes in some cameras and not in
+// others, as on rendered frames.
+void MakeClusteredFrame(std::mt19937& rng, int threshold, int discs, Image<uint8_t>& frame,
+                        Image<uint8_t>& background) {
+  MakeFrame(rng, threshold, 0.002, frame, background);
+  const int w = frame.width(), h = frame.height();
+  std::uniform_int_distribution<int> x_dist(0, w - 1), y_dist(0, h - 1), r_dist(1, std::max(1, h / 4));
+  for (int k = 0; k < discs; ++k) {
+    const int cx = x_dist(rng), cy = y_dist(rng), rx = r_dist(rng);
+    const int ry = rng() % 2 == 0 ? rx : 3 * rx;  // a disc or a standing person's ellipse
+    for (int y = std::max(0, cy - ry); y <= std::min(h - 1, cy + ry); ++y) {
+      for (int x = std::max(0, cx - rx); x <= std::min(w - 1, cx + rx); ++x) {
+        const double dx = static_cast<double>(x - cx) / rx, dy = static_cast<double>(y - cy) / ry;
+        if (dx * dx + dy * dy > 1.0) continue;
+        const int b = background(x, y);
+        const int d = threshold + 1 + static_cast<int>(rng() % 3 == 0 ? rng() % 100 : 0);
+        frame(x, y) = static_cast<uint8_t>(b + d <= 255 ? b + d : std::max(0, b - d));
+        if (b + d > 255 && b - d < 0) frame(x, y) = background(x, y);  // no room: stays unchanged
+      }
     }
   }
 }
@@ -171,6 +198,66 @@ TEST_P(FastFusionKernels, IdenticalToReferenceOnRandomScenesAndFrames) {
   EXPECT_GT(occupied_total, 0);  // the test exercises occupied cells, not only free ones
 }
 
+// Every method and path against the reference on clustered changes: the cell probes with the
+// default hand-over, never handing over (every failure resolved by the second pass), handing
+// over at the first failure, and row streaming; frames and a change buffer; 1 and 2 threads.
+TEST_P(FastFusionKernels, IdenticalToReferenceOnClusteredChanges) {
+  std::mt19937 rng(4321);
+  Context ctx1(1), ctx2(2);
+  int64_t occupied_total = 0, failed_total = 0, secondary_total = 0;
+  for (int trial = 0; trial < 16; ++trial) {
+    RandomScene scene = MakeRandomScene(rng);
+    FastFusion fast(scene.lut);
+    for (int frame_index = 0; frame_index < 4; ++frame_index) {
+      const int threshold = static_cast<int>(rng() % 100);
+      const int discs = 1 + static_cast<int>(rng() % 12);
+      std::vector<Image<uint8_t>> frames, backgrounds;
+      std::vector<ImageView<const uint8_t>> frame_views, background_views;
+      for (int n = 0; n < scene.lut.num_cameras(); ++n) {
+        const ImageSize size = scene.lut.image_size(n);
+        frames.emplace_back(size.width, size.height);
+        backgrounds.emplace_back(size.width, size.height);
+        MakeClusteredFrame(rng, threshold, discs, frames.back(), backgrounds.back());
+      }
+      for (size_t n = 0; n < frames.size(); ++n) {
+        frame_views.push_back(frames[n].view());
+        background_views.push_back(backgrounds[n].view());
+      }
+      std::vector<uint8_t> changes;
+      const OccupancyMap expected = Reference(scene.lut, frames, backgrounds, threshold, changes);
+      occupied_total += expected.Count(CellState::kOccupied);
+      for (Context* ctx : {&ctx1, &ctx2}) {
+        const std::string where = "trial " + std::to_string(trial) + " frame " + std::to_string(frame_index) +
+                                  " threads " + std::to_string(ctx->num_threads());
+        for (const double fallback : {0.35, 2.0, 0.0}) {
+          fast.SetStreamingFallbackForTesting(fallback, /*sample=*/16);
+          OccupancyMap map;
+          fast.Fuse(frame_views, background_views, threshold, *ctx, map);
+          ASSERT_EQ(map, expected) << where << " fallback " << fallback;
+          if (fallback == 2.0) {
+            failed_total += fast.last_frame_stats().primary_failed;
+            secondary_total += fast.last_frame_stats().secondary_probed;
+            EXPECT_FALSE(fast.last_frame_stats().streamed);
+          }
+          OccupancyMap from_changes;
+          fast.FuseChanges(changes, *ctx, from_changes);
+          ASSERT_EQ(from_changes, expected) << where << " fallback " << fallback << " (changes)";
+        }
+        fast.SetStreamingFallbackForTesting(0.35, 4096);
+        OccupancyMap streamed;
+        fast.FuseWith(FastFusion::Method::kRowStreaming, frame_views, background_views, threshold, *ctx, streamed);
+        ASSERT_EQ(streamed, expected) << where << " (row streaming)";
+        EXPECT_TRUE(fast.last_frame_stats().streamed);
+      }
+    }
+  }
+  // The frames exercise what they are meant to: occupied cells, failed primary probes, the
+  // second pass.
+  EXPECT_GT(occupied_total, 0);
+  EXPECT_GT(failed_total, 0);
+  EXPECT_GT(secondary_total, 0);
+}
+
 TEST_P(FastFusionKernels, StridedViewsAndReuse) {
   std::mt19937 rng(99);
   RandomScene scene = MakeRandomScene(rng);
@@ -218,3 +305,4 @@ TEST(FastFusion, KernelNameIsKnown) {
 
 }  // namespace
 }  // namespace occmap
+
