@@ -10,10 +10,11 @@
 // Cell probes (kCellProbe, the default of Fuse / FuseChanges). Equation 5 is an AND: a cell is
 // free as soon as ONE of its pixels is unchanged, so most cells need one test. Per cell a
 // primary probe: the run of the camera with the most pixels on it, in the row with the most
-// trailing zero bits (neighbouring cells then share image rows and cache lines). The primary
-// table is sorted in image order and grouped by image row: per row, the unchanged bits of the
-// words the probes span (the row kernel below), then one bit test per probe, writing kFree or
-// kOccupied straight into the map. Cells whose primary run is all changed try their secondary
+// trailing zero bits (neighbouring cells then share image rows and cache lines), its first 56
+// pixels (a longer run's tail is the cell's first secondary run). The primary table is sorted
+// in image order and grouped by image row: per row, the unchanged bits of the words the probes
+// span (the row kernel below), then one bit test per probe (an unaligned 64-bit window of the
+// bits at the probe's first byte, two shifts), writing kFree or kOccupied straight into the map. Cells whose primary run is all changed try their secondary
 // runs (cell-major CSR, in primary order: the longest run of each other camera first, then
 // the rest) until one is free. Threads take contiguous ranges of the primary table: each cell
 // is written by one thread, no per-thread map, no reduction. Unseen cells are written from a
@@ -77,10 +78,13 @@ class FastFusion {
     uint16_t unused = 0;
   };
   // A cell's first probe, within its RowGroup; the table is sorted by (camera, row, column).
+  // Stored as the probe loop uses it: the run's first pixel from the group's first word
+  // (column - 64 word_begin), and 64 - its length (length 1..56; a longer run's tail is the
+  // cell's first secondary run).
   struct PrimaryProbe {
     uint32_t cell;
-    uint16_t column;
-    uint8_t length;  // 1..64
+    uint16_t offset;
+    uint8_t drop;
     uint8_t unused;
   };
   // The primary probes of one image row: [probes_begin, next group's probes_begin), covering

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cstdlib>
 #include <memory>
 #include <random>
@@ -256,6 +257,74 @@ TEST_P(FastFusionKernels, IdenticalToReferenceOnClusteredChanges) {
   EXPECT_GT(occupied_total, 0);
   EXPECT_GT(failed_total, 0);
   EXPECT_GT(secondary_total, 0);
+}
+
+// Runs longer than the probe loop's window (56 pixels: their tail is a secondary run): big cells
+// on big images, every pixel changed but, in camera 0, the pixels past the 56th of each cell's
+// longest run in its row with the most trailing zero bits (the primary run when camera 0 has the
+// most pixels on the cell): those cells are free through the tail alone.
+TEST_P(FastFusionKernels, LongRunsAreTestedToTheirLastPixel) {
+  testing::SmallRoom room(1280, 960);
+  FloorGrid grid = room.grid;
+  grid.cell_size_m = 0.25;
+  grid.cells_x = 16;
+  grid.cells_y = 12;
+  std::vector<LutCameraInput> inputs;
+  for (const auto& cam : room.cameras) inputs.push_back({&cam, {}});
+  Context ctx1(1), ctx2(2);
+  const GroundLut lut = BuildGroundLut(inputs, grid, {}, ctx1).value();
+  const int threshold = 30;
+  std::vector<Image<uint8_t>> frames, backgrounds;
+  for (int n = 0; n < lut.num_cameras(); ++n) {
+    const ImageSize size = lut.image_size(n);
+    backgrounds.emplace_back(size.width, size.height, 100);
+    frames.emplace_back(size.width, size.height, 200);  // changed
+  }
+  struct BestRun {
+    int rank = -1, x = 0, y = 0, length = 0;
+  };
+  std::vector<BestRun> best(static_cast<size_t>(grid.num_cells()));
+  const ImageSize size0 = lut.image_size(0);
+  const std::span<const uint32_t> l1 = lut.l1(0);
+  for (int y = 0; y < size0.height; ++y) {
+    int x = 0;
+    while (x < size0.width) {
+      const uint32_t cell = l1[static_cast<size_t>(y) * size0.width + x];
+      int length = 1;
+      while (x + length < size0.width && length < 64 && l1[static_cast<size_t>(y) * size0.width + x + length] == cell) {
+        ++length;
+      }
+      if (cell != lut.sentinel()) {
+        const int rank = std::min(std::countr_zero(static_cast<unsigned>(y) | 64u), 6) * 128 + length;
+        if (rank > best[cell].rank) best[cell] = BestRun{rank, x, y, length};
+      }
+      x += length;
+    }
+  }
+  int64_t long_runs = 0;
+  for (const BestRun& run : best) {
+    if (run.length <= 56) continue;
+    ++long_runs;
+    for (int i = 56; i < run.length; ++i) frames[0](run.x + i, run.y) = 100;  // unchanged
+  }
+  ASSERT_GT(long_runs, 10);
+  std::vector<ImageView<const uint8_t>> frame_views, background_views;
+  for (size_t n = 0; n < frames.size(); ++n) {
+    frame_views.push_back(frames[n].view());
+    background_views.push_back(backgrounds[n].view());
+  }
+  std::vector<uint8_t> changes;
+  const OccupancyMap expected = Reference(lut, frames, backgrounds, threshold, changes);
+  ASSERT_GT(expected.Count(CellState::kFree), 0);  // freed by long runs' tails only
+  FastFusion fast(lut);
+  fast.SetStreamingFallbackForTesting(2.0);  // resolve every failure with the cell probes
+  for (Context* ctx : {&ctx1, &ctx2}) {
+    OccupancyMap map;
+    fast.Fuse(frame_views, background_views, threshold, *ctx, map);
+    EXPECT_EQ(map, expected) << ctx->num_threads() << " threads";
+    fast.FuseChanges(changes, *ctx, map);
+    EXPECT_EQ(map, expected) << ctx->num_threads() << " threads (changes)";
+  }
 }
 
 TEST_P(FastFusionKernels, StridedViewsAndReuse) {
