@@ -173,6 +173,50 @@ void DilateChanges(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t
   }
 }
 
+void DetectChangesGrayDilated(ImageView<const uint8_t> frame, ImageView<const uint8_t> background, int threshold,
+                              int radius_px, ImageView<uint8_t> out, std::vector<uint8_t>& scratch) {
+  OCCMAP_CHECK(SameSize(frame, background) && SameSize(frame, out), "change detection: image sizes differ");
+  OCCMAP_CHECK(threshold >= 0 && threshold <= 255, "change detection: threshold outside 0..255");
+  OCCMAP_CHECK(radius_px >= 0 && radius_px <= kMaxDilationRadius, "dilation: radius outside 0..127");
+  const int width = frame.width(), height = frame.height();
+  if (width == 0 || height == 0) return;
+  const uint8_t t = static_cast<uint8_t>(threshold);
+  const int r = radius_px;
+  const size_t w = static_cast<size_t>(width);
+  const int ring_rows = 2 * r + 1;
+  // scratch: a ring of 2r + 1 row-dilated change rows, then one row of raw changes.
+  const size_t needed = w * static_cast<size_t>(ring_rows) + w;
+  if (scratch.size() < needed) scratch.resize(needed);
+  uint8_t* ring = scratch.data();
+  uint8_t* raw = scratch.data() + w * static_cast<size_t>(ring_rows);
+  auto ring_row = [&](int y) { return ring + static_cast<size_t>(y % ring_rows) * w; };
+  // Row y's changes, dilated along the row, into its ring slot.
+  auto make_row = [&](int y) {
+    const uint8_t* f = frame.row(y);
+    const uint8_t* b = background.row(y);
+    for (size_t x = 0; x < w; ++x) raw[x] = static_cast<uint8_t>(AbsDiff(f[x], b[x]) > t);
+    uint8_t* dst = ring_row(y);
+    for (size_t x = 0; x < w; ++x) dst[x] = raw[x];
+    for (int k = 1; k <= r && k < width; ++k) {
+      const size_t shift = static_cast<size_t>(k);
+      for (size_t x = 0; x + shift < w; ++x) dst[x] |= raw[x + shift];
+      for (size_t x = shift; x < w; ++x) dst[x] |= raw[x - shift];
+    }
+  };
+  int made = 0;  // rows [0, made) have been made
+  for (int y = 0; y < height; ++y) {
+    const int lo = std::max(0, y - r), hi = std::min(height - 1, y + r);
+    while (made <= hi) make_row(made++);
+    uint8_t* dst = out.row(y);
+    const uint8_t* first = ring_row(lo);
+    for (size_t x = 0; x < w; ++x) dst[x] = first[x];
+    for (int v = lo + 1; v <= hi; ++v) {
+      const uint8_t* add = ring_row(v);
+      for (size_t x = 0; x < w; ++x) dst[x] |= add[x];
+    }
+  }
+}
+
 void DilateChangesReference(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t> out) {
   OCCMAP_CHECK(SameSize(in, out), "dilation: image sizes differ");
   OCCMAP_CHECK(radius_px >= 0, "dilation: negative radius");

@@ -57,6 +57,12 @@ void DetectChangesRgbReference(ImageView<const Rgb8> frame, ImageView<const Rgb8
 // count of set pixels in the window, so the cost does not depend on r.
 void DilateChanges(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t> out,
                    std::vector<uint8_t>& scratch);
+// DetectChangesGray then DilateChanges by radius_px, in one pass over the rows (the changes
+// of 2r + 1 rows are kept in `scratch`, reused across frames): the same output, without
+// writing and re-reading a whole change image. Costs (2r + 1) row ORs per row: meant for the
+// small tolerances of real sites.
+void DetectChangesGrayDilated(ImageView<const uint8_t> frame, ImageView<const uint8_t> background, int threshold,
+                              int radius_px, ImageView<uint8_t> out, std::vector<uint8_t>& scratch);
 // Brute force over the (2r+1)^2 window of every pixel.
 void DilateChangesReference(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t> out);
 

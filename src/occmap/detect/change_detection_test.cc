@@ -200,6 +200,33 @@ TEST(DilateChanges, FastMatchesBruteForceForRadiiZeroToNineAndOddSizes) {
   }
 }
 
+TEST(DetectChangesGrayDilated, EqualsChangeDetectionThenTheReferenceDilation) {
+  std::mt19937 rng(5);
+  std::vector<uint8_t> scratch;  // shared across calls and sizes, as on the run path
+  const int sizes[][2] = {{1, 1}, {1, 17}, {17, 1}, {3, 5}, {37, 23}, {64, 64}, {101, 7}, {5, 99}, {640, 48}};
+  for (const auto& size : sizes) {
+    for (int r = 0; r <= 6; ++r) {
+      for (int threshold : {0, 20, 254}) {
+        Padded<uint8_t> frame(size[0], size[1], 3), background(size[0], size[1], 1);
+        for (int y = 0; y < size[1]; ++y) {
+          for (int x = 0; x < size[0]; ++x) {
+            const uint8_t b = static_cast<uint8_t>(rng());
+            background.view()(x, y) = b;
+            // Mostly near the background (noise), sometimes far (changes), in clusters.
+            const bool far = (rng() % 100) < 5 || ((x / 8 + y / 8) % 7 == 0 && rng() % 2);
+            frame.view()(x, y) = far ? static_cast<uint8_t>(rng()) : static_cast<uint8_t>(std::clamp(b + static_cast<int>(rng() % 11) - 5, 0, 255));
+          }
+        }
+        Padded<uint8_t> changes(size[0], size[1], 2), reference(size[0], size[1], 0, 0xCD), fused(size[0], size[1], 4, 0xAB);
+        DetectChangesGrayReference(frame.cview(), background.cview(), threshold, changes.view());
+        DilateChangesReference(changes.cview(), r, reference.view());
+        DetectChangesGrayDilated(frame.cview(), background.cview(), threshold, r, fused.view(), scratch);
+        ASSERT_TRUE(SamePixels(fused.cview(), reference.cview())) << size[0] << "x" << size[1] << " r=" << r << " T=" << threshold;
+      }
+    }
+  }
+}
+
 TEST(DilateChanges, WindowsLargerThanTheImageAreClampedToIt) {
   std::mt19937 rng(4);
   std::vector<uint8_t> scratch;

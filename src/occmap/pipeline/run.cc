@@ -533,9 +533,14 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     ImageView<uint8_t> slice(set.changes.data() + lut.pixel_offset(static_cast<int>(n)), size.width, size.height,
                              size.width);
     const int r = site.detection.tolerance_px;
+    const Frame& frame = set.frames[n];
+    if (r > 0 && r <= 4 && !c.is_mask && !colour) {  // small tolerances on grey: one pass, no raw image
+      DetectChangesGrayDilated(frame.gray.view(), c.background_gray.view(), site.detection.threshold, r, slice,
+                               scratch);
+      return;
+    }
     if (r > 0 && (raw.width() != size.width || raw.height() != size.height)) raw = Image<uint8_t>(size.width, size.height);
     ImageView<uint8_t> target = r > 0 ? raw.view() : slice;
-    const Frame& frame = set.frames[n];
     if (c.is_mask) {
       MaskToChanges(frame.gray.view(), target);
     } else if (colour) {
