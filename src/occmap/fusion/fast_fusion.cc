@@ -339,17 +339,20 @@ constexpr int64_t kReduceBlock = 4096;
 
 }  // namespace
 
-// Measured (occmap bench --workload wildtrack, AMD EPYC with AVX-512BW, 2 cores shared with
-// other builds and benchmarks, 2026-11, commit after 9f6c13f): 7 x 1920x1080 onto 480 x 1440,
-// 10 % of pixels changed independently. Cell probes: 4.2-4.5 Gpixel/s on 1 thread (3.2-3.5
-// ms/frame), 8.1 Gpixel/s on 2 when the second core is free (1.8x); the first pass reads
-// 15.5 MB per frame (primary table 5.5 MB, the probed rows' image words). Splitting pass 1's
-// time (SKIP experiments, 1 thread): row kernel over the probed spans ~40 %, probe loop ~40 %,
-// failed cells ~20 %. Tried without gain: computing only the words the probes touch (61 305 of
-// ~87 000 per image; slower, the spans stream better), software prefetch of the next rows'
-// spans and of the map's bytes. Row streaming: 1.7-1.9 Gpixel/s on 1 thread; it reads 29 MB of
-// images + 29.5 MB of tables (2.47 M runs, 1.12 M coverage pairs). Every pixel changed (the
-// hand-over): 2.9-3.5 Gpixel/s on 1 thread. The paper's loop 0.57-0.59 Gpixel/s.
+// Measured (occmap bench --workload all, AMD EPYC with AVX-512BW, 2 cores shared with other
+// work, 2026-11, commit after 4f63e0f; the run with the second core free): 7 x 1920x1080 onto
+// 480 x 1440. Random frames (10 % of pixels changed independently, 3.1 % of primary probes
+// fail): cell probes 4.0-4.9 Gpixel/s on 1 thread (3.0-3.6 ms/frame), 7.2-10.5 on 2. Rendered
+// WILDTRACK frames (simulator, real trajectories, 7.3 % changed, clustered; 13.9 % of primary
+// probes fail, ~100 K cells per frame): 3.2-4.0 Gpixel/s on 1 thread, 7.7 on 2; of a 3.5 ms
+// frame the row kernel over the spans takes ~0.9 ms, the probe loop ~1 ms, the failures ~1.6.
+// The first pass reads 15.5 MB per frame (primary table 5.5 MB, the probed rows' image words).
+// Tried without gain: computing only the words the probes touch (61 305 of ~87 000 per image;
+// slower, the spans stream better), software prefetch of the next rows' spans and of the map's
+// bytes (and, for the failures, see ProbeGroupImpl). Row streaming: 1.5-2.0 Gpixel/s on 1
+// thread; it reads 29 MB of images + 29.5 MB of tables (2.47 M runs, 1.12 M coverage pairs).
+// Every pixel changed (the hand-over): 2.8-3.3 Gpixel/s on 1 thread. The paper's loop 0.47-0.59
+// Gpixel/s on random frames, 1.0-1.2 on rendered ones (its branch predicts well there).
 FastFusion::FastFusion(const GroundLut& lut) : grid_(lut.grid()), streaming_fallback_(kDefaultStreamingFallback) {
   const int num_cameras = lut.num_cameras();
   OCCMAP_CHECK(num_cameras > 0, "fast fusion: tables without cameras");
