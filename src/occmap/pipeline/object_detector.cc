@@ -6,6 +6,7 @@
 
 #include "occmap/fusion/morphology.h"
 #include "occmap/track/detections.h"
+#include "occmap/util/status.h"
 
 namespace occmap {
 
@@ -38,14 +39,23 @@ void ObjectDetector::PrepareSupport(const FloorGrid& grid) {
   support_grid_ = grid;
   // Filled on first use, in tiles of kTileCells cells: a frame needs the cells under and
   // beside its detections only.
-  const size_t tiles = static_cast<size_t>((grid.num_cells() + kTileCells - 1) / kTileCells);
-  support_pixel_.assign(settings_.support_heights_m.size() * cameras_.size(), std::vector<std::vector<int32_t>>(tiles));
+  support_tiles_ = static_cast<size_t>((grid.num_cells() + kTileCells - 1) / kTileCells);
+  support_tile_start_.assign(settings_.support_heights_m.size() * support_tiles_, -1);
+  support_pixel_.clear();
 }
 
-int32_t ObjectDetector::SupportPixel(size_t h, size_t n, int64_t cell) {
-  std::vector<int32_t>& tile = support_pixel_[h * cameras_.size() + n][static_cast<size_t>(cell / kTileCells)];
-  if (tile.empty()) tile.assign(kTileCells, kNotProjected);
-  int32_t& pixel = tile[static_cast<size_t>(cell % kTileCells)];
+int32_t* ObjectDetector::SupportPixels(size_t h, int64_t cell) {
+  int64_t& start = support_tile_start_[h * support_tiles_ + static_cast<size_t>(cell / kTileCells)];
+  const size_t cameras = cameras_.size();
+  if (start < 0) {
+    start = static_cast<int64_t>(support_pixel_.size());
+    support_pixel_.resize(support_pixel_.size() + static_cast<size_t>(kTileCells) * cameras, kNotProjected);
+  }
+  return support_pixel_.data() + static_cast<size_t>(start) + static_cast<size_t>(cell % kTileCells) * cameras;
+}
+
+int32_t ObjectDetector::SupportPixel(size_t h, size_t n, int64_t cell, int32_t* pixels) {
+  int32_t& pixel = pixels[n];
   if (pixel != kNotProjected) return pixel;
   pixel = -1;
   const CameraModel& model = *cameras_[n].camera;
@@ -63,21 +73,30 @@ int32_t ObjectDetector::SupportPixel(size_t h, size_t n, int64_t cell) {
   return pixel;
 }
 
-int ObjectDetector::SupportAt(size_t h, int64_t cell, const std::vector<bool>& active, const ChangeLookup& changed) {
+int ObjectDetector::SupportAt(size_t h, int64_t cell, const ChangeLookup& changed,
+                              std::span<const ChangeBuffer> buffers) {
+  int32_t* pixels = SupportPixels(h, cell);
   int seeing = 0;
-  for (size_t n = 0; n < cameras_.size(); ++n) {
-    if (n >= active.size() || !active[n]) continue;
-    const int32_t p = SupportPixel(h, n, cell);
+  for (size_t n : active_cameras_) {
+    const int32_t p = SupportPixel(h, n, cell, pixels);
     if (p < 0) continue;
     ++seeing;
     const int width = cameras_[n].camera->image_size().width;
-    if (!changed(static_cast<int>(n), p % width, p / width)) return 0;
+    if (!buffers.empty()) {
+      const ChangeBuffer& b = buffers[n];
+      const size_t at = b.stride == static_cast<size_t>(width)
+                            ? static_cast<size_t>(p)
+                            : static_cast<size_t>(p / width) * b.stride + static_cast<size_t>(p % width);
+      if (b.pixels[at] == 0) return 0;
+    } else if (!changed(static_cast<int>(n), p % width, p / width)) {
+      return 0;
+    }
   }
   return seeing > 0 ? 1 : -1;
 }
 
-void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const std::vector<bool>& active,
-                                       const ChangeLookup& changed, std::vector<int>& blob_group,
+void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const ChangeLookup& changed,
+                                       std::span<const ChangeBuffer> buffers, std::vector<int>& blob_group,
                                        const std::vector<int>& kept_index, const std::vector<Blob>& kept_groups,
                                        DetectedObjects& out) {
   const FloorGrid& grid = map.grid();
@@ -88,7 +107,9 @@ void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const std::vecto
   // box), each given to the group's nearest detection.
   std::vector<std::vector<int>> detections_of(kept_index.size());
   for (size_t d = 0; d < blobs.size(); ++d) detections_of[static_cast<size_t>(blob_group[d])].push_back(static_cast<int>(d));
-  std::vector<std::vector<std::pair<int, int>>> footprint(blobs.size());
+  std::vector<std::vector<std::pair<int, int>>>& footprint = footprint_;
+  if (footprint.size() < blobs.size()) footprint.resize(blobs.size());
+  for (size_t d = 0; d < blobs.size(); ++d) footprint[d].clear();
   for (size_t g = 0; g < kept_index.size(); ++g) {
     const Blob& box = kept_groups[g];
     for (int j = box.min_j; j <= box.max_j; ++j) {
@@ -119,7 +140,7 @@ void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const std::vecto
       for (int di = -reach; di <= reach && state < 1; di += std::max(1, reach)) {
         const int ii = i + di, jj = j + dj;
         if (ii < 0 || jj < 0 || ii >= grid.cells_x || jj >= grid.cells_y) continue;
-        state = std::max(state, SupportAt(h, int64_t{jj} * grid.cells_x + ii, active, changed));
+        state = std::max(state, SupportAt(h, int64_t{jj} * grid.cells_x + ii, changed, buffers));
       }
     }
     return state;
@@ -157,7 +178,8 @@ void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const std::vecto
 }
 
 void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& active, const ChangeLookup& changed,
-                            DetectedObjects& out) {
+                            DetectedObjects& out, std::span<const ChangeBuffer> buffers) {
+  OCCMAP_CHECK(buffers.empty() || buffers.size() == cameras_.size(), "ObjectDetector: one change buffer per camera");
   GrowOccupied(map, settings_.group_radius_m, out.grown);
   const std::vector<Blob>& groups = groups_.Find(out.grown);
   FootprintBlobs(map, groups_, footprints_);
@@ -192,8 +214,12 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
     blobs = kept_footprints;
     for (size_t k = 0; k < blobs.size(); ++k) blob_group.push_back(static_cast<int>(k));
   }
-  if (!settings_.support_heights_m.empty() && changed && !blobs.empty()) {
-    RemoveUnsupported(map, active, changed, blob_group, kept_index, kept_groups, out);
+  if (!settings_.support_heights_m.empty() && (changed || !buffers.empty()) && !blobs.empty()) {
+    active_cameras_.clear();
+    for (size_t n = 0; n < cameras_.size() && n < active.size(); ++n) {
+      if (active[n]) active_cameras_.push_back(n);
+    }
+    RemoveUnsupported(map, changed, buffers, blob_group, kept_index, kept_groups, out);
   }
   if (settings_.remove_ghosts && blobs.size() > 1) {
     std::vector<Viewer> viewers;

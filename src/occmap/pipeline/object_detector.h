@@ -15,8 +15,10 @@
 //   detector.Detect(map, active, objects);   // objects.detections, objects.groups, objects.grown
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "occmap/fusion/blobs.h"
@@ -56,10 +58,19 @@ class ObjectDetector {
   // Whether camera n's pixel (column x, row y) shows a change in the current frame.
   using ChangeLookup = std::function<bool(int camera, int x, int y)>;
 
+  // The same changes as a buffer: camera n's pixel (x, y) changed when pixels[y * stride + x]
+  // is not 0.
+  struct ChangeBuffer {
+    const uint8_t* pixels = nullptr;
+    size_t stride = 0;
+  };
+
   // active[n]: camera n contributed to this map (size = cameras). `changed` (may be empty)
-  // answers the elevated check. Reuses out's buffers.
+  // answers the elevated check. `buffers` (empty, or one per camera) holds the same changes
+  // as `changed` and, when given, is read instead of it (the fast path; `changed` is the
+  // reference, equal by test). Reuses out's buffers.
   void Detect(const OccupancyMap& map, const std::vector<bool>& active, const ChangeLookup& changed,
-              DetectedObjects& out);
+              DetectedObjects& out, std::span<const ChangeBuffer> buffers = {});
   // Without per-pixel changes (no elevated check).
   void Detect(const OccupancyMap& map, const std::vector<bool>& active, DetectedObjects& out) {
     Detect(map, active, ChangeLookup(), out);
@@ -68,12 +79,14 @@ class ObjectDetector {
  private:
   void PrepareSupport(const FloorGrid& grid);
   // The plane-h occupancy of a cell: 1 occupied (every active camera seeing it changed), 0
-  // free, -1 no active camera sees it.
-  int SupportAt(size_t h, int64_t cell, const std::vector<bool>& active, const ChangeLookup& changed);
-  // Camera n's pixel (row * width + column) where the cell's centre at plane h projects, -1
-  // when it does not see it; projected on first use.
-  int32_t SupportPixel(size_t h, size_t n, int64_t cell);
-  void RemoveUnsupported(const OccupancyMap& map, const std::vector<bool>& active, const ChangeLookup& changed,
+  // free, -1 no active camera sees it. Reads `buffers` when not empty, else `changed`.
+  int SupportAt(size_t h, int64_t cell, const ChangeLookup& changed, std::span<const ChangeBuffer> buffers);
+  // The cameras' pixels (row * width + column) where the cell's centre at plane h projects
+  // (entry n for camera n; -1 when it does not see it, kNotProjected until first used).
+  int32_t* SupportPixels(size_t h, int64_t cell);
+  // Camera n's entry of `pixels` (SupportPixels), projected on first use.
+  int32_t SupportPixel(size_t h, size_t n, int64_t cell, int32_t* pixels);
+  void RemoveUnsupported(const OccupancyMap& map, const ChangeLookup& changed, std::span<const ChangeBuffer> buffers,
                          std::vector<int>& blob_group, const std::vector<int>& kept_index,
                          const std::vector<Blob>& kept_groups, DetectedObjects& out);
 
@@ -91,7 +104,11 @@ class ObjectDetector {
   static constexpr int32_t kNotProjected = -2;
   static constexpr int64_t kTileCells = 4096;
   std::optional<FloorGrid> support_grid_;
-  std::vector<std::vector<std::vector<int32_t>>> support_pixel_;  // [height * cameras + camera][tile][cell]
+  size_t support_tiles_ = 0;                 // tiles of the grid
+  std::vector<int64_t> support_tile_start_;  // [height * tiles + tile]: its start in support_pixel_, -1 none yet
+  std::vector<int32_t> support_pixel_;       // per tile: [cell in tile * cameras + camera]
+  std::vector<size_t> active_cameras_;       // this frame's active cameras, in order
+  std::vector<std::vector<std::pair<int, int>>> footprint_;  // per detection, its footprint cells (reused)
 };
 
 }  // namespace occmap

@@ -116,5 +116,41 @@ TEST_F(ObjectDetectorTest, ACameraThatSeesTheFlatDiscFreeIsEnoughToDropIt) {
   EXPECT_NEAR(out.detections[0].x_m, standing_.x(), 0.03);
 }
 
+TEST_F(ObjectDetectorTest, ChangeBuffersGiveTheSameDetectionsAsTheLookup) {
+  // The fast path (change buffers) against the reference (the lookup), with rows as wide as
+  // the image and with padded rows, for several planes and sets of active cameras.
+  for (const size_t pad : {size_t{0}, size_t{5}}) {
+    std::vector<std::vector<uint8_t>> pixels(room_.cameras.size());
+    std::vector<ObjectDetector::ChangeBuffer> buffers;
+    for (size_t n = 0; n < room_.cameras.size(); ++n) {
+      const ImageSize size = room_.cameras[n].image_size();
+      const size_t stride = static_cast<size_t>(size.width) + pad;
+      pixels[n].assign(stride * static_cast<size_t>(size.height), 0);
+      for (const auto& [x, y] : changed_[n]) {
+        if (x >= 0 && y >= 0 && x < size.width && y < size.height) pixels[n][static_cast<size_t>(y) * stride + x] = 1;
+      }
+      buffers.push_back({pixels[n].data(), stride});
+    }
+    for (const std::vector<double>& heights : {std::vector<double>{0.35, 1.0}, {2.0}, {2.0, 0.5}, {0.35}}) {
+      for (int mask = 0; mask < 16; ++mask) {
+        std::vector<bool> active(4);
+        for (size_t n = 0; n < 4; ++n) active[n] = (mask >> n) & 1;
+        ObjectDetector reference(Settings(heights), tracker_, 0.0, views_);
+        ObjectDetector fast(Settings(heights), tracker_, 0.0, views_);
+        DetectedObjects expected, got;
+        reference.Detect(map_, active, Lookup(), expected);
+        fast.Detect(map_, active, {}, got, buffers);
+        ASSERT_EQ(got.detections.size(), expected.detections.size()) << "mask " << mask;
+        for (size_t k = 0; k < got.detections.size(); ++k) {
+          EXPECT_EQ(got.detections[k].x_m, expected.detections[k].x_m);
+          EXPECT_EQ(got.detections[k].y_m, expected.detections[k].y_m);
+          EXPECT_EQ(got.detections[k].cells, expected.detections[k].cells);
+        }
+        EXPECT_EQ(got.groups.size(), expected.groups.size());
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace occmap

@@ -562,6 +562,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   Clock::time_point t_first_done, t_warm_done, t_last_done;
   std::vector<Image<uint8_t>> post_raw(cams.size());
   std::vector<std::vector<uint8_t>> post_scratch(cams.size());
+  std::vector<ObjectDetector::ChangeBuffer> post_changes;  // the elevated check's fast path
   StageWorker<int> post(
       kSlots,
       [&](int& slot) -> Status {
@@ -590,7 +591,11 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                         static_cast<int>(c.background_gray.view()(x, y));
           return std::abs(d) > site.detection.threshold;
         };
-        detector.Detect(map, active, changed, objects);
+        post_changes.clear();
+        for (size_t n = 0; n < cams.size() && set.changes_ready; ++n) {
+          post_changes.push_back({set.changes.data() + lut.pixel_offset(static_cast<int>(n)), camera_width[n]});
+        }
+        detector.Detect(map, active, changed, objects, post_changes);
         const std::vector<Blob>& blobs = objects.detections;
         const std::vector<Blob>& groups = objects.groups;
         summary.blobs_s += Since(t0);
