@@ -198,7 +198,7 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
   if (settings_.split) {
     // Each group split once (SplitBlob): the tracker gets the splits of the groups kept.
     splits_.clear();
-    for (const Blob& g : kept_groups) splits_.push_back(SplitBlob(g, out.grown, tracker_options_));
+    for (const Blob& g : kept_groups) splits_.push_back(SplitBlob(g, out.grown, tracker_options_, split_scratch_));
     for (const Detection& d : DetectionsFromSplits(kept_groups, splits_, out.grown, tracker_options_)) {
       Blob b = kept_footprints[d.blob_index];  // one part: the group's footprint
       if (d.parts > 1) {

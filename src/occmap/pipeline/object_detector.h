@@ -100,6 +100,7 @@ class ObjectDetector {
   BlobFinder groups_;                     // the groups of the grown map, buffers kept
   std::vector<Blob> footprints_;
   std::vector<BlobSplit> splits_;         // per kept group, this frame
+  SplitScratch split_scratch_;            // SplitBlob's buffers, kept
   // The elevated check's projections (SupportPixel), kNotProjected until first used.
   static constexpr int32_t kNotProjected = -2;
   static constexpr int64_t kTileCells = 4096;

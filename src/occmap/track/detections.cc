@@ -134,6 +134,211 @@ std::vector<int> KMeans(const std::vector<Eigen::Vector2d>& points, std::vector<
   return label;
 }
 
+// SquaredDistance1d on flat buffers: f and out hold n values; v and z are reused.
+void SquaredDistance1dInto(const double* f, int n, double* out, std::vector<int>& v, std::vector<double>& z) {
+  const double inf = std::numeric_limits<double>::infinity();
+  v.resize(static_cast<size_t>(n));
+  z.resize(static_cast<size_t>(n) + 1);
+  v[0] = 0;
+  int k = 0;
+  z[0] = -inf;
+  z[1] = inf;
+  auto intersection = [&](int q, int p) {
+    return ((f[q] + double(q) * q) - (f[p] + double(p) * p)) / (2.0 * q - 2.0 * p);
+  };
+  for (int q = 1; q < n; ++q) {
+    double s = intersection(q, v[k]);
+    while (s <= z[k]) {
+      --k;
+      s = intersection(q, v[k]);
+    }
+    ++k;
+    v[k] = q;
+    z[k] = s;
+    z[k + 1] = inf;
+  }
+  k = 0;
+  for (int q = 0; q < n; ++q) {
+    while (z[k + 1] < q) ++k;
+    out[q] = double(q - v[k]) * (q - v[k]) + f[v[k]];
+  }
+}
+
+// SquaredDistanceTransform into scratch.d2, the column runs counted in integers (exact, as
+// the reference's doubles are).
+void SquaredDistanceTransformInto(const std::vector<uint8_t>& inside, int width, int height, SplitScratch& s) {
+  const size_t size = inside.size();
+  s.g.resize(size);
+  for (int a = 0; a < width; ++a) {
+    int run = 0;
+    for (int b = 0; b < height; ++b) {
+      run = inside[b * width + a] ? run + 1 : 0;
+      s.g[b * width + a] = run;
+    }
+    run = 0;
+    for (int b = height - 1; b >= 0; --b) {
+      run = inside[b * width + a] ? run + 1 : 0;
+      s.g[b * width + a] = std::min(s.g[b * width + a], run);
+    }
+  }
+  s.d2.resize(size);
+  s.f.resize(static_cast<size_t>(width));
+  for (int b = 0; b < height; ++b) {
+    const int* g = s.g.data() + int64_t{b} * width;
+    for (int a = 0; a < width; ++a) s.f[a] = static_cast<double>(g[a]) * static_cast<double>(g[a]);
+    SquaredDistance1dInto(s.f.data(), width, s.d2.data() + int64_t{b} * width, s.v, s.z);
+  }
+}
+
+// DistancePeaks into scratch.peaks, the buffers reused and each distance's square root
+// taken only where a persistence is tested (the same expression: the same values).
+void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells, const TrackerOptions& options,
+                       SplitScratch& s) {
+  s.peaks.clear();
+  if (cells.empty()) return;
+  int min_i = grid.cells_x, min_j = grid.cells_y, max_i = -1, max_j = -1;
+  for (int64_t c : cells) {
+    const int i = static_cast<int>(c % grid.cells_x), j = static_cast<int>(c / grid.cells_x);
+    min_i = std::min(min_i, i);
+    max_i = std::max(max_i, i);
+    min_j = std::min(min_j, j);
+    max_j = std::max(max_j, j);
+  }
+  const LocalBox box{min_i - 1, min_j - 1, max_i - min_i + 3, max_j - min_j + 3};
+  const size_t size = static_cast<size_t>(box.width) * box.height;
+  s.inside.assign(size, 0);
+  std::vector<int>& locals = s.locals;
+  locals.clear();
+  for (int64_t c : cells) {
+    const int local = box.Index(static_cast<int>(c % grid.cells_x) - box.i0, static_cast<int>(c / grid.cells_x) - box.j0);
+    s.inside[local] = 1;
+    locals.push_back(local);
+  }
+  SquaredDistanceTransformInto(s.inside, box.width, box.height, s);
+  const std::vector<double>& d2 = s.d2;
+  const std::vector<uint8_t>& inside = s.inside;
+  auto dist_m = [&](int k) { return std::sqrt(d2[k]) * grid.cell_size_m; };
+  {
+    int max_key = 0;
+    for (int c : locals) max_key = std::max(max_key, static_cast<int>(d2[c]));
+    s.start.assign(static_cast<size_t>(max_key) + 2, 0);
+    for (int c : locals) ++s.start[static_cast<size_t>(max_key - static_cast<int>(d2[c])) + 1];
+    for (size_t k = 1; k < s.start.size(); ++k) s.start[k] += s.start[k - 1];
+    s.sorted.resize(locals.size());
+    for (int c : locals) s.sorted[static_cast<size_t>(s.start[static_cast<size_t>(max_key - static_cast<int>(d2[c]))]++)] = c;
+  }
+  const std::vector<int>& order = s.sorted;
+  std::vector<int>& parent = s.parent;
+  std::vector<int>& peak = s.peak;
+  std::vector<int>& rank_of = s.rank_of;
+  parent.assign(size, -1);
+  peak.resize(size);     // read for processed cells only
+  rank_of.resize(size);  // read for cells of `order` only
+  for (size_t r = 0; r < order.size(); ++r) rank_of[order[r]] = static_cast<int>(r);
+  auto find = [&](int x) {
+    while (parent[x] != x) {
+      parent[x] = parent[parent[x]];
+      x = parent[x];
+    }
+    return x;
+  };
+  const double min_neck_m = std::max(options.split_min_neck_m, grid.cell_size_m);
+  const double half_cell_m = 0.5 * grid.cell_size_m;
+  std::vector<int>& significant = s.significant;
+  significant.clear();
+  const int offsets[8] = {-box.width - 1, -box.width, -box.width + 1, -1, 1, box.width - 1, box.width, box.width + 1};
+  for (int c : order) {
+    int roots[8];
+    int num_roots = 0;
+    for (int o : offsets) {
+      const int n = c + o;  // the border is never inside: in range
+      if (!inside[n] || parent[n] < 0) continue;
+      const int root = find(n);
+      if (std::find(roots, roots + num_roots, root) == roots + num_roots) roots[num_roots++] = root;
+    }
+    if (num_roots == 0) {
+      parent[c] = c;
+      peak[c] = c;
+      continue;
+    }
+    int best = roots[0];
+    for (int k = 1; k < num_roots; ++k) {
+      if (rank_of[peak[roots[k]]] < rank_of[peak[best]]) best = roots[k];
+    }
+    for (int k = 0; k < num_roots; ++k) {
+      const int r = roots[k];
+      if (r == best) continue;
+      const double height_m = dist_m(peak[r]);
+      if (height_m - dist_m(c) >= min_neck_m && height_m - half_cell_m >= options.split_min_peak_radius_m) {
+        significant.push_back(peak[r]);
+      }
+      parent[r] = best;
+    }
+    parent[c] = best;
+  }
+  significant.push_back(order.front());  // the highest peak always counts
+  std::sort(significant.begin(), significant.end(), [&](int a, int b) { return rank_of[a] < rank_of[b]; });
+  for (int local : significant) {
+    const int64_t cell = int64_t{local / box.width + box.j0} * grid.cells_x + (local % box.width + box.i0);
+    s.peaks.push_back(grid.CellCenter(cell));
+  }
+}
+
+// Nearest-centre partition of the points (s.xs, s.ys) among the first k centres (s.centre_x,
+// s.centre_y) into s.label, as Partition (the same squared distances, ties to the lower
+// centre); whether any label changed.
+bool PartitionInto(SplitScratch& s, size_t k) {
+  const size_t n = s.xs.size();
+  const double* xs = s.xs.data();
+  const double* ys = s.ys.data();
+  const double* cx = s.centre_x.data();
+  const double* cy = s.centre_y.data();
+  int* label = s.label.data();
+  bool changed = false;
+  for (size_t p = 0; p < n; ++p) {
+    double best = std::numeric_limits<double>::infinity();
+    int best_c = 0;
+    for (size_t c = 0; c < k; ++c) {
+      const double dx = xs[p] - cx[c], dy = ys[p] - cy[c];
+      const double d2 = dx * dx + dy * dy;
+      if (d2 < best) {
+        best = d2;
+        best_c = static_cast<int>(c);
+      }
+    }
+    changed |= label[p] != best_c;
+    label[p] = best_c;
+  }
+  return changed;
+}
+
+// KMeans on flat arrays: points s.xs, s.ys, seeds s.centre_x, s.centre_y (k of them); the
+// labels in s.label. The same rounds, sums in the same order, the same result.
+void KMeansInto(SplitScratch& s, size_t k) {
+  s.label.assign(s.xs.size(), -1);
+  PartitionInto(s, k);
+  for (int round = 0; round < 50; ++round) {
+    s.sum_x.assign(k, 0.0);
+    s.sum_y.assign(k, 0.0);
+    s.counts.assign(k, 0);
+    for (size_t p = 0; p < s.xs.size(); ++p) {
+      const size_t c = static_cast<size_t>(s.label[p]);
+      s.sum_x[c] += s.xs[p];
+      s.sum_y[c] += s.ys[p];
+      ++s.counts[c];
+    }
+    size_t next = 0;
+    for (size_t c = 0; c < k; ++c) {
+      if (s.counts[c] == 0) continue;
+      s.centre_x[next] = s.sum_x[c] / static_cast<double>(s.counts[c]);
+      s.centre_y[next] = s.sum_y[c] / static_cast<double>(s.counts[c]);
+      ++next;
+    }
+    k = next;
+    if (!PartitionInto(s, k)) break;
+  }
+}
+
 }  // namespace
 
 std::vector<int64_t> BlobCells(const OccupancyMap& map, const Blob& blob) {
@@ -407,6 +612,60 @@ BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOpti
     add(cells);
   } else {
     for (const std::vector<int64_t>& part : parts) add(part);
+  }
+  for (Detection& d : split.detections) d.parts = static_cast<int>(split.detections.size());
+  return split;
+}
+
+BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOptions& options, SplitScratch& scratch) {
+  BlobSplit split;
+  if (blob.area_m2 < options.min_detection_area_m2 || blob.cells <= 0) return split;
+  const FloorGrid& grid = map.grid();
+  split.cells = BlobCells(map, blob);
+  const std::vector<int64_t>& cells = split.cells;
+  split.max_people = MaxPeopleInArea(blob.area_m2, options);
+  std::vector<std::vector<int64_t>>& parts = scratch.parts;
+  size_t num_parts = 0;
+  if (split.max_people >= 2) {
+    DistancePeaksInto(grid, cells, options, scratch);
+    const size_t seeds = std::min(scratch.peaks.size(), static_cast<size_t>(split.max_people));
+    split.peaks = seeds;
+    if (seeds >= 2) {
+      scratch.xs.resize(cells.size());
+      scratch.ys.resize(cells.size());
+      for (size_t p = 0; p < cells.size(); ++p) {
+        const Eigen::Vector2d c = grid.CellCenter(cells[p]);
+        scratch.xs[p] = c.x();
+        scratch.ys[p] = c.y();
+      }
+      scratch.centre_x.resize(seeds);
+      scratch.centre_y.resize(seeds);
+      for (size_t c = 0; c < seeds; ++c) {
+        scratch.centre_x[c] = scratch.peaks[c].x();
+        scratch.centre_y[c] = scratch.peaks[c].y();
+      }
+      KMeansInto(scratch, seeds);
+      num_parts = static_cast<size_t>(*std::max_element(scratch.label.begin(), scratch.label.end())) + 1;
+      if (num_parts >= 2) {
+        if (parts.size() < num_parts) parts.resize(num_parts);
+        for (size_t k = 0; k < num_parts; ++k) parts[k].clear();
+        for (size_t p = 0; p < cells.size(); ++p) parts[static_cast<size_t>(scratch.label[p])].push_back(cells[p]);
+      } else {
+        num_parts = 0;
+      }
+    }
+  }
+  auto add = [&](const std::vector<int64_t>& part) {
+    if (part.empty()) return;
+    Detection d = DetectionFromCells(grid, part);
+    if (d.area_m2 < options.min_detection_area_m2) return;
+    d.blob_index = 0;
+    split.detections.push_back(d);
+  };
+  if (num_parts == 0) {
+    add(cells);
+  } else {
+    for (size_t k = 0; k < num_parts; ++k) add(parts[k]);
   }
   for (Detection& d : split.detections) d.parts = static_cast<int>(split.detections.size());
   return split;

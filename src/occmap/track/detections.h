@@ -85,6 +85,20 @@ struct BlobSplit {
   std::vector<Detection> detections;   // without predictions, blob_index 0
 };
 BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOptions& options);
+
+// Buffers SplitBlob reuses from one call to the next (the distance transform, the peaks'
+// union-find, the k-means points and labels): with one per caller, a frame's splits allocate
+// little more than their results. Not shared between threads.
+struct SplitScratch {
+  std::vector<uint8_t> inside;
+  std::vector<int> g, v, locals, start, sorted, parent, peak, rank_of, significant, label, counts;
+  std::vector<double> d2, f, z, xs, ys, centre_x, centre_y, sum_x, sum_y;
+  std::vector<Eigen::Vector2d> peaks;
+  std::vector<std::vector<int64_t>> parts;
+};
+// The same split as SplitBlob (equal, tested), with scratch buffers reused and the k-means on
+// flat arrays.
+BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOptions& options, SplitScratch& scratch);
 std::vector<Detection> DetectionsFromSplits(const std::vector<Blob>& blobs, const std::vector<BlobSplit>& splits,
                                             const OccupancyMap& map, const TrackerOptions& options,
                                             const std::vector<Eigen::Vector2d>& predicted_positions_m = {});
