@@ -46,12 +46,12 @@ void ObjectDetector::PrepareSupport(const FloorGrid& grid) {
 
 int32_t* ObjectDetector::SupportPixels(size_t h, int64_t cell) {
   int64_t& start = support_tile_start_[h * support_tiles_ + static_cast<size_t>(cell / kTileCells)];
-  const size_t cameras = cameras_.size();
+  const size_t entries = cameras_.size() + 1;
   if (start < 0) {
     start = static_cast<int64_t>(support_pixel_.size());
-    support_pixel_.resize(support_pixel_.size() + static_cast<size_t>(kTileCells) * cameras, kNotProjected);
+    support_pixel_.resize(support_pixel_.size() + static_cast<size_t>(kTileCells) * entries, kNotProjected);
   }
-  return support_pixel_.data() + static_cast<size_t>(start) + static_cast<size_t>(cell % kTileCells) * cameras;
+  return support_pixel_.data() + static_cast<size_t>(start) + static_cast<size_t>(cell % kTileCells) * entries;
 }
 
 int32_t ObjectDetector::SupportPixel(size_t h, size_t n, int64_t cell, int32_t* pixels) {
@@ -76,6 +76,16 @@ int32_t ObjectDetector::SupportPixel(size_t h, size_t n, int64_t cell, int32_t* 
 int ObjectDetector::SupportAt(size_t h, int64_t cell, const ChangeLookup& changed,
                               std::span<const ChangeBuffer> buffers) {
   int32_t* pixels = SupportPixels(h, cell);
+  // The cell's state is asked again by neighbouring samples: kept for this frame.
+  int32_t& memo = pixels[cameras_.size()];
+  if (memo >= 0 && (memo >> 2) == support_generation_) return (memo & 3) - 1;
+  const int state = SupportState(h, cell, pixels, changed, buffers);
+  memo = support_generation_ * 4 + (state + 1);
+  return state;
+}
+
+int ObjectDetector::SupportState(size_t h, int64_t cell, int32_t* pixels, const ChangeLookup& changed,
+                                 std::span<const ChangeBuffer> buffers) {
   int seeing = 0;
   for (size_t n : active_cameras_) {
     const int32_t p = SupportPixel(h, n, cell, pixels);
@@ -215,6 +225,13 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
     for (size_t k = 0; k < blobs.size(); ++k) blob_group.push_back(static_cast<int>(k));
   }
   if (!settings_.support_heights_m.empty() && (changed || !buffers.empty()) && !blobs.empty()) {
+    // A new generation of the memos of SupportAt (all cleared before the counter overflows).
+    if (++support_generation_ >= (1 << 28)) {
+      support_generation_ = 1;
+      for (size_t k = cameras_.size(); k < support_pixel_.size(); k += cameras_.size() + 1) {
+        support_pixel_[k] = kNotProjected;
+      }
+    }
     active_cameras_.clear();
     for (size_t n = 0; n < cameras_.size() && n < active.size(); ++n) {
       if (active[n]) active_cameras_.push_back(n);

@@ -79,10 +79,15 @@ class ObjectDetector {
  private:
   void PrepareSupport(const FloorGrid& grid);
   // The plane-h occupancy of a cell: 1 occupied (every active camera seeing it changed), 0
-  // free, -1 no active camera sees it. Reads `buffers` when not empty, else `changed`.
+  // free, -1 no active camera sees it. Reads `buffers` when not empty, else `changed`; kept
+  // (in the cell's last entry of SupportPixels) for the rest of the frame.
   int SupportAt(size_t h, int64_t cell, const ChangeLookup& changed, std::span<const ChangeBuffer> buffers);
+  // SupportAt without the memo: the cameras' pixels asked.
+  int SupportState(size_t h, int64_t cell, int32_t* pixels, const ChangeLookup& changed,
+                   std::span<const ChangeBuffer> buffers);
   // The cameras' pixels (row * width + column) where the cell's centre at plane h projects
-  // (entry n for camera n; -1 when it does not see it, kNotProjected until first used).
+  // (entry n for camera n; -1 when it does not see it, kNotProjected until first used), then
+  // the memo of SupportAt (generation * 4 + state + 1, or kNotProjected).
   int32_t* SupportPixels(size_t h, int64_t cell);
   // Camera n's entry of `pixels` (SupportPixels), projected on first use.
   int32_t SupportPixel(size_t h, size_t n, int64_t cell, int32_t* pixels);
@@ -107,7 +112,8 @@ class ObjectDetector {
   std::optional<FloorGrid> support_grid_;
   size_t support_tiles_ = 0;                 // tiles of the grid
   std::vector<int64_t> support_tile_start_;  // [height * tiles + tile]: its start in support_pixel_, -1 none yet
-  std::vector<int32_t> support_pixel_;       // per tile: [cell in tile * cameras + camera]
+  std::vector<int32_t> support_pixel_;       // per tile: [cell in tile * (cameras + 1) + camera or memo]
+  int32_t support_generation_ = 0;           // Detect calls with an elevated check, the memos' stamp
   std::vector<size_t> active_cameras_;       // this frame's active cameras, in order
   std::vector<std::vector<std::pair<int, int>>> footprint_;  // per detection, its footprint cells (reused)
 };

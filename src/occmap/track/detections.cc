@@ -253,6 +253,9 @@ void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells,
     for (int o : offsets) {
       const int n = c + o;  // the border is never inside: in range
       if (!inside[n] || parent[n] < 0) continue;
+      // A neighbour whose parent is a root already found adds nothing (find would return
+      // that root; only its path would not be halved, which changes no root).
+      if (std::find(roots, roots + num_roots, parent[n]) != roots + num_roots) continue;
       const int root = find(n);
       if (std::find(roots, roots + num_roots, root) == roots + num_roots) roots[num_roots++] = root;
     }
@@ -321,11 +324,19 @@ void KMeansInto(SplitScratch& s, size_t k) {
     s.sum_x.assign(k, 0.0);
     s.sum_y.assign(k, 0.0);
     s.counts.assign(k, 0);
-    for (size_t p = 0; p < s.xs.size(); ++p) {
-      const size_t c = static_cast<size_t>(s.label[p]);
-      s.sum_x[c] += s.xs[p];
-      s.sum_y[c] += s.ys[p];
-      ++s.counts[c];
+    // Each cluster's sums in point order, as KMeans; a run of points of one cluster is
+    // summed in registers (not through memory, whose store-to-load latency doubled the time).
+    for (size_t p = 0; p < s.xs.size();) {
+      const int c = s.label[p];
+      double x = s.sum_x[static_cast<size_t>(c)], y = s.sum_y[static_cast<size_t>(c)];
+      const size_t first = p;
+      for (; p < s.xs.size() && s.label[p] == c; ++p) {
+        x += s.xs[p];
+        y += s.ys[p];
+      }
+      s.sum_x[static_cast<size_t>(c)] = x;
+      s.sum_y[static_cast<size_t>(c)] = y;
+      s.counts[static_cast<size_t>(c)] += static_cast<int>(p - first);
     }
     size_t next = 0;
     for (size_t c = 0; c < k; ++c) {
