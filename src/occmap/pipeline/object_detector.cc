@@ -123,9 +123,12 @@ void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const ChangeLook
   for (size_t g = 0; g < kept_index.size(); ++g) {
     const Blob& box = kept_groups[g];
     for (int j = box.min_j; j <= box.max_j; ++j) {
-      for (int i = box.min_i; i <= box.max_i; ++i) {
+      // The row's occupied cells in order, free spans skipped a word at a time.
+      const CellState* row = map.states().data() + int64_t{j} * grid.cells_x;
+      for (int i = static_cast<int>(NextOccupied(row, box.min_i, box.max_i + 1)); i <= box.max_i;
+           i = static_cast<int>(NextOccupied(row, i + 1, box.max_i + 1))) {
         const int64_t cell = int64_t{j} * grid.cells_x + i;
-        if (labels[static_cast<size_t>(cell)] != kept_index[g] || map.state(cell) != CellState::kOccupied) continue;
+        if (labels[static_cast<size_t>(cell)] != kept_index[g]) continue;
         const Eigen::Vector2d c = grid.CellCenter(cell);
         int best = -1;
         double best_d2 = std::numeric_limits<double>::infinity();

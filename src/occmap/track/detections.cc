@@ -216,7 +216,6 @@ void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells,
   }
   SquaredDistanceTransformInto(s.inside, box.width, box.height, s);
   const std::vector<double>& d2 = s.d2;
-  const std::vector<uint8_t>& inside = s.inside;
   auto dist_m = [&](int k) { return std::sqrt(d2[k]) * grid.cell_size_m; };
   {
     int max_key = 0;
@@ -252,7 +251,7 @@ void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells,
     int num_roots = 0;
     for (int o : offsets) {
       const int n = c + o;  // the border is never inside: in range
-      if (!inside[n] || parent[n] < 0) continue;
+      if (parent[n] < 0) continue;  // outside, or not processed yet (outside cells never are)
       // A neighbour whose parent is a root already found adds nothing (find would return
       // that root; only its path would not be halved, which changes no root).
       if (std::find(roots, roots + num_roots, parent[n]) != roots + num_roots) continue;
