@@ -121,31 +121,46 @@ const std::vector<Blob>& BlobFinder::Find(const OccupancyMap& map, const BlobOpt
     blob.min_i = blob.max_i = static_cast<int>(seed % cells_x);
     blob.min_j = blob.max_j = static_cast<int>(seed / cells_x);
     int64_t sum_i = 0, sum_j = 0;  // exact sums of cell indices
-    labels_[static_cast<size_t>(seed)] = label;
+    // A span fill: a popped cell, if still unlabelled, grows to its row's run of unlabelled
+    // occupied cells, which is labelled at once; the runs of the rows above and below that
+    // touch it (8-connected: one cell beyond each end) are pushed by their first cell. The
+    // same components, labels and sums as a cell-by-cell fill (only members_' order
+    // differs); lab scene: fewer neighbour tests per cell of the grown map.
     stack_.push_back(seed);
     while (!stack_.empty()) {
       const int64_t cell = stack_.back();
       stack_.pop_back();
-      const int i = static_cast<int>(cell % cells_x), j = static_cast<int>(cell / cells_x);
-      members_.push_back(cell);
-      sum_i += i;
-      sum_j += j;
-      blob.min_i = std::min(blob.min_i, i);
-      blob.max_i = std::max(blob.max_i, i);
+      if (labels_[static_cast<size_t>(cell)] != kUnlabelled) continue;
+      const int j = static_cast<int>(cell / cells_x);
+      const int64_t row = int64_t{j} * cells_x;
+      int lo = static_cast<int>(cell - row), hi = lo;
+      while (lo > 0 && states[row + lo - 1] == CellState::kOccupied && labels_[static_cast<size_t>(row + lo - 1)] == kUnlabelled) {
+        --lo;
+      }
+      while (hi + 1 < cells_x && states[row + hi + 1] == CellState::kOccupied &&
+             labels_[static_cast<size_t>(row + hi + 1)] == kUnlabelled) {
+        ++hi;
+      }
+      for (int i = lo; i <= hi; ++i) {
+        labels_[static_cast<size_t>(row + i)] = label;
+        members_.push_back(row + i);
+      }
+      const int64_t n = hi - lo + 1;
+      sum_i += (int64_t{lo} + hi) * n / 2;
+      sum_j += int64_t{j} * n;
+      blob.min_i = std::min(blob.min_i, lo);
+      blob.max_i = std::max(blob.max_i, hi);
       blob.min_j = std::min(blob.min_j, j);
       blob.max_j = std::max(blob.max_j, j);
-      for (int dj = -1; dj <= 1; ++dj) {
-        const int nj = j + dj;
+      const int from = std::max(0, lo - 1), to = std::min(cells_x - 1, hi + 1);
+      for (int nj = j - 1; nj <= j + 1; nj += 2) {
         if (nj < 0 || nj >= cells_y) continue;
-        for (int di = -1; di <= 1; ++di) {
-          const int ni = i + di;
-          if (ni < 0 || ni >= cells_x) continue;
-          const int64_t neighbour = int64_t{nj} * cells_x + ni;
-          if (labels_[static_cast<size_t>(neighbour)] != kUnlabelled || states[neighbour] != CellState::kOccupied) {
-            continue;
-          }
-          labels_[static_cast<size_t>(neighbour)] = label;
-          stack_.push_back(neighbour);
+        const int64_t nrow = int64_t{nj} * cells_x;
+        bool in_run = false;
+        for (int i = from; i <= to; ++i) {
+          const bool open = states[nrow + i] == CellState::kOccupied && labels_[static_cast<size_t>(nrow + i)] == kUnlabelled;
+          if (open && !in_run) stack_.push_back(nrow + i);
+          in_run = open;
         }
       }
     }
