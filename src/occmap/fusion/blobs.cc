@@ -114,7 +114,11 @@ const std::vector<Blob>& BlobFinder::Find(const OccupancyMap& map, const BlobOpt
   offsets_.assign(1, 0);
   for (int64_t seed = NextOccupied(states, 0, num_cells); seed < num_cells;
        seed = NextOccupied(states, seed + 1, num_cells)) {
-    if (labels_[static_cast<size_t>(seed)] != kUnlabelled) continue;
+    if (labels_[static_cast<size_t>(seed)] != kUnlabelled) {
+      // Its row's run of occupied cells is in the same blob, labelled too: skipped.
+      while ((seed + 1) % cells_x != 0 && states[seed + 1] == CellState::kOccupied) ++seed;
+      continue;
+    }
     const int32_t label = static_cast<int32_t>(blobs_.size());
     const size_t first = members_.size();
     Blob blob;
