@@ -92,6 +92,20 @@ void DetectChangesRgbReference(ImageView<const Rgb8> frame, ImageView<const Rgb8
   }
 }
 
+namespace {
+
+// dst[x] = OR of src[x - r .. x + r] clipped to the row (w pixels): shifted ORs the compiler
+// vectorises.
+void OrRowNeighbours(const uint8_t* src, size_t w, int r, uint8_t* dst) {
+  for (size_t x = 0; x < w; ++x) dst[x] = src[x];
+  for (size_t shift = 1; shift <= static_cast<size_t>(r) && shift < w; ++shift) {
+    for (size_t x = 0; x + shift < w; ++x) dst[x] |= src[x + shift];  // right neighbours
+    for (size_t x = shift; x < w; ++x) dst[x] |= src[x - shift];      // left neighbours
+  }
+}
+
+}  // namespace
+
 // Up to this radius the dilation ORs shifted rows (cost grows with r); beyond, running counts
 // (cost independent of r).
 constexpr int kSmallDilationRadius = 4;
@@ -117,12 +131,7 @@ void DilateChanges(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t
     for (int y = 0; y < height; ++y) {
       const uint8_t* src = in.row(y);
       uint8_t* dst = rows + static_cast<size_t>(y) * w;
-      for (size_t x = 0; x < w; ++x) dst[x] = src[x];
-      for (int k = 1; k <= r && k < width; ++k) {
-        const size_t shift = static_cast<size_t>(k);
-        for (size_t x = 0; x + shift < w; ++x) dst[x] |= src[x + shift];  // right neighbours
-        for (size_t x = shift; x < w; ++x) dst[x] |= src[x - shift];      // left neighbours
-      }
+      OrRowNeighbours(src, w, r, dst);
       for (size_t x = 0; x < w; ++x) dst[x] = static_cast<uint8_t>(dst[x] != 0);
     }
     // Column pass: the OR of the row-pass rows [y - r, y + r], clipped to the image.
@@ -195,13 +204,7 @@ void DetectChangesGrayDilated(ImageView<const uint8_t> frame, ImageView<const ui
     const uint8_t* f = frame.row(y);
     const uint8_t* b = background.row(y);
     for (size_t x = 0; x < w; ++x) raw[x] = static_cast<uint8_t>(AbsDiff(f[x], b[x]) > t);
-    uint8_t* dst = ring_row(y);
-    for (size_t x = 0; x < w; ++x) dst[x] = raw[x];
-    for (int k = 1; k <= r && k < width; ++k) {
-      const size_t shift = static_cast<size_t>(k);
-      for (size_t x = 0; x + shift < w; ++x) dst[x] |= raw[x + shift];
-      for (size_t x = shift; x < w; ++x) dst[x] |= raw[x - shift];
-    }
+    OrRowNeighbours(raw, w, r, ring_row(y));
   };
   int made = 0;  // rows [0, made) have been made
   for (int y = 0; y < height; ++y) {

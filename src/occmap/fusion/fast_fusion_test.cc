@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <bit>
 #include <cstdlib>
+#include <functional>
 #include <memory>
 #include <random>
 #include <string>
@@ -106,6 +107,28 @@ void MakeClusteredFrame(std::mt19937& rng, int threshold, int discs, Image<uint8
 }
 
 // The reference: change detection per camera into the global buffer, then Fusion.
+// One frame and background per camera of `lut`, filled by make(frame, background), with
+// their views.
+struct CameraFrames {
+  std::vector<Image<uint8_t>> frames, backgrounds;
+  std::vector<ImageView<const uint8_t>> frame_views, background_views;
+};
+CameraFrames MakeCameraFrames(const GroundLut& lut,
+                              const std::function<void(Image<uint8_t>&, Image<uint8_t>&)>& make) {
+  CameraFrames c;
+  for (int n = 0; n < lut.num_cameras(); ++n) {
+    const ImageSize size = lut.image_size(n);
+    c.frames.emplace_back(size.width, size.height);
+    c.backgrounds.emplace_back(size.width, size.height);
+    make(c.frames.back(), c.backgrounds.back());
+  }
+  for (size_t n = 0; n < c.frames.size(); ++n) {
+    c.frame_views.push_back(c.frames[n].view());
+    c.background_views.push_back(c.backgrounds[n].view());
+  }
+  return c;
+}
+
 OccupancyMap Reference(const GroundLut& lut, const std::vector<Image<uint8_t>>& frames,
                        const std::vector<Image<uint8_t>>& backgrounds, int threshold, std::vector<uint8_t>& changes) {
   changes.assign(lut.total_pixels(), 0);
@@ -147,18 +170,9 @@ TEST_P(FastFusionKernels, IdenticalToReferenceOnRandomScenesAndFrames) {
       const int threshold = static_cast<int>(rng() % 256);
       const double fractions[] = {0.0, 0.05, 0.2, 0.5, 0.95, 0.995, 1.0};
       const double fraction = threshold == 255 ? 0.0 : fractions[rng() % 7];
-      std::vector<Image<uint8_t>> frames, backgrounds;
-      std::vector<ImageView<const uint8_t>> frame_views, background_views;
-      for (int n = 0; n < scene.lut.num_cameras(); ++n) {
-        const ImageSize size = scene.lut.image_size(n);
-        frames.emplace_back(size.width, size.height);
-        backgrounds.emplace_back(size.width, size.height);
-        MakeFrame(rng, threshold, fraction, frames.back(), backgrounds.back());
-      }
-      for (size_t n = 0; n < frames.size(); ++n) {
-        frame_views.push_back(frames[n].view());
-        background_views.push_back(backgrounds[n].view());
-      }
+      const CameraFrames camera_frames = MakeCameraFrames(
+          scene.lut, [&](Image<uint8_t>& f, Image<uint8_t>& b) { MakeFrame(rng, threshold, fraction, f, b); });
+      const auto& [frames, backgrounds, frame_views, background_views] = camera_frames;
       std::vector<uint8_t> changes;
       const OccupancyMap expected = Reference(scene.lut, frames, backgrounds, threshold, changes);
       occupied_total += static_cast<int>(expected.Count(CellState::kOccupied));
@@ -212,18 +226,9 @@ TEST_P(FastFusionKernels, IdenticalToReferenceOnClusteredChanges) {
     for (int frame_index = 0; frame_index < 4; ++frame_index) {
       const int threshold = static_cast<int>(rng() % 100);
       const int discs = 1 + static_cast<int>(rng() % 12);
-      std::vector<Image<uint8_t>> frames, backgrounds;
-      std::vector<ImageView<const uint8_t>> frame_views, background_views;
-      for (int n = 0; n < scene.lut.num_cameras(); ++n) {
-        const ImageSize size = scene.lut.image_size(n);
-        frames.emplace_back(size.width, size.height);
-        backgrounds.emplace_back(size.width, size.height);
-        MakeClusteredFrame(rng, threshold, discs, frames.back(), backgrounds.back());
-      }
-      for (size_t n = 0; n < frames.size(); ++n) {
-        frame_views.push_back(frames[n].view());
-        background_views.push_back(backgrounds[n].view());
-      }
+      const CameraFrames camera_frames = MakeCameraFrames(
+          scene.lut, [&](Image<uint8_t>& f, Image<uint8_t>& b) { MakeClusteredFrame(rng, threshold, discs, f, b); });
+      const auto& [frames, backgrounds, frame_views, background_views] = camera_frames;
       std::vector<uint8_t> changes;
       const OccupancyMap expected = Reference(scene.lut, frames, backgrounds, threshold, changes);
       occupied_total += expected.Count(CellState::kOccupied);

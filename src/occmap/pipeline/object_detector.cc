@@ -242,13 +242,18 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
     RemoveUnsupported(map, changed, buffers, blob_group, kept_index, kept_groups, out);
   }
   if (settings_.remove_ghosts && blobs.size() > 1) {
-    std::vector<Viewer> viewers;
-    for (size_t n = 0; n < viewers_.size(); ++n) {
-      if (n < active.size() && active[n] && has_centre_[n]) viewers.push_back(viewers_[n]);
+    // The active cameras' viewers, rebuilt only when the active set changes (copying the
+    // std::functions would allocate every frame).
+    if (active != active_viewers_for_) {
+      active_viewers_for_ = active;
+      active_viewers_.clear();
+      for (size_t n = 0; n < viewers_.size(); ++n) {
+        if (n < active.size() && active[n] && has_centre_[n]) active_viewers_.push_back(viewers_[n]);
+      }
     }
     std::vector<Eigen::Vector2d> points;
     for (const Blob& b : blobs) points.emplace_back(b.x_m, b.y_m);
-    const std::vector<bool> ghost = FindGhosts(points, viewers, ghost_options_);
+    const std::vector<bool> ghost = FindGhosts(points, active_viewers_, ghost_options_);
     std::vector<Blob> real;
     std::vector<int> real_group;
     for (size_t k = 0; k < blobs.size(); ++k) {

@@ -101,6 +101,8 @@ class ObjectDetector {
   std::vector<CameraView> cameras_;
   std::vector<Viewer> viewers_;          // per camera (centre at 0 when it has none)
   std::vector<bool> has_centre_;
+  std::vector<Viewer> active_viewers_;     // viewers_ of the cameras active in active_viewers_for_
+  std::vector<bool> active_viewers_for_;
   GhostOptions ghost_options_;
   BlobFinder groups_;                     // the groups of the grown map, buffers kept
   std::vector<Blob> footprints_;

@@ -577,8 +577,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         const OccupancyMap& map = set.map;
         auto t0 = Clock::now();
         // Detections (ObjectDetector: fragments grouped, described by their footprint, small
-        // ones dropped, large ones split at their necks, ghosts removed). The tracker gets the
-        // groups of the grown map (it splits them itself, guided by its tracks).
+        // ones dropped, large ones split at their necks, flat ones and ghosts removed). The
+        // tracker gets the kept groups with their splits, which it refines by its predictions.
         // The elevated check reads single pixels' changes: from the change buffer when this
         // frame has one, else (fully fused: grey, no tolerance, no masks) from frame and background.
         const ObjectDetector::ChangeLookup changed = [&](int n, int x, int y) {

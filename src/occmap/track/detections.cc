@@ -17,14 +17,12 @@ struct LocalBox {
 };
 
 // Felzenszwalb and Huttenlocher's lower envelope of parabolas: out[q] = min_p (q - p)^2 + f[p]
-// for finite f.
-void SquaredDistance1d(const std::vector<double>& f, std::vector<double>& out, std::vector<int>& v,
-                       std::vector<double>& z) {
-  const int n = static_cast<int>(f.size());
+// for finite f. f and out hold n values; v and z are reused.
+void SquaredDistance1dInto(const double* f, int n, double* out, std::vector<int>& v, std::vector<double>& z) {
   const double inf = std::numeric_limits<double>::infinity();
-  v.assign(static_cast<size_t>(n), 0);
-  z.assign(static_cast<size_t>(n) + 1, 0);
-  out.assign(static_cast<size_t>(n), 0);
+  v.resize(static_cast<size_t>(n));
+  z.resize(static_cast<size_t>(n) + 1);
+  v[0] = 0;
   int k = 0;
   z[0] = -inf;
   z[1] = inf;
@@ -65,13 +63,12 @@ std::vector<double> SquaredDistanceTransform(const std::vector<uint8_t>& inside,
       g[b * width + a] = std::min(g[b * width + a], run);
     }
   }
-  std::vector<double> out(inside.size()), f(static_cast<size_t>(width)), row;
+  std::vector<double> out(inside.size()), f(static_cast<size_t>(width));
   std::vector<int> v;
   std::vector<double> z;
   for (int b = 0; b < height; ++b) {
     for (int a = 0; a < width; ++a) f[a] = g[b * width + a] * g[b * width + a];
-    SquaredDistance1d(f, row, v, z);
-    std::copy(row.begin(), row.end(), out.begin() + int64_t{b} * width);
+    SquaredDistance1dInto(f.data(), width, out.data() + int64_t{b} * width, v, z);
   }
   return out;
 }
@@ -132,36 +129,6 @@ std::vector<int> KMeans(const std::vector<Eigen::Vector2d>& points, std::vector<
     label = std::move(relabel);
   }
   return label;
-}
-
-// SquaredDistance1d on flat buffers: f and out hold n values; v and z are reused.
-void SquaredDistance1dInto(const double* f, int n, double* out, std::vector<int>& v, std::vector<double>& z) {
-  const double inf = std::numeric_limits<double>::infinity();
-  v.resize(static_cast<size_t>(n));
-  z.resize(static_cast<size_t>(n) + 1);
-  v[0] = 0;
-  int k = 0;
-  z[0] = -inf;
-  z[1] = inf;
-  auto intersection = [&](int q, int p) {
-    return ((f[q] + double(q) * q) - (f[p] + double(p) * p)) / (2.0 * q - 2.0 * p);
-  };
-  for (int q = 1; q < n; ++q) {
-    double s = intersection(q, v[k]);
-    while (s <= z[k]) {
-      --k;
-      s = intersection(q, v[k]);
-    }
-    ++k;
-    v[k] = q;
-    z[k] = s;
-    z[k + 1] = inf;
-  }
-  k = 0;
-  for (int q = 0; q < n; ++q) {
-    while (z[k + 1] < q) ++k;
-    out[q] = double(q - v[k]) * (q - v[k]) + f[v[k]];
-  }
 }
 
 // SquaredDistanceTransform into scratch.d2, the column runs counted in integers (exact, as
