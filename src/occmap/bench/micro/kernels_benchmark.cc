@@ -1,9 +1,13 @@
 // Google Benchmark micro-benchmarks of the per-frame kernels, each beside its reference, on
-// the built-in lab site (four 640x480 cameras onto 450 x 325 cells of 2 cm):
+// the built-in lab site (four 640x480 cameras onto 450 x 325 cells of 2 cm), and FastFusion on
+// frames of the WILDTRACK scene rendered by the simulator (the 7 real calibrations onto 480 x
+// 1440 cells; BM_Wildtrack*, skipped when ../shared/datasets is absent; run from the checkout):
 //   build/release/src/occmap/occmap_micro_benchmark [--benchmark_filter=Fusion]
 // Report ratios between rows of one run, not absolute times (shared machines are noisy).
 #include <benchmark/benchmark.h>
 
+#include <cstdio>
+#include <cstdlib>
 #include <random>
 #include <vector>
 
@@ -12,6 +16,7 @@
 #include "occmap/fusion/fast_fusion.h"
 #include "occmap/fusion/fusion.h"
 #include "occmap/site/demo_scene.h"
+#include "occmap/site/site.h"
 
 namespace occmap {
 namespace {
@@ -165,6 +170,142 @@ BENCHMARK(BM_FastFusionFromFramesAllChanged)
     ->ArgsProduct({{1, 2}, {0, 1}})
     ->ArgNames({"threads", "streaming"})
     ->UseRealTime();
+
+// Four WILDTRACK frames rendered by the simulator (real calibrations and trajectories, changes
+// clustered on people), as `occmap bench` measures them; rendered once per process (~8 s).
+struct WildtrackFrames {
+  bool ok = false;
+  std::string why;
+  Context ctx{2};
+  GroundLut lut;
+  std::unique_ptr<FastFusion> fast;
+  bench::RenderedFrames rendered;
+  std::vector<std::vector<ImageView<const uint8_t>>> frame_views;
+  std::vector<ImageView<const uint8_t>> background_views;
+
+  bool LoadRendered(const char* path, const std::vector<ImageSize>& sizes);
+  void SaveRendered(const char* path) const;
+
+  WildtrackFrames() {
+    SiteLoadOptions load;
+    load.data_root = "../shared/datasets";
+    auto site = LoadSite("sites/wildtrack.yaml", load);
+    if (!site.ok()) {
+      why = site.status().message();
+      return;
+    }
+    lut = BuildGroundLut(site->LutInputs(), site->grid, site->lut, ctx).value();
+    fast = std::make_unique<FastFusion>(lut);
+    std::vector<ImageSize> sizes;
+    for (int n = 0; n < lut.num_cameras(); ++n) sizes.push_back(lut.image_size(n));
+    // OCCMAP_MICRO_FRAMES=FILE keeps the rendered frames in FILE between runs (raw bytes).
+    const char* cache = std::getenv("OCCMAP_MICRO_FRAMES");
+    if (cache == nullptr || !LoadRendered(cache, sizes)) {
+      auto frames = bench::RenderWildtrackFrames("../shared/datasets/wildtrack", 4, sizes, ctx);
+      if (!frames.ok()) {
+        why = frames.status().message();
+        return;
+      }
+      rendered = std::move(frames).value();
+      if (cache != nullptr) SaveRendered(cache);
+    }
+    for (const auto& b : rendered.backgrounds) background_views.push_back(b.view());
+    for (const auto& f : rendered.frames) {
+      frame_views.emplace_back();
+      for (const auto& image : f) frame_views.back().push_back(image.view());
+    }
+    ok = true;
+  }
+};
+
+bool WildtrackFrames::LoadRendered(const char* path, const std::vector<ImageSize>& sizes) {
+  std::FILE* f = std::fopen(path, "rb");
+  if (f == nullptr) return false;
+  auto read = [&](Image<uint8_t>& image, ImageSize size) {
+    image = Image<uint8_t>(size.width, size.height);
+    for (int y = 0; y < size.height; ++y) {
+      if (std::fread(image.row(y), 1, static_cast<size_t>(size.width), f) != static_cast<size_t>(size.width)) return false;
+    }
+    return true;
+  };
+  bool good = true;
+  rendered.backgrounds.resize(sizes.size());
+  rendered.frames.assign(4, std::vector<Image<uint8_t>>(sizes.size()));
+  for (size_t n = 0; n < sizes.size() && good; ++n) good = read(rendered.backgrounds[n], sizes[n]);
+  for (auto& set : rendered.frames) {
+    for (size_t n = 0; n < sizes.size() && good; ++n) good = read(set[n], sizes[n]);
+  }
+  std::fclose(f);
+  return good;
+}
+
+void WildtrackFrames::SaveRendered(const char* path) const {
+  std::FILE* f = std::fopen(path, "wb");
+  if (f == nullptr) return;
+  auto write = [&](const Image<uint8_t>& image) {
+    for (int y = 0; y < image.height(); ++y) std::fwrite(image.row(y), 1, static_cast<size_t>(image.width()), f);
+  };
+  for (const auto& b : rendered.backgrounds) write(b);
+  for (const auto& set : rendered.frames) {
+    for (const auto& image : set) write(image);
+  }
+  std::fclose(f);
+}
+
+WildtrackFrames& Wildtrack() {
+  static WildtrackFrames w;
+  return w;
+}
+
+void BM_WildtrackRenderedFastFusion(benchmark::State& state) {
+  WildtrackFrames& w = Wildtrack();
+  if (!w.ok) {
+    state.SkipWithError(("WILDTRACK not available: " + w.why).c_str());
+    return;
+  }
+  {
+    OccupancyMap m;
+    Context one(1);
+    int64_t probed = 0, failed = 0, secondary = 0, bit_tests = 0;
+    for (const auto& views : w.frame_views) {
+      w.fast->Fuse(views, w.background_views, 30, one, m);
+      probed += w.fast->last_frame_stats().primary_probed;
+      failed += w.fast->last_frame_stats().primary_failed;
+      secondary += w.fast->last_frame_stats().secondary_probed;
+      bit_tests += w.fast->last_frame_stats().secondary_bit_tests;
+    }
+    state.counters["bit_tests_per_frame"] = static_cast<double>(bit_tests) / static_cast<double>(w.frame_views.size());
+    state.counters["primary_failed"] = static_cast<double>(failed) / static_cast<double>(probed);
+    state.counters["secondary_per_frame"] = static_cast<double>(secondary) / static_cast<double>(w.frame_views.size());
+  }
+  OccupancyMap map;
+  Context ctx(static_cast<int>(state.range(0)));
+  size_t f = 0;
+  for (auto _ : state) {
+    w.fast->Fuse(w.frame_views[f], w.background_views, 30, ctx, map);
+    f = (f + 1) % w.frame_views.size();
+    benchmark::DoNotOptimize(map.states().data());
+  }
+  state.SetItemsProcessed(state.iterations() * w.lut.total_pixels());
+}
+BENCHMARK(BM_WildtrackRenderedFastFusion)->Arg(1)->Arg(2)->ArgName("threads")->UseRealTime()->MinTime(2.0);
+
+void BM_WildtrackRenderedPaperLoop(benchmark::State& state) {
+  WildtrackFrames& w = Wildtrack();
+  if (!w.ok) {
+    state.SkipWithError(("WILDTRACK not available: " + w.why).c_str());
+    return;
+  }
+  std::vector<uint8_t> occupancy;
+  size_t f = 0;
+  for (auto _ : state) {
+    bench::PaperLoop(w.lut, w.frame_views[f], w.background_views, 30, occupancy);
+    f = (f + 1) % w.frame_views.size();
+    benchmark::DoNotOptimize(occupancy.data());
+  }
+  state.SetItemsProcessed(state.iterations() * w.lut.total_pixels());
+}
+BENCHMARK(BM_WildtrackRenderedPaperLoop)->UseRealTime();
 
 }  // namespace
 }  // namespace occmap
