@@ -84,14 +84,14 @@ class FastFusion {
     uint16_t unused = 0;
   };
   // A cell's first probe, within its RowGroup; the table is sorted by (camera, row, column).
-  // Stored as the probe loop uses it: the run's first pixel from the group's first word
-  // (column - 64 word_begin), and 64 - its length (length 1..56; a longer run's tail is the
-  // cell's first secondary run).
+  // Stored as the probe loop uses it: with o = column - 64 word_begin (the run's first pixel
+  // from the group's first word), the byte o / 8 of the group's bits where its 64-bit window
+  // starts, and the bit-field extract control (o % 8) | length << 8 (length 1..56; a longer
+  // run's tail is the cell's first secondary run). `cell`: the cell's byte in the tiled map.
   struct PrimaryProbe {
     uint32_t cell;
-    uint16_t offset;
-    uint8_t drop;
-    uint8_t unused;
+    uint16_t byte;
+    uint16_t extract;
   };
   // The primary probes of one image row: [probes_begin, next group's probes_begin), covering
   // the 64-pixel words [word_begin, word_end) of the row.
