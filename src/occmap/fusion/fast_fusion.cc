@@ -222,26 +222,22 @@ struct FailJob {
 };
 
 template <bool (*kProbe)(const ProbeSource&, FastFusion::Probe), bool kImages>
-inline int64_t ResolveFailsImpl(const FailJob& job, uint32_t* fails, int64_t num_fails) {
+inline int64_t ResolveFailsImpl(const FailJob& job, FastFusion::Fail* fails, int64_t num_fails) {
   int64_t tested = 0;
   // 1. The first secondary runs that are bits of pass 1 (the rest compacted, branch-free).
   int64_t left = 0;
   for (int64_t k = 0; k < num_fails; ++k) {
-    // Latency hiding: the tables' entries of the cell 2 d ahead, then its bitmap word and map
-    // byte d ahead (failed cells are sparse in the tables: each is a miss without it).
-    if (k + 2 * kBitPrefetch < num_fails) {
-      const uint32_t ahead = fails[k + 2 * kBitPrefetch];
-      __builtin_prefetch(job.first_bits + ahead);
-      __builtin_prefetch(job.primary + ahead);
-    }
+    // Latency hiding: the cell's first-bits entry 2 d ahead, then its bitmap word and map byte
+    // d ahead (failed cells are sparse in the tables: each is a miss without it).
+    if (k + 2 * kBitPrefetch < num_fails) __builtin_prefetch(job.first_bits + fails[k + 2 * kBitPrefetch].probe);
     if (k + kBitPrefetch < num_fails) {
-      const uint32_t ahead = fails[k + kBitPrefetch];
-      const uint32_t fb = job.first_bits[ahead];
+      const FastFusion::Fail ahead = fails[k + kBitPrefetch];
+      const uint32_t fb = job.first_bits[ahead.probe];
       if (fb != FastFusion::kNoFirstBits) __builtin_prefetch(job.bitmap + (fb >> 9));
-      __builtin_prefetch(job.out + job.primary[ahead].cell, 1);
+      __builtin_prefetch(job.out + ahead.cell, 1);
     }
-    const uint32_t i = fails[k];
-    const uint32_t fb = job.first_bits[i];
+    const FastFusion::Fail f = fails[k];
+    const uint32_t fb = job.first_bits[f.probe];
     bool free = false;
     if (fb != FastFusion::kNoFirstBits) {
       const uint32_t bit = fb >> 6;
@@ -249,9 +245,9 @@ inline int64_t ResolveFailsImpl(const FailJob& job, uint32_t* fails, int64_t num
       std::memcpy(&window, job.bitmap + (bit >> 3), sizeof(window));
       free = ((window >> (bit & 7u)) << (fb & 63u)) != 0;
       ++tested;
-      if (free) job.out[job.primary[i].cell] = static_cast<uint8_t>(CellState::kFree);
+      if (free) job.out[f.cell] = static_cast<uint8_t>(CellState::kFree);
     }
-    fails[left] = i;
+    fails[left] = f;
     left += !free;
   }
   *job.bit_tests = tested;
@@ -263,17 +259,17 @@ inline int64_t ResolveFailsImpl(const FailJob& job, uint32_t* fails, int64_t num
   };
   for (int64_t k = 0; k < left; ++k) {
     // The records of the cell 2 d ahead, the pixels of the cell d ahead (then in cache).
-    if (k + 2 * kFailPrefetch < left) __builtin_prefetch(secondary + offsets[fails[k + 2 * kFailPrefetch]]);
+    if (k + 2 * kFailPrefetch < left) __builtin_prefetch(secondary + offsets[fails[k + 2 * kFailPrefetch].probe]);
     if (k + kFailPrefetch < left) {
-      const uint32_t ahead = fails[k + kFailPrefetch];
+      const uint32_t ahead = fails[k + kFailPrefetch].probe;
       const uint32_t r = first_run(ahead);
       if (r < offsets[ahead + 1]) PrefetchProbe(job.src, secondary[r], kImages);
     }
-    const uint32_t i = fails[k];
-    for (uint32_t r = first_run(i); r < offsets[i + 1]; ++r) {
+    const FastFusion::Fail f = fails[k];
+    for (uint32_t r = first_run(f.probe); r < offsets[f.probe + 1]; ++r) {
       ++tested;
       if (kProbe(job.src, secondary[r])) {
-        job.out[job.primary[i].cell] = static_cast<uint8_t>(CellState::kFree);
+        job.out[f.cell] = static_cast<uint8_t>(CellState::kFree);
         break;
       }
     }
@@ -281,26 +277,26 @@ inline int64_t ResolveFailsImpl(const FailJob& job, uint32_t* fails, int64_t num
   return tested;
 }
 
-using FailKernel = int64_t (*)(const FailJob& job, uint32_t* fails, int64_t num_fails);
+using FailKernel = int64_t (*)(const FailJob& job, FastFusion::Fail* fails, int64_t num_fails);
 
-int64_t FailsImagesPortable(const FailJob& job, uint32_t* fails, int64_t n) {
+int64_t FailsImagesPortable(const FailJob& job, FastFusion::Fail* fails, int64_t n) {
   return ResolveFailsImpl<ProbeImagesPortable, true>(job, fails, n);
 }
-int64_t FailsChangesPortable(const FailJob& job, uint32_t* fails, int64_t n) {
+int64_t FailsChangesPortable(const FailJob& job, FastFusion::Fail* fails, int64_t n) {
   return ResolveFailsImpl<ProbeChangesPortable, false>(job, fails, n);
 }
-__attribute__((target("avx2,bmi2"), flatten)) int64_t FailsImagesAvx2(const FailJob& job, uint32_t* fails, int64_t n) {
+__attribute__((target("avx2,bmi2"), flatten)) int64_t FailsImagesAvx2(const FailJob& job, FastFusion::Fail* fails, int64_t n) {
   return ResolveFailsImpl<ProbeImagesAvx2, true>(job, fails, n);
 }
-__attribute__((target("avx2,bmi2"), flatten)) int64_t FailsChangesAvx2(const FailJob& job, uint32_t* fails, int64_t n) {
+__attribute__((target("avx2,bmi2"), flatten)) int64_t FailsChangesAvx2(const FailJob& job, FastFusion::Fail* fails, int64_t n) {
   return ResolveFailsImpl<ProbeChangesAvx2, false>(job, fails, n);
 }
-__attribute__((target("avx512f,avx512bw,bmi2"), flatten)) int64_t FailsImagesAvx512(const FailJob& job, uint32_t* fails,
-                                                                                  int64_t n) {
+__attribute__((target("avx512f,avx512bw,bmi2"), flatten)) int64_t FailsImagesAvx512(const FailJob& job,
+                                                                                  FastFusion::Fail* fails, int64_t n) {
   return ResolveFailsImpl<ProbeImagesAvx512, true>(job, fails, n);
 }
-__attribute__((target("avx512f,avx512bw,bmi2"), flatten)) int64_t FailsChangesAvx512(const FailJob& job, uint32_t* fails,
-                                                                                   int64_t n) {
+__attribute__((target("avx512f,avx512bw,bmi2"), flatten)) int64_t FailsChangesAvx512(const FailJob& job,
+                                                                                   FastFusion::Fail* fails, int64_t n) {
   return ResolveFailsImpl<ProbeChangesAvx512, false>(job, fails, n);
 }
 
@@ -322,13 +318,13 @@ __attribute__((target("avx512f,avx512bw,bmi2"), flatten)) int64_t FailsChangesAv
 // second runs beside the primary one, a branch-free first-secondary loop (5 % slower), a larger
 // prefetch distance, the fallback at 35 % instead of 15 %.
 using ProbeGroupKernel = int64_t (*)(const FastFusion::PrimaryProbe* primary, uint32_t begin, uint32_t end,
-                                     const uint64_t* bits, uint8_t* out, uint32_t* fails, int64_t num_fails);
+                                     const uint64_t* bits, uint8_t* out, FastFusion::Fail* fails, int64_t num_fails);
 
 // kBextr: the probe as BMI1's bit-field extract of the window (one instruction with the
 // table's control word), else two shifts and a mask.
 template <bool kBextr>
 inline int64_t ProbeGroupImpl(const FastFusion::PrimaryProbe* primary, uint32_t begin, uint32_t end,
-                              const uint64_t* bits, uint8_t* out, uint32_t* fails, int64_t num_fails) {
+                              const uint64_t* bits, uint8_t* out, FastFusion::Fail* fails, int64_t num_fails) {
   const unsigned char* bytes = reinterpret_cast<const unsigned char*>(bits);
   int64_t n = num_fails;
 #pragma GCC unroll 2
@@ -344,20 +340,20 @@ inline int64_t ProbeGroupImpl(const FastFusion::PrimaryProbe* primary, uint32_t 
     }
     const bool free = run != 0;
     out[p.cell] = static_cast<uint8_t>(2 - static_cast<int>(free));  // kFree 1, kOccupied 2
-    fails[n] = i;
+    fails[n] = FastFusion::Fail{i, p.cell};
     n += !free;
   }
   return n;
 }
 
 int64_t ProbeGroupPortable(const FastFusion::PrimaryProbe* primary, uint32_t begin, uint32_t end,
-                           const uint64_t* bits, uint8_t* out, uint32_t* fails, int64_t num_fails) {
+                           const uint64_t* bits, uint8_t* out, FastFusion::Fail* fails, int64_t num_fails) {
   return ProbeGroupImpl<false>(primary, begin, end, bits, out, fails, num_fails);
 }
 
 __attribute__((target("bmi,bmi2"), flatten)) int64_t ProbeGroupBmi2(const FastFusion::PrimaryProbe* primary, uint32_t begin,
                                                                  uint32_t end, const uint64_t* bits,
-                                                                 uint8_t* out, uint32_t* fails, int64_t num_fails) {
+                                                                 uint8_t* out, FastFusion::Fail* fails, int64_t num_fails) {
   return ProbeGroupImpl<true>(primary, begin, end, bits, out, fails, num_fails);
 }
 
@@ -885,7 +881,7 @@ void FastFusion::UntileTask(int task) {
 void FastFusion::CellTask(int task) {
   const size_t t = static_cast<size_t>(task);
   const uint32_t first_probe = row_groups_[task_groups_[t]].probes_begin;
-  uint32_t* fails = fails_.data() + first_probe;
+  Fail* fails = fails_.data() + first_probe;
   switch (phase_) {
     case Phase::kProbe: {
       int64_t num_fails = 0;
@@ -927,7 +923,7 @@ void FastFusion::CellTask(int task) {
 // row's probes touch, then one bit test per probe (branch-free; failures appended to fails).
 // With may_stop, returns early (the first group not done) once more than the fallback fraction
 // of at least fallback_sample_ probes (4096) failed.
-uint32_t FastFusion::ProbeRows(uint32_t begin, uint32_t end, uint32_t* fails, int64_t& num_fails, bool may_stop) {
+uint32_t FastFusion::ProbeRows(uint32_t begin, uint32_t end, Fail* fails, int64_t& num_fails, bool may_stop) {
   const Kernels& kernels = TheKernels();
   uint8_t* out = tiled_.data();
   const PrimaryProbe* primary = primary_.data();

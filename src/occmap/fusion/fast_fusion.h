@@ -102,6 +102,11 @@ class FastFusion {
     uint16_t word_begin;
     uint16_t word_end;
   };
+  // A failed primary probe: its index in the primary table and its cell's byte in the tiled map.
+  struct Fail {
+    uint32_t probe;
+    uint32_t cell;
+  };
   // FailJob's first_bits entry of a cell without a first secondary run in pass 1's bits.
   static constexpr uint32_t kNoFirstBits = ~uint32_t{0};
   enum class Method {
@@ -190,7 +195,7 @@ class FastFusion {
     return static_cast<uint32_t>(((j / kTile) * static_cast<size_t>(tiles_x_) + i / kTile) * kTile * kTile +
                                  (j % kTile) * kTile + i % kTile);
   }
-  uint32_t ProbeRows(uint32_t begin, uint32_t end, uint32_t* fails, int64_t& num_fails, bool may_stop);
+  uint32_t ProbeRows(uint32_t begin, uint32_t end, Fail* fails, int64_t& num_fails, bool may_stop);
   void Prepare(Context& ctx, OccupancyMap& map);
   void Execute(Context& ctx, OccupancyMap& map);
   void RunTask(int task, int thread);
@@ -229,7 +234,7 @@ class FastFusion {
   std::vector<uint8_t> thread_used_;            // [thread] wrote its partial this frame
   std::function<void(int, int)> task_fn_;       // built once: calls RunTask / ReduceTask
   std::function<void(int, int)> cell_task_fn_;  // built once: calls CellTask
-  std::vector<uint32_t> fails_;                  // failed primary probes, task t's from its first probe
+  std::vector<Fail> fails_;                  // failed primary probes, task t's from its first probe
   std::vector<int64_t> task_fails_;              // [task] failed probes
   std::vector<uint8_t> task_deferred_;           // [task] 1 = stopped early, rows and fails left
   std::vector<uint32_t> task_stop_;              // [task] first row group not probed
