@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "occmap/bench/bench.h"
+#include "occmap/fusion/fast_fusion.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/pipeline/run.h"
 #include "occmap/sim/builtin_scenes.h"
@@ -93,8 +94,8 @@ Result<DecodePass> Decode(const Site& site, const FrameSourceOptions& options, b
 }
 
 // How RunSite computes changes and fuses on this site without video outputs (its own test, in
-// pipeline/run.cc): fully fused only for the paper's AND on grey frames without tolerance and
-// without mask sources; otherwise change buffers first.
+// pipeline/run.cc): fully fused for the paper's AND on grey frames without mask sources and a
+// tolerance of at most FastFusion::kMaxFusedTolerancePx; otherwise change buffers first.
 std::string FusionPath(const Site& site) {
   const bool paper_and = site.fusion.method == FusionMethod::kImageBased && site.fusion.max_free_views == 0;
   bool any_mask_source = false;
@@ -102,6 +103,9 @@ std::string FusionPath(const Site& site) {
   const int r = site.detection.tolerance_px;
   if (paper_and && !site.detection.colour && r == 0 && !any_mask_source) {
     return "fully fused FastFusion::Fuse, no change buffer";
+  }
+  if (paper_and && !site.detection.colour && r <= FastFusion::kMaxFusedTolerancePx && !any_mask_source) {
+    return fmt::format("fully fused FastFusion::FuseTolerant (tolerance_px {} folded in as bits), no change buffer", r);
   }
   const std::string changes =
       fmt::format("{} change detection{} into change buffers", site.detection.colour ? "colour" : "grey",

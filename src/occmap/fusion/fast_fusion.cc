@@ -130,7 +130,24 @@ struct ProbeSource {
   const ptrdiff_t* background_stride;
   const int* width;
   uint8_t threshold;
+  // FuseTolerant: the unchanged bits of every pixel (ChangeBits' layout), read instead.
+  const unsigned char* bits = nullptr;
+  const size_t* bits_camera_word = nullptr;
+  const size_t* bits_row_words = nullptr;
 };
+
+// A run in the bits of every pixel: one unaligned 64-bit window per at most 56 pixels.
+inline bool ProbeBits(const ProbeSource& s, FastFusion::Probe p) {
+  const size_t first = 64 * (s.bits_camera_word[p.camera] + s.bits_row_words[p.camera] * p.row) + p.column;
+  for (unsigned done = 0; done < p.length; done += 56) {
+    const size_t bit = first + done;
+    const unsigned n = std::min(56u, static_cast<unsigned>(p.length) - done);
+    uint64_t window;
+    std::memcpy(&window, s.bits + bit / 8, sizeof(window));
+    if (((window >> (bit % 8)) & ((uint64_t{1} << n) - 1)) != 0) return true;
+  }
+  return false;
+}
 
 inline bool ProbeImagesPortable(const ProbeSource& s, FastFusion::Probe p) {
   const uint8_t* f = s.frame[p.camera] + p.row * s.frame_stride[p.camera] + p.column;
@@ -199,6 +216,10 @@ constexpr int64_t kBitPrefetch = 8;
 constexpr double kDefaultStreamingFallback = 0.15;
 
 inline void PrefetchProbe(const ProbeSource& s, FastFusion::Probe p, bool images) {
+  if (s.bits != nullptr) {
+    __builtin_prefetch(s.bits + (64 * (s.bits_camera_word[p.camera] + s.bits_row_words[p.camera] * p.row) + p.column) / 8);
+    return;
+  }
   __builtin_prefetch(s.frame[p.camera] + p.row * s.frame_stride[p.camera] + p.column);
   if (images) __builtin_prefetch(s.background[p.camera] + p.row * s.background_stride[p.camera] + p.column);
 }
@@ -278,6 +299,10 @@ inline int64_t ResolveFailsImpl(const FailJob& job, FastFusion::Fail* fails, int
 }
 
 using FailKernel = int64_t (*)(const FailJob& job, FastFusion::Fail* fails, int64_t num_fails);
+
+int64_t FailsBits(const FailJob& job, FastFusion::Fail* fails, int64_t n) {
+  return ResolveFailsImpl<ProbeBits, false>(job, fails, n);
+}
 
 int64_t FailsImagesPortable(const FailJob& job, FastFusion::Fail* fails, int64_t n) {
   return ResolveFailsImpl<ProbeImagesPortable, true>(job, fails, n);
@@ -476,6 +501,7 @@ FastFusion::FastFusion(const GroundLut& lut) : grid_(lut.grid()), streaming_fall
   tiled_.assign(static_cast<size_t>(tiles_x_ * tiles_y_) * kTile * kTile, 0);  // unseen cells stay 0 (kUnseen)
   BuildCellTables(lut);
   cell_task_fn_ = [this](int task, int) { CellTask(task); };
+  erode_fn_ = [this](int task, int) { ErodeTask(task); };
   untile_fn_ = [this](int task, int) { UntileTask(task); };
 }
 
@@ -730,6 +756,7 @@ void FastFusion::FuseWith(Method method, std::span<const ImageView<const uint8_t
   frames_ = frames;
   backgrounds_ = backgrounds;
   threshold_ = static_cast<uint8_t>(threshold);
+  bits_base_ = bitmap_.data();
   if (method == Method::kCellProbe) {
     ExecuteCells(ctx, map);
   } else {
@@ -744,11 +771,96 @@ void FastFusion::FuseChangesWith(Method method, std::span<const uint8_t> changes
                "fast fusion: change buffer size differs from the tables' pixels");
   input_ = Input::kChanges;
   changes_ = changes;
+  bits_base_ = bitmap_.data();
   if (method == Method::kCellProbe) {
     ExecuteCells(ctx, map);
   } else {
     stats_ = FrameStats{};
     Execute(ctx, map);
+  }
+}
+
+void FastFusion::FuseTolerant(std::span<const ImageView<const uint8_t>> frames,
+                              std::span<const ImageView<const uint8_t>> backgrounds, int threshold, int tolerance_px,
+                              Context& ctx, OccupancyMap& map, ChangeBits& bits) {
+  OCCMAP_CHECK(frames.size() == sizes_.size() && backgrounds.size() == sizes_.size(),
+               "fast fusion: one frame and one background per camera");
+  OCCMAP_CHECK(threshold >= 0 && threshold <= 255, "fast fusion: threshold outside 0..255");
+  OCCMAP_CHECK(tolerance_px >= 1 && tolerance_px <= kMaxFusedTolerancePx, "fast fusion: tolerance outside 1..8");
+  for (size_t n = 0; n < sizes_.size(); ++n) {
+    OCCMAP_CHECK(frames[n].width() == sizes_[n].width && frames[n].height() == sizes_[n].height &&
+                     backgrounds[n].width() == sizes_[n].width && backgrounds[n].height() == sizes_[n].height,
+                 "fast fusion: image size differs from the tables'");
+  }
+  frames_ = frames;
+  backgrounds_ = backgrounds;
+  threshold_ = static_cast<uint8_t>(threshold);
+  tolerance_px_ = tolerance_px;
+  bits.row_words = bitmap_row_words_;
+  bits.camera_word = bitmap_camera_word_;
+  bits.words.resize(bitmap_.size());
+  bits_base_ = bits.words.data();
+  // Pass 0: the eroded bits, a task per camera and band of rows.
+  const int threads = ctx.num_threads();
+  erode_tasks_ = static_cast<int>(sizes_.size()) * (threads <= 1 ? 1 : 2);
+  if (erode_rows_.size() < static_cast<size_t>(erode_tasks_)) erode_rows_.resize(static_cast<size_t>(erode_tasks_));
+  if (threads <= 1) {
+    for (int t = 0; t < erode_tasks_; ++t) ErodeTask(t);
+  } else {
+    ctx.pool().Run(erode_tasks_, erode_fn_);
+  }
+  input_ = Input::kBits;
+  ExecuteCells(ctx, map);
+}
+
+// A camera's band of rows [y0, y1) (task = camera * bands + band): the unchanged bits U of the rows it needs (r more on each
+// side), eroded along the row (a pixel stays unchanged when the r pixels on each side are;
+// past the image counts as unchanged), then across the rows of the window (clipped).
+void FastFusion::ErodeTask(int task) {
+  const int bands = erode_tasks_ / static_cast<int>(sizes_.size());
+  const size_t n = static_cast<size_t>(task / bands);
+  const int band = task % bands;
+  const int width = sizes_[n].width, height = sizes_[n].height;
+  const int y0 = height * band / bands, y1 = height * (band + 1) / bands;
+  const int r = tolerance_px_;
+  const size_t words = static_cast<size_t>(width + 63) / 64;
+  const size_t row_words = bitmap_row_words_[n];
+  const uint64_t past_width = width % 64 == 0 ? 0 : ~uint64_t{0} << (width % 64);
+  const int from = std::max(0, y0 - r), to = std::min(height, y1 + r);
+  // The task's own buffer: one row of U, then its eroded rows from `from` (bands overlap by r
+  // rows, each computes those it reads).
+  std::vector<uint64_t>& scratch = erode_rows_[static_cast<size_t>(task)];
+  scratch.resize(words * static_cast<size_t>(to - from + 1));
+  uint64_t* u = scratch.data();
+  uint64_t* eroded = scratch.data() + words;
+  const Kernels& kernels = TheKernels();
+  for (int y = from; y < to; ++y) {
+    kernels.images(frames_[n].row(y), backgrounds_[n].row(y), width, threshold_, u);
+    u[words - 1] |= past_width;
+    uint64_t* e = eroded + words * static_cast<size_t>(y - from);
+    for (size_t w = 0; w < words; ++w) {
+      const uint64_t x = u[w];
+      const uint64_t prev = w > 0 ? u[w - 1] : ~uint64_t{0};
+      const uint64_t next = w + 1 < words ? u[w + 1] : ~uint64_t{0};
+      uint64_t acc = x;
+      for (int d = 1; d <= r; ++d) {
+        acc &= (x << d) | (prev >> (64 - d));  // the pixel d to the left
+        acc &= (x >> d) | (next << (64 - d));  // d to the right
+      }
+      e[w] = acc;
+    }
+  }
+  uint64_t* out = bits_base_ + bitmap_camera_word_[n];
+  for (int y = y0; y < y1; ++y) {
+    uint64_t* o = out + row_words * static_cast<size_t>(y);
+    const int v0 = std::max(0, y - r), v1 = std::min(height - 1, y + r);
+    for (size_t w = 0; w < words; ++w) {
+      uint64_t acc = ~uint64_t{0};
+      for (int v = v0; v <= v1; ++v) acc &= eroded[words * static_cast<size_t>(v - from) + w];
+      o[w] = acc;
+    }
+    o[words - 1] &= ~past_width;
+    for (size_t w = words; w < row_words; ++w) o[w] = 0;
   }
 }
 
@@ -763,7 +875,7 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
   probe_frame_stride_.resize(cameras);
   probe_background_stride_.resize(cameras);
   for (size_t n = 0; n < cameras; ++n) {
-    if (input_ == Input::kImages) {
+    if (input_ != Input::kChanges) {
       probe_frame_[n] = frames_[n].data();
       probe_frame_stride_[n] = frames_[n].stride_elems();
       probe_background_[n] = backgrounds_[n].data();
@@ -907,12 +1019,19 @@ void FastFusion::CellTask(int task) {
       job.secondary_offsets = secondary_offsets_.data();
       job.secondary = secondary_.data();
       job.first_bits = first_bits_.data();
-      job.bitmap = reinterpret_cast<const unsigned char*>(bitmap_.data());
+      job.bitmap = reinterpret_cast<const unsigned char*>(bits_base_);
       job.src = ProbeSource{probe_frame_.data(), probe_frame_stride_.data(), probe_background_.data(),
                             probe_background_stride_.data(), widths_.data(), threshold_};
+      if (input_ == Input::kBits) {
+        job.src.bits = reinterpret_cast<const unsigned char*>(bits_base_);
+        job.src.bits_camera_word = bitmap_camera_word_.data();
+        job.src.bits_row_words = bitmap_row_words_.data();
+      }
       job.out = tiled_.data();
       job.bit_tests = &task_bit_tests_[t];
-      const FailKernel resolve = input_ == Input::kImages ? kernels.fails_images : kernels.fails_changes;
+      const FailKernel resolve = input_ == Input::kImages    ? kernels.fails_images
+                                 : input_ == Input::kChanges ? kernels.fails_changes
+                                                             : FailsBits;
       task_secondary_[t] = resolve(job, fails, task_fails_[t]);
       return;
     }
@@ -933,8 +1052,9 @@ uint32_t FastFusion::ProbeRows(uint32_t begin, uint32_t end, Fail* fails, int64_
   // spanning two just-stored words cannot be forwarded and stalls).
   auto row_bits = [&](uint32_t g) {
     const RowGroup& group = row_groups_[g];
-    uint64_t* bits = bitmap_.data() + bitmap_camera_word_[group.camera] +
+    uint64_t* bits = bits_base_ + bitmap_camera_word_[group.camera] +
                      bitmap_row_words_[group.camera] * static_cast<size_t>(group.row) + group.word_begin;
+    if (input_ == Input::kBits) return bits;  // every row's bits are there already
     const int x0 = group.word_begin * 64;
     const int columns = std::min(widths_[group.camera], group.word_end * 64) - x0;
     if (input_ == Input::kImages) {
@@ -1023,26 +1143,31 @@ void FastFusion::RunTask(int task, int thread) {
   for (size_t i = begin; i < end; ++i) {
     const WorkRow& wr = rows_[i];
     const int width = sizes_[wr.camera].width;
-    if (input_ == Input::kImages) {
-      kernels.images(frames_[wr.camera].row(wr.row), backgrounds_[wr.camera].row(wr.row), width, threshold_, bits);
+    const uint64_t* row_bits = bits;
+    if (input_ == Input::kBits) {  // FuseTolerant's bits of every pixel (a zero word past the row)
+      row_bits = bits_base_ + bitmap_camera_word_[wr.camera] + bitmap_row_words_[wr.camera] * wr.row;
     } else {
-      kernels.changes(changes_.data() + pixel_offsets_[wr.camera] + static_cast<size_t>(wr.row) * width, width,
-                      bits);
+      if (input_ == Input::kImages) {
+        kernels.images(frames_[wr.camera].row(wr.row), backgrounds_[wr.camera].row(wr.row), width, threshold_, bits);
+      } else {
+        kernels.changes(changes_.data() + pixel_offsets_[wr.camera] + static_cast<size_t>(wr.row) * width, width,
+                        bits);
+      }
+      bits[(width + 63) / 64] = 0;  // a run never reads past its row, but keep the word defined
     }
-    bits[(width + 63) / 64] = 0;  // a run never reads past its row, but keep the word defined
     for (uint32_t r = wr.runs_begin; r < wr.runs_end; ++r) {
       const Run run = runs[r];
       const unsigned shift = run.column & 63u;
       const size_t word = run.column >> 6;
       // Branch-free 64-bit window at the run's first pixel (the next word always exists: bits
       // has a zero word past the row); (x << 1) << (63 - s) is x << (64 - s), 0 for s = 0.
-      const uint64_t v = (bits[word] >> shift) | ((bits[word + 1] << 1) << (63 - shift));
+      const uint64_t v = (row_bits[word] >> shift) | ((row_bits[word + 1] << 1) << (63 - shift));
       const uint64_t need = ~uint64_t{0} >> (64 - run.length);
       if ((v & need) != 0) part[run.cell] = 0;
     }
     for (uint32_t p = wr.pairs_begin; p < wr.pairs_end; ++p) {
       const Pair pair = pairs[p];
-      if ((bits[pair.column >> 6] >> (pair.column & 63u)) & 1u) part[pair.cell] = 0;
+      if ((row_bits[pair.column >> 6] >> (pair.column & 63u)) & 1u) part[pair.cell] = 0;
     }
   }
 }

@@ -60,6 +60,20 @@
 
 namespace occmap {
 
+// Every pixel's change after the tolerance, as bits (FastFusion::FuseTolerant): bit x % 64 of
+// words[camera_word[n] + row_words[n] * y + x / 64] is 1 when camera n's pixel (x, y) is
+// UNCHANGED (no pixel of the tolerance window around it changed). Bits past a row's width are 0.
+struct ChangeBits {
+  std::vector<uint64_t> words;
+  std::vector<size_t> row_words, camera_word;
+  bool Changed(int camera, int x, int y) const {
+    const uint64_t word = words[camera_word[static_cast<size_t>(camera)] +
+                                row_words[static_cast<size_t>(camera)] * static_cast<size_t>(y) +
+                                static_cast<size_t>(x) / 64];
+    return ((word >> (static_cast<unsigned>(x) % 64)) & 1u) == 0;
+  }
+};
+
 class FastFusion {
  public:
   // One run of pixels of a row mapping to the same cell.
@@ -133,6 +147,17 @@ class FastFusion {
   // changed), like Fusion::Fuse with image-based, k = 0, all active.
   void FuseChanges(std::span<const uint8_t> changes, Context& ctx, OccupancyMap& map);
 
+  // Fuse with the change tolerance folded in: the same map as DetectChangesGray of every
+  // camera, DilateChanges by tolerance_px (1..kMaxFusedTolerancePx), then FuseChanges, bit for
+  // bit (tests), without writing a byte change mask. Every pixel's unchanged bit is computed,
+  // eroded by the (2r+1)^2 square (clipped to the image, as the dilation), and left in `bits`
+  // for what needs single pixels' changes after the fusion (the elevated check); then the
+  // cell probes test those bits, pass 2 included (no image reads).
+  void FuseTolerant(std::span<const ImageView<const uint8_t>> frames,
+                    std::span<const ImageView<const uint8_t>> backgrounds, int threshold, int tolerance_px,
+                    Context& ctx, OccupancyMap& map, ChangeBits& bits);
+  static constexpr int kMaxFusedTolerancePx = 8;
+
   // What the last Fuse / FuseChanges call did.
   struct FrameStats {
     int64_t primary_probed = 0;    // primary probes tested (cell probes)
@@ -182,7 +207,8 @@ class FastFusion {
     uint32_t runs_begin, runs_end;
     uint32_t pairs_begin, pairs_end;
   };
-  enum class Input { kImages, kChanges };
+  enum class Input { kImages, kChanges, kBits };
+  void ErodeTask(int task);
 
   void BuildCellTables(const GroundLut& lut);
   void ExecuteCells(Context& ctx, OccupancyMap& map);
@@ -220,8 +246,15 @@ class FastFusion {
   std::vector<RowGroup> row_groups_;           // + an end marker
   std::vector<uint32_t> secondary_offsets_;    // per primary probe + 1
   std::vector<Probe> secondary_;
-  // Pass 1's unchanged bits, kept for pass 2: per camera, rows of bitmap_row_words_ words.
+  // Pass 1's unchanged bits, kept for pass 2: per camera, rows of bitmap_row_words_ words
+  // (ChangeBits' layout). bits_base_: this frame's, bitmap_ or FuseTolerant's ChangeBits.
   std::vector<uint64_t> bitmap_;
+  uint64_t* bits_base_ = nullptr;
+  // FuseTolerant's per-frame state: the tolerance, the horizontally eroded rows, the tasks.
+  int tolerance_px_ = 0;
+  std::vector<std::vector<uint64_t>> erode_rows_;  // [task] a row of U, then its eroded rows
+  int erode_tasks_ = 0;
+  std::function<void(int, int)> erode_fn_;
   std::vector<size_t> bitmap_row_words_, bitmap_camera_word_;
   std::vector<uint32_t> first_bits_;  // per primary probe: its first secondary run in bitmap_, or kNoFirstBits
   std::vector<int> widths_;

@@ -266,6 +266,85 @@ TEST_P(FastFusionKernels, IdenticalToReferenceOnClusteredChanges) {
   EXPECT_GT(secondary_total - bit_tests_total, 0);
 }
 
+// FuseTolerant against the reference: change detection, the square dilation by r (brute force,
+// clipped to the image, as DilateChangesReference), then Fusion; and its bits against the
+// dilated changes at every pixel. Random and clustered frames, r = 1..8, 1 and 2 threads, the
+// hand-over to row streaming included (it reads the same bits).
+TEST_P(FastFusionKernels, TolerantIdenticalToDilatedReference) {
+  std::mt19937 rng(777);
+  Context ctx1(1), ctx2(2);
+  int64_t occupied_total = 0, streamed_frames = 0;
+  for (int trial = 0; trial < 12; ++trial) {
+    RandomScene scene = MakeRandomScene(rng);
+    FastFusion fast(scene.lut);
+    for (int frame_index = 0; frame_index < 3; ++frame_index) {
+      const int threshold = static_cast<int>(rng() % 100);
+      const int radius = 1 + static_cast<int>(rng() % FastFusion::kMaxFusedTolerancePx);
+      const bool clustered = rng() % 2 == 0;
+      const double fraction = (rng() % 4 == 0) ? 0.3 : 0.01;
+      const int discs = 1 + static_cast<int>(rng() % 6);
+      const CameraFrames camera_frames = MakeCameraFrames(scene.lut, [&](Image<uint8_t>& f, Image<uint8_t>& b) {
+        if (clustered) {
+          MakeClusteredFrame(rng, threshold, discs, f, b);
+        } else {
+          MakeFrame(rng, threshold, fraction, f, b);
+        }
+      });
+      const auto& [frames, backgrounds, frame_views, background_views] = camera_frames;
+      std::vector<uint8_t> raw;
+      Reference(scene.lut, frames, backgrounds, threshold, raw);
+      // The dilation of every camera's changes (brute force over the clipped window).
+      std::vector<uint8_t> dilated(raw.size(), 0);
+      for (int n = 0; n < scene.lut.num_cameras(); ++n) {
+        const ImageSize size = scene.lut.image_size(n);
+        const uint8_t* in = raw.data() + scene.lut.pixel_offset(n);
+        uint8_t* out = dilated.data() + scene.lut.pixel_offset(n);
+        for (int y = 0; y < size.height; ++y) {
+          for (int x = 0; x < size.width; ++x) {
+            uint8_t set = 0;
+            for (int v = std::max(0, y - radius); v <= std::min(size.height - 1, y + radius); ++v) {
+              for (int u = std::max(0, x - radius); u <= std::min(size.width - 1, x + radius); ++u) {
+                set |= in[static_cast<size_t>(v) * size.width + u];
+              }
+            }
+            out[static_cast<size_t>(y) * size.width + x] = set;
+          }
+        }
+      }
+      Fusion fusion(scene.lut);
+      OccupancyMap expected;
+      fusion.Fuse(dilated, std::vector<bool>(static_cast<size_t>(scene.lut.num_cameras()), true), FusionOptions{},
+                  expected);
+      occupied_total += expected.Count(CellState::kOccupied);
+      for (Context* ctx : {&ctx1, &ctx2}) {
+        for (const double fallback : {0.15, 2.0, 0.0}) {
+          fast.SetStreamingFallbackForTesting(fallback, /*sample=*/16);
+          const std::string where = "trial " + std::to_string(trial) + " frame " + std::to_string(frame_index) +
+                                    " r " + std::to_string(radius) + " threads " + std::to_string(ctx->num_threads()) +
+                                    " fallback " + std::to_string(fallback);
+          OccupancyMap map;
+          ChangeBits bits;
+          fast.FuseTolerant(frame_views, background_views, threshold, radius, *ctx, map, bits);
+          ASSERT_EQ(map, expected) << where;
+          streamed_frames += fast.last_frame_stats().streamed ? 1 : 0;
+          for (int n = 0; n < scene.lut.num_cameras(); ++n) {
+            const ImageSize size = scene.lut.image_size(n);
+            for (int y = 0; y < size.height; ++y) {
+              for (int x = 0; x < size.width; ++x) {
+                ASSERT_EQ(bits.Changed(n, x, y),
+                          dilated[scene.lut.pixel_offset(n) + static_cast<size_t>(y) * size.width + x] != 0)
+                    << where << " camera " << n << " pixel " << x << "," << y;
+              }
+            }
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(occupied_total, 0);
+  EXPECT_GT(streamed_frames, 0);  // the hand-over happened on some frames
+}
+
 // Runs longer than the probe loop's window (56 pixels: their tail is a secondary run): big cells
 // on big images, every pixel changed but, in camera 0, the pixels past the 56th of each cell's
 // longest run in its row with the most trailing zero bits (the primary run when camera 0 has the

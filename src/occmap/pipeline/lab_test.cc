@@ -239,6 +239,34 @@ TEST_F(FullLab, MeetsTheBars) {
                            det.moda, det.modp, mtt.mota, mtt.idf1, window->tracking->mota, window->tracking->idf1);
 }
 
+// The run path without video outputs (the tolerance folded into the fusion: FuseTolerant, the
+// elevated check reading its bits) gives the demo's run (change buffers, for its mosaic video)
+// byte for byte: maps, detections, tracks.
+TEST_F(FullLab, FusedTolerancePathGivesTheSameRun) {
+  ASSERT_NE(demo_, nullptr);
+  auto site = LoadSite(Dataset() / "site.yaml");
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  ASSERT_GE(site->detection.tolerance_px, 1);
+  ASSERT_FALSE(site->blobs.support_heights_m.empty());
+  RunOptions run;
+  run.out_dir = dir_->path() / "run_fused";
+  run.occupancy_video = run.mosaic_video = false;
+  run.occupancy_pngs = true;
+  Context ctx(2);
+  ASSERT_TRUE(RunSite(*site, run, ctx).ok());
+  const fs::path demo_run = dir_->path() / "run";
+  for (const char* file : {"detections.jsonl", "tracks.jsonl", "tracks_mot.csv"}) {
+    EXPECT_EQ(*ReadFileToString(run.out_dir / file), *ReadFileToString(demo_run / file)) << file;
+  }
+  int compared = 0;
+  for (const auto& entry : fs::directory_iterator(demo_run / "occupancy")) {
+    ASSERT_EQ(*ReadFileToString(run.out_dir / "occupancy" / entry.path().filename()), *ReadFileToString(entry.path()))
+        << entry.path().filename();
+    ++compared;
+  }
+  EXPECT_EQ(compared, 100);
+}
+
 // Zone events of a run match the crossings of the ground truth: a band across the room that
 // people, the chair and the robot walk through. Every true enter / leave has an event of the
 // same kind within 3 frames (0.3 s), and no event is left over.

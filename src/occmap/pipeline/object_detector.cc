@@ -92,7 +92,11 @@ int ObjectDetector::SupportState(size_t h, int64_t cell, int32_t* pixels, const 
     if (p < 0) continue;
     ++seeing;
     const int width = cameras_[n].camera->image_size().width;
-    if (!buffers.empty()) {
+    if (!buffers.empty() && buffers[n].unchanged_bits != nullptr) {
+      const ChangeBuffer& b = buffers[n];
+      const size_t x = static_cast<size_t>(p % width), y = static_cast<size_t>(p / width);
+      if ((b.unchanged_bits[y * b.row_words + x / 64] >> (x % 64)) & 1u) return 0;
+    } else if (!buffers.empty()) {
       const ChangeBuffer& b = buffers[n];
       const size_t at = b.stride == static_cast<size_t>(width)
                             ? static_cast<size_t>(p)

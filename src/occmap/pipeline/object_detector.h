@@ -59,10 +59,13 @@ class ObjectDetector {
   using ChangeLookup = std::function<bool(int camera, int x, int y)>;
 
   // The same changes as a buffer: camera n's pixel (x, y) changed when pixels[y * stride + x]
-  // is not 0.
+  // is not 0; or, with unchanged_bits, when bit x % 64 of unchanged_bits[y * row_words + x / 64]
+  // is 0 (ChangeBits' layout).
   struct ChangeBuffer {
     const uint8_t* pixels = nullptr;
     size_t stride = 0;
+    const uint64_t* unchanged_bits = nullptr;
+    size_t row_words = 0;
   };
 
   // active[n]: camera n contributed to this map (size = cameras). `changed` (may be empty)

@@ -218,6 +218,8 @@ struct FrameSet {
   OccupancyMap map;              // the fused map of this instant
   std::vector<uint8_t> changes;  // the change buffer (global pixel ids), allocated when first needed
   bool changes_ready = false;    // `changes` holds this instant's changes (not so when fully fused)
+  ChangeBits change_bits;        // FastFusion::FuseTolerant's changes after the tolerance, as bits
+  bool bits_ready = false;       // `change_bits` holds this instant's changes
 };
 
 // What the writer stage writes for one frame, in frame order.
@@ -306,6 +308,11 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   for (const auto& c : site.cameras) any_mask_source |= c.source.kind == FrameSourceSpec::Kind::kMasks;
   const bool fully_fused = paper_and && !colour && site.detection.tolerance_px == 0 && !any_mask_source &&
                            !options.mosaic_video;
+  // With a small tolerance the same, the dilation folded into the fusion (FuseTolerant): the
+  // changes exist only as bits, which the elevated check reads.
+  const bool tolerant_fused = paper_and && !colour && site.detection.tolerance_px >= 1 &&
+                              site.detection.tolerance_px <= FastFusion::kMaxFusedTolerancePx && !any_mask_source &&
+                              !options.mosaic_video;
   std::vector<ImageView<const uint8_t>> frame_views(site.cameras.size()), background_views(site.cameras.size());
 
   // Outputs.
@@ -580,9 +587,11 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         // ones dropped, large ones split at their necks, flat ones and ghosts removed). The
         // tracker gets the kept groups with their splits, which it refines by its predictions.
         // The elevated check reads single pixels' changes: from the change buffer when this
-        // frame has one, else (fully fused: grey, no tolerance, no masks) from frame and background.
+        // frame has one, from the fusion's bits (fused with a tolerance), else (fully fused:
+        // grey, no tolerance, no masks) from frame and background.
         const ObjectDetector::ChangeLookup changed = [&](int n, int x, int y) {
           const CameraState& c = cams[static_cast<size_t>(n)];
+          if (set.bits_ready) return set.change_bits.Changed(n, x, y);
           if (set.changes_ready) {
             const size_t width = camera_width[static_cast<size_t>(n)];
             return set.changes[lut.pixel_offset(n) + static_cast<size_t>(y) * width + static_cast<size_t>(x)] != 0;
@@ -592,8 +601,16 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
           return std::abs(d) > site.detection.threshold;
         };
         post_changes.clear();
-        for (size_t n = 0; n < cams.size() && set.changes_ready; ++n) {
-          post_changes.push_back({set.changes.data() + lut.pixel_offset(static_cast<int>(n)), camera_width[n]});
+        for (size_t n = 0; n < cams.size() && (set.changes_ready || set.bits_ready); ++n) {
+          ObjectDetector::ChangeBuffer b;
+          if (set.bits_ready) {
+            b.unchanged_bits = set.change_bits.words.data() + set.change_bits.camera_word[n];
+            b.row_words = set.change_bits.row_words[n];
+          } else {
+            b.pixels = set.changes.data() + lut.pixel_offset(static_cast<int>(n));
+            b.stride = camera_width[n];
+          }
+          post_changes.push_back(b);
         }
         detector.Detect(map, active, changed, objects, post_changes);
         const std::vector<Blob>& blobs = objects.detections;
@@ -716,9 +733,10 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     // Change detection, cameras in parallel, into the slot's change buffer (or fused with the
     // fusion itself, FastFusion::Fuse, when nothing else needs the changes).
     const bool all_active = std::all_of(active.begin(), active.end(), [](bool a) { return a; });
-    const bool fused_now = fully_fused && all_active;
+    const bool fused_now = (fully_fused || tolerant_fused) && all_active;
     auto t0 = Clock::now();
     set.changes_ready = false;
+    set.bits_ready = false;
     if (!fused_now) {
       ensure_changes(set);
       ParallelFor(ctx, 0, static_cast<int64_t>(cams.size()), [&](int64_t b, int64_t e, int) {
@@ -735,7 +753,13 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         frame_views[n] = set.frames[n].gray.view();
         background_views[n] = cams[n].background_gray.view();
       }
-      fast->Fuse(frame_views, background_views, site.detection.threshold, ctx, set.map);
+      if (tolerant_fused) {
+        fast->FuseTolerant(frame_views, background_views, site.detection.threshold, site.detection.tolerance_px, ctx,
+                           set.map, set.change_bits);
+        set.bits_ready = true;
+      } else {
+        fast->Fuse(frame_views, background_views, site.detection.threshold, ctx, set.map);
+      }
     } else if (paper_and && all_active) {
       fast->FuseChanges(set.changes, ctx, set.map);
     } else {
