@@ -1,8 +1,25 @@
 #include "occmap/util/thread_pool.h"
 
 #include <algorithm>
+#include <immintrin.h>
 
 namespace occmap {
+namespace {
+
+// Spins (with pause) until done() or kSpin has passed; true when done() became true.
+template <typename Done>
+bool SpinUntil(Done done) {
+  const auto until = std::chrono::steady_clock::now() + ThreadPool::kSpin;
+  while (true) {
+    for (int i = 0; i < 64; ++i) {
+      if (done()) return true;
+      _mm_pause();
+    }
+    if (std::chrono::steady_clock::now() >= until) return done();
+  }
+}
+
+}  // namespace
 
 ThreadPool::ThreadPool(int num_workers) {
   for (int i = 0; i < num_workers; ++i) workers_.emplace_back([this, i] { WorkerLoop(i + 1); });
@@ -44,6 +61,7 @@ void ThreadPool::Run(int num_tasks, const std::function<void(int, int)>& fn) {
     std::lock_guard lock(mutex_);
     if (--pending_ == 0) done_.notify_all();
   }
+  SpinUntil([this] { return pending_.load(std::memory_order_acquire) == 0; });
   std::unique_lock lock(mutex_);
   done_.wait(lock, [this] { return pending_ == 0; });
   job_ = nullptr;
@@ -53,6 +71,11 @@ void ThreadPool::WorkerLoop(int thread_index) {
   uint64_t seen = 0;
   std::unique_lock lock(mutex_);
   while (true) {
+    if (!stop_ && generation_ == seen) {
+      lock.unlock();
+      SpinUntil([&] { return stop_.load(std::memory_order_relaxed) || generation_.load(std::memory_order_acquire) != seen; });
+      lock.lock();
+    }
     wake_.wait(lock, [&] { return stop_ || (generation_ != seen && job_ != nullptr); });
     if (stop_) return;
     seen = generation_;

@@ -10,6 +10,8 @@
 //   ParallelFor(ctx, 0, n, [&](int64_t b, int64_t e, int worker) { ... });
 #pragma once
 
+#include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
@@ -30,7 +32,11 @@ class ThreadPool {
 
   // Runs fn(task_index) for task_index in [0, num_tasks), using the caller as one worker.
   // fn receives the index of the thread that runs it (0 = caller, 1.. = pool workers).
+  // Workers and the waiting caller spin for kSpin before they sleep: the phases of one frame
+  // (several Runs microseconds apart) then pass without a futex wake-up each, while between
+  // frames (milliseconds apart) the workers sleep and leave the cores to other work.
   void Run(int num_tasks, const std::function<void(int task, int thread)>& fn);
+  static constexpr std::chrono::microseconds kSpin{30};
 
  private:
   void WorkerLoop(int thread_index);
@@ -42,9 +48,9 @@ class ThreadPool {
   const std::function<void(int, int)>* job_ = nullptr;
   int num_tasks_ = 0;
   int next_task_ = 0;
-  int pending_ = 0;
-  uint64_t generation_ = 0;
-  bool stop_ = false;
+  std::atomic<int> pending_{0};
+  std::atomic<uint64_t> generation_{0};
+  std::atomic<bool> stop_{false};
 };
 
 class Context {
