@@ -803,6 +803,7 @@ void FastFusion::FuseTolerant(std::span<const ImageView<const uint8_t>> frames,
   // Pass 0: the eroded bits, a task per camera and band of rows.
   const int threads = ctx.num_threads();
   erode_tasks_ = static_cast<int>(sizes_.size()) * (threads <= 1 ? 1 : 2);
+  const ThreadPool::Burst burst(ctx.pool());  // pass 0 and the cell probes' passes, back to back
   if (erode_rows_.size() < static_cast<size_t>(erode_tasks_)) erode_rows_.resize(static_cast<size_t>(erode_tasks_));
   if (threads <= 1) {
     for (int t = 0; t < erode_tasks_; ++t) ErodeTask(t);
@@ -888,6 +889,7 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
     }
   }
   const int threads = ctx.num_threads();
+  const ThreadPool::Burst burst(ctx.pool());  // the passes of the frame, back to back
   const size_t probes = row_groups_.back().probes_begin;
   const size_t groups = row_groups_.size() - 1;
   // Contiguous ranges of row groups with about the same number of probes, several per thread

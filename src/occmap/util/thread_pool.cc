@@ -6,16 +6,17 @@
 namespace occmap {
 namespace {
 
-// Spins (with pause) until done() or kSpin has passed; true when done() became true.
+// Spins (with pause) while `bursts` > 0, until done() or kSpin has passed; true when done().
 template <typename Done>
-bool SpinUntil(Done done) {
+bool SpinUntil(const std::atomic<int>& bursts, Done done) {
+  if (bursts.load(std::memory_order_relaxed) == 0) return done();
   const auto until = std::chrono::steady_clock::now() + ThreadPool::kSpin;
   while (true) {
     for (int i = 0; i < 64; ++i) {
       if (done()) return true;
       _mm_pause();
     }
-    if (std::chrono::steady_clock::now() >= until) return done();
+    if (bursts.load(std::memory_order_relaxed) == 0 || std::chrono::steady_clock::now() >= until) return done();
   }
 }
 
@@ -61,7 +62,7 @@ void ThreadPool::Run(int num_tasks, const std::function<void(int, int)>& fn) {
     std::lock_guard lock(mutex_);
     if (--pending_ == 0) done_.notify_all();
   }
-  SpinUntil([this] { return pending_.load(std::memory_order_acquire) == 0; });
+  SpinUntil(bursts_, [this] { return pending_.load(std::memory_order_acquire) == 0; });
   std::unique_lock lock(mutex_);
   done_.wait(lock, [this] { return pending_ == 0; });
   job_ = nullptr;
@@ -73,7 +74,7 @@ void ThreadPool::WorkerLoop(int thread_index) {
   while (true) {
     if (!stop_ && generation_ == seen) {
       lock.unlock();
-      SpinUntil([&] { return stop_.load(std::memory_order_relaxed) || generation_.load(std::memory_order_acquire) != seen; });
+      SpinUntil(bursts_, [&] { return stop_.load(std::memory_order_relaxed) || generation_.load(std::memory_order_acquire) != seen; });
       lock.lock();
     }
     wake_.wait(lock, [&] { return stop_ || (generation_ != seen && job_ != nullptr); });

@@ -32,10 +32,22 @@ class ThreadPool {
 
   // Runs fn(task_index) for task_index in [0, num_tasks), using the caller as one worker.
   // fn receives the index of the thread that runs it (0 = caller, 1.. = pool workers).
-  // Workers and the waiting caller spin for kSpin before they sleep: the phases of one frame
-  // (several Runs microseconds apart) then pass without a futex wake-up each, while between
-  // frames (milliseconds apart) the workers sleep and leave the cores to other work.
   void Run(int num_tasks, const std::function<void(int task, int thread)>& fn);
+
+  // Inside a Burst (several Runs microseconds apart, e.g. the phases of one frame's fusion),
+  // idle workers and the waiting caller spin for up to kSpin before they sleep, so that the
+  // next Run needs no futex wake-up; outside one they sleep at once and leave the cores to
+  // other work (decoders on a loaded machine: spinning there costs them CPU).
+  class Burst {
+   public:
+    explicit Burst(ThreadPool& pool) : pool_(pool) { pool_.bursts_.fetch_add(1); }
+    ~Burst() { pool_.bursts_.fetch_sub(1); }
+    Burst(const Burst&) = delete;
+    Burst& operator=(const Burst&) = delete;
+
+   private:
+    ThreadPool& pool_;
+  };
   static constexpr std::chrono::microseconds kSpin{30};
 
  private:
@@ -51,6 +63,7 @@ class ThreadPool {
   std::atomic<int> pending_{0};
   std::atomic<uint64_t> generation_{0};
   std::atomic<bool> stop_{false};
+  std::atomic<int> bursts_{0};
 };
 
 class Context {
