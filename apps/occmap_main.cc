@@ -377,6 +377,7 @@ struct BenchCommand {
   int end_to_end_frames = 60;
   double changed_fraction = 0.10;
   int rendered_frames = 4;
+  int wildtrack_end_to_end_frames = 30;
 };
 
 Status RunBenchCommand(const CommonOptions& common, const BenchCommand& cmd) {
@@ -387,6 +388,7 @@ Status RunBenchCommand(const CommonOptions& common, const BenchCommand& cmd) {
   o.end_to_end_frames = cmd.end_to_end_frames;
   o.changed_fraction = cmd.changed_fraction;
   o.rendered_frames = cmd.rendered_frames;
+  o.wildtrack_end_to_end_frames = cmd.wildtrack_end_to_end_frames;
   if (!common.data_root.empty()) o.data_root = common.data_root;
   OCCMAP_RETURN_IF_ERROR(o.Validate());
   Context ctx(common.threads);
@@ -495,6 +497,10 @@ int main(int argc, char** argv) {
                         "WILDTRACK frames rendered by the simulator for the wildtrack workload (0 = skip)")
       ->capture_default_str()
       ->check(CLI::Range(0, 100));
+  bench_cmd->add_option("--wildtrack-end-to-end-frames", bench_opts.wildtrack_end_to_end_frames,
+                        "WILDTRACK scene frames rendered to 1920x1080 H.264 for its own RunSite vs decode "
+                        "(0 = skip, else 22..2000)")
+      ->capture_default_str();
   bench_cmd->add_flag("--json", bench_opts.json_to_stdout, "print one JSON object with a record per workload");
 
   try {

@@ -63,6 +63,10 @@ struct BenchOptions {
   int end_to_end_frames = 0;
   // Frames rendered by the simulator for the wildtrack workload (0 = none).
   int rendered_frames = 4;
+  // End to end on the wildtrack workload's own scene: the WILDTRACK scene (real calibrations
+  // and trajectories) rendered to this many frames of 1920x1080 H.264 per camera, measured as
+  // the lab above (0 = not measured; at least 2 * 10 + 2 for a steady state after the warm-up).
+  int wildtrack_end_to_end_frames = 0;
   Status Validate() const;
 };
 
@@ -125,6 +129,7 @@ struct WorkloadResult {
 
 struct EndToEndResult {
   bool measured = false;
+  std::string scene = "lab";  // lab or wildtrack
   std::string note;
   int64_t frames = 0;
   int cameras = 0;
@@ -142,13 +147,15 @@ struct EndToEndResult {
 
 struct BenchResults {
   std::vector<WorkloadResult> workloads;
-  EndToEndResult end_to_end;
+  EndToEndResult end_to_end;            // the lab scene (4 x 640x480): the paper workload's
+  EndToEndResult wildtrack_end_to_end;  // the WILDTRACK scene (7 x 1920x1080): the wildtrack workload's
 };
 
 // Runs the workloads named by options.workload (all = paper and wildtrack), then the end-to-end
 // measurement when asked.
 Result<BenchResults> RunBench(const BenchOptions& options, Context& ctx);
-Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx);
+// The lab scene, or with wildtrack_dir (the dataset folder) the WILDTRACK scene.
+Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::filesystem::path& wildtrack_dir = {});
 
 std::string BenchTable(const BenchResults& results);
 // {"machine": ..., "nproc": ..., "workloads": [{name, speedup_vs_opencv, speedup_vs_paper_loop,

@@ -1,5 +1,6 @@
-// The end-to-end measurement of `occmap bench`: `occmap run` over H.264 files of the lab scene
-// against pure decoding of the same files.
+// The end-to-end measurement of `occmap bench`: `occmap run` over H.264 files of a rendered
+// scene (the lab, or WILDTRACK's real geometry and trajectories) against pure decoding of the
+// same files.
 //
 // "Sustains" is a steady-state rate: both sides leave out the first kWarmUp frame sets (opening,
 // decoders filling their pipelines) and are timed from the completion of set kWarmUp + 1 to the
@@ -118,8 +119,10 @@ std::string FusionPath(const Site& site) {
 
 }  // namespace
 
-Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx) {
+Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::filesystem::path& wildtrack_dir) {
   EndToEndResult e;
+  const bool wildtrack = !wildtrack_dir.empty();
+  e.scene = wildtrack ? "wildtrack" : "lab";
   namespace fs = std::filesystem;
   const fs::path dir = fs::temp_directory_path() / fmt::format("occmap-bench-{}", static_cast<long>(getpid()));
   std::error_code ec;
@@ -133,7 +136,14 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx) {
   } cleanup{dir};
   sim::BuiltinSceneOptions o;
   o.num_frames = frames;
-  OCCMAP_ASSIGN_OR_RETURN(sim::SceneSpec spec, sim::MakeBuiltinSceneSpec("lab", o));
+  sim::SceneSpec spec;
+  if (wildtrack) {
+    sim::WildtrackSceneOptions wt;
+    wt.dataset_dir = wildtrack_dir;
+    OCCMAP_ASSIGN_OR_RETURN(spec, sim::MakeWildtrackSceneSpec(o, wt));
+  } else {
+    OCCMAP_ASSIGN_OR_RETURN(spec, sim::MakeBuiltinSceneSpec("lab", o));
+  }
   OCCMAP_ASSIGN_OR_RETURN(sim::Scene scene, sim::Scene::Create(std::move(spec)));
   sim::DatasetOptions d;
   d.out_dir = dir / "dataset";
@@ -186,10 +196,12 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx) {
   e.track_s = run.track_s;
   e.output_s = run.output_s;
   e.measured = true;
-  e.note = fmt::format("lab scene, {} cameras 640x480 H.264, {} frames, {} threads; steady state (after {} frames), "
+  const ImageSize size = site.cameras.front().camera->image_size();
+  e.note = fmt::format("{} scene, {} cameras {}x{} H.264, {} frames, {} threads; steady state (after {} frames), "
                        "medians of {} alternated passes; RunSite without video outputs ({}, detections, tracking, "
                        "text outputs); decoding: the faster of one thread per camera and the cameras in turn",
-                       e.cameras, e.frames, ctx.num_threads(), kWarmUp, kRepeats, FusionPath(site));
+                       e.scene, e.cameras, size.width, size.height, e.frames, ctx.num_threads(), kWarmUp, kRepeats,
+                       FusionPath(site));
   return e;
 }
 
