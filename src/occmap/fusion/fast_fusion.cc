@@ -327,7 +327,7 @@ __attribute__((target("avx512f,avx512bw,bmi2"), flatten)) int64_t FailsChangesAv
 // Pass 1's bit tests of one row group: probes [begin, end) against the unchanged bits of the
 // row from pixel x0 (bits[0] bit 0), writing each cell's state and appending the failed probes
 // to fails (branch-free). A probe reads the 64-bit window starting at the byte of its first
-// pixel (an unaligned load: bits has a zero word and one more past the row) and tests its
+// pixel (an unaligned load: the bitmap row has a word past the width) and tests its
 // length (<= kMaxPrimaryLength = 56, so shift + length <= 63) bits after the first pixel's
 // offset in that byte; the table stores the byte from the group's first word and the extract
 // control (shift | length << 8). 18 instructions per probe with BMI2 shrx/shlx (against ~30 for
@@ -1067,7 +1067,8 @@ uint32_t FastFusion::ProbeRows(uint32_t begin, uint32_t end, Fail* fails, int64_
     } else {
       kernels.changes(probe_frame_[group.camera] + group.row * probe_frame_stride_[group.camera] + x0, columns, bits);
     }
-    bits[(columns + 63) / 64] = 0;  // the window may read one word past the last (the row has it)
+    // A window may read a word past the span: inside the row (its extra word), whatever bits
+    // it holds are shifted out by the extract.
     return bits;
   };
   if (begin >= end) return end;

@@ -296,9 +296,6 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   summary.lut_seconds = Since(t_lut);
   const GroundLut& lut = cached.lut;
   Fusion fusion(lut);
-  // Fully fused (no change buffer at all) when nothing needs the per-pixel changes: grey
-  // differencing without tolerance, no mask sources, and no mosaic video (the mosaic picture
-  // of the best frame gets its changes computed when it is drawn).
   const bool paper_and = site.fusion.method == FusionMethod::kImageBased && site.fusion.max_free_views == 0;
   // The paper's AND with every camera active takes the fast path (its tables are built only
   // when the site's fusion settings can use them).
@@ -306,13 +303,14 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   if (paper_and) fast.emplace(lut);
   bool any_mask_source = false;
   for (const auto& c : site.cameras) any_mask_source |= c.source.kind == FrameSourceSpec::Kind::kMasks;
-  const bool fully_fused = paper_and && !colour && site.detection.tolerance_px == 0 && !any_mask_source &&
-                           !options.mosaic_video;
-  // With a small tolerance the same, the dilation folded into the fusion (FuseTolerant): the
-  // changes exist only as bits, which the elevated check reads.
-  const bool tolerant_fused = paper_and && !colour && site.detection.tolerance_px >= 1 &&
-                              site.detection.tolerance_px <= FastFusion::kMaxFusedTolerancePx && !any_mask_source &&
-                              !options.mosaic_video;
+  // Fully fused (no change buffer at all) when nothing needs the per-pixel changes: the paper's
+  // AND on grey frames, no mask sources, no mosaic video (the mosaic picture of the best frame
+  // gets its changes computed when it is drawn); without tolerance (Fuse) or with a small one
+  // folded in (FuseTolerant: the changes exist only as bits, which the elevated check reads).
+  const bool fusable = paper_and && !colour && !any_mask_source && !options.mosaic_video;
+  const bool fully_fused = fusable && site.detection.tolerance_px == 0;
+  const bool tolerant_fused = fusable && site.detection.tolerance_px >= 1 &&
+                              site.detection.tolerance_px <= FastFusion::kMaxFusedTolerancePx;
   std::vector<ImageView<const uint8_t>> frame_views(site.cameras.size()), background_views(site.cameras.size());
 
   // Outputs.

@@ -255,19 +255,22 @@ void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells,
   }
 }
 
-// Nearest-centre partition of the points (s.xs, s.ys) among the first k centres (s.centre_x,
-// s.centre_y) into s.label, as Partition (the same squared distances, ties to the lower
-// centre); whether any label changed.
+// The flat arrays of a partition: points, centres, labels.
+struct PartitionArrays {
+  explicit PartitionArrays(SplitScratch& s)
+      : n(s.xs.size()), xs(s.xs.data()), ys(s.ys.data()), cx(s.centre_x.data()), cy(s.centre_y.data()),
+        label(s.label.data()) {}
+  size_t n;
+  const double *xs, *ys, *cx, *cy;
+  int* label;
+};
+
 // The scalar partition of points [begin, n).
-bool PartitionScalar(SplitScratch& s, size_t k, size_t begin) {
-  const size_t n = s.xs.size();
-  const double* xs = s.xs.data();
-  const double* ys = s.ys.data();
-  const double* cx = s.centre_x.data();
-  const double* cy = s.centre_y.data();
-  int* label = s.label.data();
+bool PartitionScalar(const PartitionArrays& a, size_t k, size_t begin) {
+  const double *xs = a.xs, *ys = a.ys, *cx = a.cx, *cy = a.cy;
+  int* label = a.label;
   bool changed = false;
-  for (size_t p = begin; p < n; ++p) {
+  for (size_t p = begin; p < a.n; ++p) {
     double best = std::numeric_limits<double>::infinity();
     int best_c = 0;
     for (size_t c = 0; c < k; ++c) {
@@ -287,13 +290,10 @@ bool PartitionScalar(SplitScratch& s, size_t k, size_t begin) {
 // AVX2, four points at a time: per lane the same operations in the same order as the scalar
 // loop (subtract, multiply, multiply, add; no FMA; strict < keeps the lower centre on ties), so
 // the same labels bit for bit (SplitBlob's equality test with the reference KMeans).
-__attribute__((target("avx2"))) bool PartitionAvx2(SplitScratch& s, size_t k) {
-  const size_t n = s.xs.size();
-  const double* xs = s.xs.data();
-  const double* ys = s.ys.data();
-  const double* cx = s.centre_x.data();
-  const double* cy = s.centre_y.data();
-  int* label = s.label.data();
+__attribute__((target("avx2"))) bool PartitionAvx2(const PartitionArrays& a, size_t k) {
+  const size_t n = a.n;
+  const double *xs = a.xs, *ys = a.ys, *cx = a.cx, *cy = a.cy;
+  int* label = a.label;
   __m128i any_changed = _mm_setzero_si128();
   size_t p = 0;
   for (; p + 4 <= n; p += 4) {
@@ -317,12 +317,16 @@ __attribute__((target("avx2"))) bool PartitionAvx2(SplitScratch& s, size_t k) {
     _mm_storeu_si128(reinterpret_cast<__m128i*>(label + p), best_c);
   }
   const bool changed = !_mm_testz_si128(any_changed, any_changed);
-  return PartitionScalar(s, k, p) || changed;
+  return PartitionScalar(a, k, p) || changed;
 }
 
+// Nearest-centre partition of the points (s.xs, s.ys) among the first k centres (s.centre_x,
+// s.centre_y) into s.label, as Partition (the same squared distances, ties to the lower
+// centre); whether any label changed.
 bool PartitionInto(SplitScratch& s, size_t k) {
   static const bool avx2 = __builtin_cpu_supports("avx2");
-  return avx2 ? PartitionAvx2(s, k) : PartitionScalar(s, k, 0);
+  const PartitionArrays a(s);
+  return avx2 ? PartitionAvx2(a, k) : PartitionScalar(a, k, 0);
 }
 
 // KMeans on flat arrays: points s.xs, s.ys, seeds s.centre_x, s.centre_y (k of them); the
