@@ -215,7 +215,10 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
   if (settings_.split) {
     // Each group split once (SplitBlob): the tracker gets the splits of the groups kept.
     splits_.clear();
-    for (const Blob& g : kept_groups) splits_.push_back(SplitBlob(g, out.grown, tracker_options_, split_scratch_));
+    for (size_t g = 0; g < kept_groups.size(); ++g) {
+      splits_.push_back(SplitBlob(kept_groups[g], out.grown, groups_.labels(), kept_index[g], tracker_options_,
+                                  split_scratch_));
+    }
     for (const Detection& d : DetectionsFromSplits(kept_groups, splits_, out.grown, tracker_options_)) {
       Blob b = kept_footprints[d.blob_index];  // one part: the group's footprint
       if (d.parts > 1) {

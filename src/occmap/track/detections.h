@@ -33,6 +33,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "occmap/fusion/blobs.h"
@@ -92,13 +93,22 @@ BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOpti
 struct SplitScratch {
   std::vector<uint8_t> inside;
   std::vector<int> g, v, locals, start, sorted, parent, peak, rank_of, significant, label, counts;
-  std::vector<double> d2, f, z, xs, ys, centre_x, centre_y, sum_x, sum_y;
+  std::vector<uint32_t> recompute;
+  std::vector<double> d2, f, z, xs, ys, centre_x, centre_y, sum_x, sum_y, upper, lower, shift;
   std::vector<Eigen::Vector2d> peaks;
   std::vector<std::vector<int64_t>> parts;
 };
 // The same split as SplitBlob (equal, tested), with scratch buffers reused and the k-means on
 // flat arrays.
 BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOptions& options, SplitScratch& scratch);
+// The same split of a blob found by a BlobFinder (or FindBlobs) on `map`: its cells are those
+// of its label, read from the box (no search of the map, no relabelling where other blobs
+// reach into the box; the same cells as BlobCells, tested).
+BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, std::span<const int32_t> labels, int32_t label,
+                    const TrackerOptions& options, SplitScratch& scratch);
+// The split from the blob's cells as BlobCells gives them (sorted, one component).
+BlobSplit SplitBlobCells(const Blob& blob, const FloorGrid& grid, std::vector<int64_t> blob_cells,
+                         const TrackerOptions& options, SplitScratch& scratch);
 std::vector<Detection> DetectionsFromSplits(const std::vector<Blob>& blobs, const std::vector<BlobSplit>& splits,
                                             const OccupancyMap& map, const TrackerOptions& options,
                                             const std::vector<Eigen::Vector2d>& predicted_positions_m = {});
