@@ -92,9 +92,11 @@ BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOpti
 // little more than their results. Not shared between threads.
 struct SplitScratch {
   std::vector<uint8_t> inside;
-  std::vector<int> g, v, locals, start, sorted, parent, peak, rank_of, significant, label, counts;
+  std::vector<int> g, v, locals, start, sorted, parent, peak, rank_of, significant, label;
   std::vector<uint32_t> recompute;
-  std::vector<double> d2, f, z, xs, ys, centre_x, centre_y, sum_x, sum_y, upper, lower, shift;
+  std::vector<int64_t> ci, cj, sum_i, sum_j, counts;
+  std::vector<int> previous;
+  std::vector<double> d2, f, z, xs, ys, centre_x, centre_y, upper, lower, shift;
   std::vector<Eigen::Vector2d> peaks;
   std::vector<std::vector<int64_t>> parts;
 };
