@@ -559,14 +559,56 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     if (set.changes.size() != static_cast<size_t>(lut.total_pixels())) set.changes.assign(lut.total_pixels(), 0);
   };
 
+  // The mosaic picture of a frame set: its frames, their changes (computed here when the frame
+  // was fully fused), the map, detections and tracks.
+  std::vector<Image<uint8_t>> post_raw(cams.size());
+  std::vector<std::vector<uint8_t>> post_scratch(cams.size());
+  auto render_mosaic = [&](FrameSet& set, const std::vector<Blob>& blobs, double time_s,
+                           const std::vector<Track>& tracks, const std::vector<Trail>& trail_list) {
+    const std::vector<Frame>& frames = set.frames;
+    const std::vector<bool>& active = set.active;
+    if (!set.changes_ready) {  // fully fused: the changes of this frame, for its picture
+      ensure_changes(set);
+      for (size_t n = 0; n < cams.size(); ++n) {
+        if (active[n]) camera_changes(set, n, post_raw[n], post_scratch[n]);
+      }
+      set.changes_ready = true;
+    }
+    std::vector<MosaicCamera> tiles;
+    for (size_t n = 0; n < cams.size(); ++n) {
+      const CameraState& c = cams[n];
+      const ImageSize size = c.cam->camera->image_size();
+      MosaicCamera t;
+      t.id = c.cam->id;
+      t.active = active[n];
+      if (active[n]) {
+        const ImageView<const uint8_t> changes(set.changes.data() + lut.pixel_offset(static_cast<int>(n)), size.width,
+                                               size.height, size.width);
+        t.gray = frames[n].gray.view();
+        if (c.is_mask && (frames[n].gray.width() != size.width || frames[n].gray.height() != size.height)) {
+          t.gray = changes;
+        }
+        t.changes = changes;
+        if (t.gray.width() != t.changes.width()) t.changes = {};
+      }
+      tiles.push_back(t);
+    }
+    return mosaic.Render(tiles, set.map, blobs, set.frame_index, time_s, tracks, trail_list);
+  };
+  // Without mosaic video: the frame set with the most detections so far, drawn at the end.
+  FrameSet best_set;
+  best_set.frame_index = -1;
+  std::vector<Blob> best_detections;
+  std::vector<Track> best_tracks;
+  std::vector<Trail> best_trails;
+  double best_time_s = 0;
+
   // Post stage: detections, tracking and the frame's outputs, in frame order.
   std::vector<size_t> camera_width;  // read per pixel by the elevated check: no virtual call there
   for (const auto& c : cams) camera_width.push_back(static_cast<size_t>(c.cam->camera->image_size().width));
   double post_output_s = 0;
   int64_t frames_done = 0;
   Clock::time_point t_first_done, t_warm_done, t_last_done;
-  std::vector<Image<uint8_t>> post_raw(cams.size());
-  std::vector<std::vector<uint8_t>> post_scratch(cams.size());
   std::vector<ObjectDetector::ChangeBuffer> post_changes;  // the elevated check's fast path
   StageWorker<int> post(
       kSlots,
@@ -649,39 +691,30 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         output.detections_line = line.dump() + "\n";
         summary.blob_counts.push_back(blobs.size());
         if (occupancy_video || options.occupancy_pngs) output.occupancy = map.ToGrayImage();
-        if (mosaic_video || best_mosaic.empty() || blobs.size() > best_blobs) {
-          if (!set.changes_ready) {  // fully fused: the changes of this frame, for its picture
-            ensure_changes(set);
-            for (size_t n = 0; n < cams.size(); ++n) {
-              if (active[n]) camera_changes(set, n, post_raw[n], post_scratch[n]);
-            }
-            set.changes_ready = true;
-          }
-          std::vector<MosaicCamera> tiles;
-          for (size_t n = 0; n < cams.size(); ++n) {
-            const CameraState& c = cams[n];
-            const ImageSize size = c.cam->camera->image_size();
-            MosaicCamera t;
-            t.id = c.cam->id;
-            t.active = active[n];
-            if (active[n]) {
-              const ImageView<const uint8_t> changes(set.changes.data() + lut.pixel_offset(static_cast<int>(n)),
-                                                     size.width, size.height, size.width);
-              t.gray = frames[n].gray.view();
-              if (c.is_mask && (frames[n].gray.width() != size.width || frames[n].gray.height() != size.height)) {
-                t.gray = changes;
-              }
-              t.changes = changes;
-              if (t.gray.width() != t.changes.width()) t.changes = {};
-            }
-            tiles.push_back(t);
-          }
-          Image<Rgb8> picture = mosaic.Render(tiles, map, blobs, frame_index, time_s, tracks, trails.Trails());
-          if (best_mosaic.empty() || blobs.size() > best_blobs) {
-            best_mosaic = mosaic_video ? picture : std::move(picture);
+        const bool first = mosaic_video ? best_mosaic.empty() : best_set.frame_index < 0;
+        const bool best = first || blobs.size() > best_blobs;
+        if (mosaic_video) {
+          Image<Rgb8> picture = render_mosaic(set, blobs, time_s, tracks, trails.Trails());
+          if (best) {
+            best_mosaic = picture;
             best_blobs = blobs.size();
           }
-          if (mosaic_video) output.mosaic = std::move(picture);
+          output.mosaic = std::move(picture);
+        } else if (best) {
+          // mosaic.png only: the frame set is kept and drawn once at the end (a 7 x 1080p
+          // picture with its changes costs more than the copy, and the best frame changes
+          // often early in a run).
+          best_set.frames = set.frames;
+          best_set.active = set.active;
+          best_set.map = set.map;
+          best_set.frame_index = set.frame_index;
+          best_set.changes_ready = set.changes_ready;
+          if (set.changes_ready) best_set.changes = set.changes;
+          best_detections = blobs;
+          best_tracks = tracks;
+          best_trails = trails.Trails();
+          best_time_s = time_s;
+          best_blobs = blobs.size();
         }
         post_output_s += Since(t0);
         if (!writer.Push(std::move(output))) return Internal("the writer stage stopped");
@@ -810,6 +843,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     summary.outputs.push_back((out / "events.jsonl").string());
   }
   summary.tracks = static_cast<int64_t>(track_ids.size());
+  if (best_set.frame_index >= 0) best_mosaic = render_mosaic(best_set, best_detections, best_time_s, best_tracks, best_trails);
   if (!best_mosaic.empty()) {
     OCCMAP_RETURN_IF_ERROR(WritePng(out / "mosaic.png", best_mosaic.view()));
     summary.outputs.push_back((out / "mosaic.png").string());
