@@ -113,11 +113,15 @@ class Image {
     const size_t row_bytes = (sizeof(T) * static_cast<size_t>(width) + unit - 1) / unit * unit;
     stride_ = static_cast<ptrdiff_t>(row_bytes / sizeof(T));
     const size_t total = row_bytes * static_cast<size_t>(height);
+    // A copy into an image of the same size or larger keeps its buffer (no new pages per copy).
+    if (data_ && total <= capacity_bytes_ && total > 0) return;
     data_.reset(total == 0 ? nullptr
                            : static_cast<T*>(::operator new[](total, std::align_val_t(kRowAlignment))));
+    capacity_bytes_ = total;
   }
 
   std::unique_ptr<T[], AlignedFree> data_;
+  size_t capacity_bytes_ = 0;  // of data_ (meaningful only while data_ is set)
   int width_ = 0;
   int height_ = 0;
   ptrdiff_t stride_ = 0;

@@ -33,6 +33,27 @@ TEST(Image, CopyAndCompare) {
   EXPECT_EQ(b.view()(3, 2), 9);
 }
 
+TEST(Image, CopyIntoAnImageOfTheSameSizeOrLargerKeepsItsBuffer) {
+  Image<uint8_t> a(100, 40, 7), b(100, 40, 1), big(200, 80, 3);
+  const uint8_t* buffer = b.view().data();
+  b = a;  // same size: the same buffer, a's pixels
+  EXPECT_EQ(b.view().data(), buffer);
+  EXPECT_EQ(a, b);
+  const uint8_t* big_buffer = big.view().data();
+  big = a;  // smaller: the buffer kept, the size and pixels a's
+  EXPECT_EQ(big.view().data(), big_buffer);
+  EXPECT_EQ(big.width(), 100);
+  EXPECT_EQ(big.height(), 40);
+  EXPECT_EQ(big, a);
+  Image<uint8_t> moved = std::move(b);  // a moved-from image allocates again when copied into
+  b = big;
+  EXPECT_EQ(b, a);
+  EXPECT_NE(b.view().data(), moved.view().data());
+  Image<uint8_t> small(3, 2, 5);
+  small = big;  // larger: a new buffer
+  EXPECT_EQ(small, a);
+}
+
 TEST(ImageIo, PngRoundTripGrayAndRgb) {
   testing::TempDir dir;
   Image<uint8_t> gray(31, 17);
