@@ -229,15 +229,23 @@ void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells,
   significant.clear();
   const int offsets[8] = {-box.width - 1, -box.width, -box.width + 1, -1, 1, box.width - 1, box.width, box.width + 1};
   for (int c : order) {
+    // The parents of the processed neighbours (outside cells and those not processed yet have
+    // none), gathered without a branch per neighbour: which ones are processed is unpredictable.
+    int linked[8];
+    int num_linked = 0;
+    for (int o : offsets) {
+      const int p = parent[c + o];  // the border is never inside: in range
+      linked[num_linked] = p;
+      num_linked += p >= 0;
+    }
     int roots[8];
     int num_roots = 0;
-    for (int o : offsets) {
-      const int n = c + o;  // the border is never inside: in range
-      if (parent[n] < 0) continue;  // outside, or not processed yet (outside cells never are)
-      // A neighbour whose parent is a root already found adds nothing (find would return
-      // that root; only its path would not be halved, which changes no root).
-      if (std::find(roots, roots + num_roots, parent[n]) != roots + num_roots) continue;
-      const int root = find(n);
+    for (int k = 0; k < num_linked; ++k) {
+      // A parent that is a root already found adds nothing; otherwise its root (found from the
+      // parent rather than from the neighbour: another path halved, the same roots).
+      const int p = linked[k];
+      if (std::find(roots, roots + num_roots, p) != roots + num_roots) continue;
+      const int root = find(p);
       if (std::find(roots, roots + num_roots, root) == roots + num_roots) roots[num_roots++] = root;
     }
     if (num_roots == 0) {
