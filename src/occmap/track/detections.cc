@@ -286,11 +286,15 @@ struct PartitionArrays {
   int* label;
 };
 
+// A gap as a float no larger than it (the bounds only ever err towards recomputing): moved
+// down by 2^-22 of itself, more than the half float step that rounding to nearest may add.
+constexpr double kFloatDown = 0x1p-22;
+inline float FloatBelow(double gap) { return static_cast<float>(gap - std::abs(gap) * kFloatDown); }
+
 // The points idx[0, m) partitioned among the first k centres (as Partition: the same
-// squared distances, ties to the lower centre) with their bounds: the distance to the nearest
-// centre (upper) and to the second nearest (lower). Whether a label changed.
-bool NearestTwoScalar(const PartitionArrays& a, size_t k, const uint32_t* idx, size_t m, double* upper,
-                      double* lower) {
+// squared distances, ties to the lower centre) with their gap: the distance to the second
+// nearest centre minus that to the nearest (rounded down to a float). Whether a label changed.
+bool NearestTwoScalar(const PartitionArrays& a, size_t k, const uint32_t* idx, size_t m, float* gap) {
   const double inf = std::numeric_limits<double>::infinity();
   bool changed = false;
   for (size_t i = 0; i < m; ++i) {
@@ -310,15 +314,14 @@ bool NearestTwoScalar(const PartitionArrays& a, size_t k, const uint32_t* idx, s
     }
     changed |= a.label[p] != best_c;
     a.label[p] = best_c;
-    upper[p] = std::sqrt(best);
-    lower[p] = std::sqrt(second);
+    gap[p] = FloatBelow(std::sqrt(second) - std::sqrt(best));
   }
   return changed;
 }
 
 // AVX2, four points at a time, per lane the scalar loop's operations (no FMA, strict <).
 __attribute__((target("avx2"))) bool NearestTwoAvx2(const PartitionArrays& a, size_t k, const uint32_t* idx, size_t m,
-                                                    double* upper, double* lower) {
+                                                    float* gap) {
   const __m256d inf = _mm256_set1_pd(std::numeric_limits<double>::infinity());
   bool changed = false;
   size_t i = 0;
@@ -335,104 +338,122 @@ __attribute__((target("avx2"))) bool NearestTwoAvx2(const PartitionArrays& a, si
       best = _mm256_blendv_pd(best, d2, less);
       best_c = _mm256_blendv_pd(best_c, _mm256_set1_pd(static_cast<double>(c)), less);
     }
-    alignas(32) double labels[4], ups[4], lows[4];
+    alignas(32) double labels[4];
+    alignas(16) float gaps[4];
     _mm256_store_pd(labels, best_c);
-    _mm256_store_pd(ups, _mm256_sqrt_pd(best));
-    _mm256_store_pd(lows, _mm256_sqrt_pd(second));
+    const __m256d g = _mm256_sub_pd(_mm256_sqrt_pd(second), _mm256_sqrt_pd(best));
+    const __m256d magnitude = _mm256_andnot_pd(_mm256_set1_pd(-0.0), g);
+    _mm_store_ps(gaps, _mm256_cvtpd_ps(_mm256_sub_pd(g, _mm256_mul_pd(magnitude, _mm256_set1_pd(kFloatDown)))));
     for (int lane = 0; lane < 4; ++lane) {
       const size_t p = idx[i + static_cast<size_t>(lane)];
       const int c = static_cast<int>(labels[lane]);
       changed |= a.label[p] != c;
       a.label[p] = c;
-      upper[p] = ups[lane];
-      lower[p] = lows[lane];
+      gap[p] = gaps[lane];  // FloatBelow
     }
   }
-  return NearestTwoScalar(a, k, idx + i, m - i, upper, lower) || changed;
+  return NearestTwoScalar(a, k, idx + i, m - i, gap) || changed;
 }
 
-bool NearestTwo(const PartitionArrays& a, size_t k, const uint32_t* idx, size_t m, double* upper, double* lower) {
+bool NearestTwo(const PartitionArrays& a, size_t k, const uint32_t* idx, size_t m, float* gap) {
   static const bool avx2 = __builtin_cpu_supports("avx2");
-  return avx2 ? NearestTwoAvx2(a, k, idx, m, upper, lower) : NearestTwoScalar(a, k, idx, m, upper, lower);
+  return avx2 ? NearestTwoAvx2(a, k, idx, m, gap) : NearestTwoScalar(a, k, idx, m, gap);
 }
 
-// One round's bounds: each point's upper bound grows by its centre's shift, its lower bound
-// falls by the largest shift of the other centres (`most` moved most, second_most is the
-// largest of the others'); the points whose bounds come within the slack are listed in
-// s.recompute. Returns how many.
-size_t MoveBoundsScalar(SplitScratch& s, size_t begin, size_t n, size_t most, double second_most, double relative,
-                        double absolute, size_t m) {
+// One round's bounds: each point's gap falls by its centre's shift and the largest shift of
+// the other centres (`most` moved most, second_most is the largest of the others'); the points
+// whose gap is no longer above `slack` are listed in s.recompute. Returns how many.
+size_t MoveBoundsScalar(SplitScratch& s, size_t begin, size_t n, size_t most, float second_most, float slack,
+                        size_t m) {
   uint32_t* idx = s.recompute.data();
+  const float shift_most = s.shift_f[most];
   for (size_t p = begin; p < n; ++p) {
     const size_t c = static_cast<size_t>(s.label[p]);
-    const double upper = s.upper[p] + s.shift[c];
-    const double lower = s.lower[p] - (c == most ? second_most : s.shift[most]);
-    s.upper[p] = upper;
-    s.lower[p] = lower;
+    const float gap = s.gap[p] - (s.shift_f[c] + (c == most ? second_most : shift_most));
+    s.gap[p] = gap;
     idx[m] = static_cast<uint32_t>(p);
-    m += !(upper * (1 + relative) + absolute < lower);
+    m += !(gap > slack);
   }
   return m;
 }
 
-// AVX2, four points at a time (the same operations per lane).
-__attribute__((target("avx2"))) size_t MoveBoundsAvx2(SplitScratch& s, size_t n, size_t most, double second_most,
-                                                      double relative, double absolute) {
+// AVX2, eight points at a time (the same operations per lane).
+__attribute__((target("avx2"))) size_t MoveBoundsAvx2(SplitScratch& s, size_t n, size_t most, float second_most,
+                                                      float slack) {
   uint32_t* idx = s.recompute.data();
-  const double* shift = s.shift.data();
-  const __m128i most_v = _mm_set1_epi32(static_cast<int>(most));
-  const __m256d other = _mm256_set1_pd(shift[most]), second = _mm256_set1_pd(second_most);
-  const __m256d scale = _mm256_set1_pd(1 + relative), slack = _mm256_set1_pd(absolute);
-  const __m256d all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+  const float* shift = s.shift_f.data();
+  const __m256i most_v = _mm256_set1_epi32(static_cast<int>(most));
+  const __m256 other = _mm256_set1_ps(shift[most]), second = _mm256_set1_ps(second_most);
+  const __m256 slack_v = _mm256_set1_ps(slack);
   size_t m = 0, p = 0;
-  for (; p + 4 <= n; p += 4) {
-    const __m128i c = _mm_loadu_si128(reinterpret_cast<const __m128i*>(s.label.data() + p));
-    // (The masked form: GCC 12 warns of the plain one's undefined source.)
-    const __m256d own = _mm256_mask_i32gather_pd(_mm256_setzero_pd(), shift, c, all, 8);
-    const __m256d is_most = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(_mm_cmpeq_epi32(c, most_v)));
-    const __m256d upper = _mm256_add_pd(_mm256_loadu_pd(s.upper.data() + p), own);
-    const __m256d lower = _mm256_sub_pd(_mm256_loadu_pd(s.lower.data() + p), _mm256_blendv_pd(other, second, is_most));
-    _mm256_storeu_pd(s.upper.data() + p, upper);
-    _mm256_storeu_pd(s.lower.data() + p, lower);
-    const __m256d keep = _mm256_cmp_pd(_mm256_add_pd(_mm256_mul_pd(upper, scale), slack), lower, _CMP_LT_OQ);
-    unsigned need = ~static_cast<unsigned>(_mm256_movemask_pd(keep)) & 15u;
+  for (; p + 8 <= n; p += 8) {
+    const __m256i c = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(s.label.data() + p));
+    // Points come in runs of one cluster: a broadcast then (a gather is slow on AMD).
+    const int first = s.label[p];
+    const bool one_cluster = _mm256_movemask_epi8(_mm256_cmpeq_epi32(c, _mm256_set1_epi32(first))) == -1;
+    const int* l = s.label.data() + p;
+    const __m256 own = one_cluster ? _mm256_set1_ps(shift[first])
+                                   : _mm256_set_ps(shift[l[7]], shift[l[6]], shift[l[5]], shift[l[4]], shift[l[3]],
+                                                   shift[l[2]], shift[l[1]], shift[first]);
+    const __m256 is_most = _mm256_castsi256_ps(_mm256_cmpeq_epi32(c, most_v));
+    const __m256 gap = _mm256_sub_ps(_mm256_loadu_ps(s.gap.data() + p),
+                                     _mm256_add_ps(own, _mm256_blendv_ps(other, second, is_most)));
+    _mm256_storeu_ps(s.gap.data() + p, gap);
+    unsigned need = ~static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(gap, slack_v, _CMP_GT_OQ))) & 0xffu;
     while (need != 0) {
       idx[m++] = static_cast<uint32_t>(p + static_cast<size_t>(std::countr_zero(need)));
       need &= need - 1;
     }
   }
-  return MoveBoundsScalar(s, p, n, most, second_most, relative, absolute, m);
+  return MoveBoundsScalar(s, p, n, most, second_most, slack, m);
 }
 
-size_t MoveBounds(SplitScratch& s, size_t n, size_t most, double second_most, double relative, double absolute) {
+size_t MoveBounds(SplitScratch& s, size_t n, size_t most, float second_most, float slack) {
   static const bool avx2 = __builtin_cpu_supports("avx2");
-  return avx2 ? MoveBoundsAvx2(s, n, most, second_most, relative, absolute)
-              : MoveBoundsScalar(s, 0, n, most, second_most, relative, absolute, 0);
+  return avx2 ? MoveBoundsAvx2(s, n, most, second_most, slack) : MoveBoundsScalar(s, 0, n, most, second_most, slack, 0);
 }
 
 // KMeansCells on flat arrays: the cells' centres s.xs, s.ys and indices s.ci, s.cj, seeds
 // s.centre_x, s.centre_y (k of them); the labels in s.label. The same rounds, the same result.
 // The clusters' integer sums are kept and moved by the cells that change cluster.
 //
-// Hamerly's bounds: per point an upper bound of its distance to its centre and a lower bound
-// of its distance to every other centre, moved by the centres' shifts each round; a point
-// whose bounds are apart by more than a margin far above the rounding of the squared distances
-// keeps its label without a distance computed (the reference's comparison could not come out
-// otherwise); the others are partitioned exactly as the reference does. WILDTRACK crowds: groups
-// of ~9 000 cells, ~8 centres, ~18 rounds; ~90 % of the points skip each round.
+// Hamerly's bounds, as one gap per point: a lower bound of (distance to the second nearest
+// centre - distance to its own), which falls each round by its centre's shift and the largest
+// shift of the others; a point whose gap stays above a slack far beyond the rounding keeps its
+// label without a distance computed (the reference's comparison could not come out otherwise);
+// the others are partitioned exactly as the reference does. The gaps are floats rounded down
+// and the shifts floats rounded up (half the memory per round: under the decoders' load the
+// round is memory-bound). WILDTRACK crowds: groups of ~9 000 cells, ~8 centres, ~18 rounds;
+// ~90 % of the points skip each round.
 void KMeansInto(const FloorGrid& grid, SplitScratch& s, size_t k) {
   const size_t n = s.xs.size();
   s.label.assign(n, -1);
-  s.upper.resize(n);
-  s.lower.resize(n);
+  s.gap.resize(n);
   s.recompute.resize(n);
   s.previous.resize(n);
   const PartitionArrays a(s);
   uint32_t* idx = s.recompute.data();
-  // Bounds from an exact partition of every point.
+  // The slack of the gaps: every point-centre distance is at most the points' box diagonal
+  // (the centres are means of the points); the floats' rounding over 50 rounds stays under
+  // 1e-5 of it, the squared distances' under 1e-12. The slack only makes more points recompute.
+  double min_x = std::numeric_limits<double>::infinity(), max_x = -min_x, min_y = min_x, max_y = -min_x;
+  for (size_t p = 0; p < n; ++p) {
+    min_x = std::min(min_x, s.xs[p]);
+    max_x = std::max(max_x, s.xs[p]);
+    min_y = std::min(min_y, s.ys[p]);
+    max_y = std::max(max_y, s.ys[p]);
+  }
+  const float slack = static_cast<float>(1e-5 * std::hypot(max_x - min_x, max_y - min_y) + 1e-9);
+  // A shift as a float no smaller than it.
+  auto float_above = [](double v) {
+    float f = static_cast<float>(v);
+    if (static_cast<double>(f) < v) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+    return f;
+  };
+  // Gaps from an exact partition of every point.
   auto full = [&] {
     for (size_t p = 0; p < n; ++p) idx[p] = static_cast<uint32_t>(p);
-    return NearestTwo(a, k, idx, n, s.upper.data(), s.lower.data());
+    return NearestTwo(a, k, idx, n, s.gap.data());
   };
   auto sums_from_scratch = [&] {
     s.sum_i.assign(k, 0);
@@ -447,9 +468,6 @@ void KMeansInto(const FloorGrid& grid, SplitScratch& s, size_t k) {
   };
   full();
   sums_from_scratch();
-  // Relative and absolute slack of the bounds: distances here are metres on a floor (< 1e4),
-  // their rounding ~1e-12; the slack only makes more points recompute.
-  constexpr double kRelative = 1e-9, kAbsolute = 1e-9;
   for (int round = 0; round < 50; ++round) {
     size_t next = 0;
     s.shift.assign(k, 0.0);
@@ -461,20 +479,22 @@ void KMeansInto(const FloorGrid& grid, SplitScratch& s, size_t k) {
       s.centre_y[next] = centre.y();
       ++next;
     }
-    if (next != k) {  // a cluster emptied: the others are renumbered, the bounds and sums start again
+    if (next != k) {  // a cluster emptied: the others are renumbered, the gaps and sums start again
       k = next;
       if (!full()) break;
       sums_from_scratch();
       continue;
     }
-    // The lower bounds fall by the largest shift of the other centres.
+    // The gaps fall by the point's centre's shift and the largest shift of the other centres.
     size_t most = 0;
     for (size_t c = 1; c < k; ++c) most = s.shift[c] > s.shift[most] ? c : most;
     double second_most = 0;
     for (size_t c = 0; c < k; ++c) second_most = c == most ? second_most : std::max(second_most, s.shift[c]);
-    const size_t m = MoveBounds(s, n, most, second_most, kRelative, kAbsolute);
+    s.shift_f.resize(k);
+    for (size_t c = 0; c < k; ++c) s.shift_f[c] = float_above(s.shift[c]);
+    const size_t m = MoveBounds(s, n, most, float_above(second_most), slack);
     for (size_t r = 0; r < m; ++r) s.previous[r] = s.label[idx[r]];
-    if (!NearestTwo(a, k, idx, m, s.upper.data(), s.lower.data())) break;
+    if (!NearestTwo(a, k, idx, m, s.gap.data())) break;
     for (size_t r = 0; r < m; ++r) {
       const size_t p = idx[r];
       const size_t from = static_cast<size_t>(s.previous[r]), to = static_cast<size_t>(s.label[p]);

@@ -96,7 +96,8 @@ struct SplitScratch {
   std::vector<uint32_t> recompute;
   std::vector<int64_t> ci, cj, sum_i, sum_j, counts;
   std::vector<int> previous;
-  std::vector<double> d2, f, z, xs, ys, centre_x, centre_y, upper, lower, shift;
+  std::vector<double> d2, f, z, xs, ys, centre_x, centre_y, shift;
+  std::vector<float> gap, shift_f;
   std::vector<Eigen::Vector2d> peaks;
   std::vector<std::vector<int64_t>> parts;
 };
