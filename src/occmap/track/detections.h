@@ -12,7 +12,8 @@
 //  3. The number of detections is capped by the area: a blob holds at most
 //     n = floor(area / person_area + 1 - split_area_margin) people (and max_people_per_blob).
 //  4. The cells are clustered by k-means seeded at the kept peaks (Lloyd iterations until
-//     no cell changes cluster); each cluster is a detection at its centroid.
+//     no cell changes cluster; a cluster's centre is the centre of its cells' mean index, from
+//     exact integer sums); each cluster is a detection at its centroid.
 //  5. Track-guided detections: when more predicted track positions (within a person's radius
 //     of the blob's cells) than peaks fall on a blob that may hold them (step 3), the
 //     detections are those predictions shifted together so that their mean is the blob's
