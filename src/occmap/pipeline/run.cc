@@ -595,13 +595,16 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     }
     return mosaic.Render(tiles, set.map, blobs, set.frame_index, time_s, tracks, trail_list);
   };
-  // Without mosaic video: the frame set with the most detections so far, drawn at the end.
-  FrameSet best_set;
-  best_set.frame_index = -1;
-  std::vector<Blob> best_detections;
-  std::vector<Track> best_tracks;
-  std::vector<Trail> best_trails;
-  double best_time_s = 0;
+  // Without mosaic video: the frame set with the most detections so far and what its picture
+  // shows, drawn at the end.
+  struct KeptFrame {
+    FrameSet set;
+    std::vector<Blob> detections;
+    std::vector<Track> tracks;
+    std::vector<Trail> trails;
+    double time_s = 0;
+    bool kept = false;
+  } best_frame;
 
   // Post stage: detections, tracking and the frame's outputs, in frame order.
   std::vector<size_t> camera_width;  // read per pixel by the elevated check: no virtual call there
@@ -691,7 +694,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         output.detections_line = line.dump() + "\n";
         summary.blob_counts.push_back(blobs.size());
         if (occupancy_video || options.occupancy_pngs) output.occupancy = map.ToGrayImage();
-        const bool first = mosaic_video ? best_mosaic.empty() : best_set.frame_index < 0;
+        const bool first = mosaic_video ? best_mosaic.empty() : !best_frame.kept;
         const bool best = first || blobs.size() > best_blobs;
         if (mosaic_video) {
           Image<Rgb8> picture = render_mosaic(set, blobs, time_s, tracks, trails.Trails());
@@ -704,16 +707,18 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
           // mosaic.png only: the frame set is kept and drawn once at the end (a 7 x 1080p
           // picture with its changes costs more than the copy, and the best frame changes
           // often early in a run).
-          best_set.frames = set.frames;
-          best_set.active = set.active;
-          best_set.map = set.map;
-          best_set.frame_index = set.frame_index;
-          best_set.changes_ready = set.changes_ready;
-          if (set.changes_ready) best_set.changes = set.changes;
-          best_detections = blobs;
-          best_tracks = tracks;
-          best_trails = trails.Trails();
-          best_time_s = time_s;
+          FrameSet& kept = best_frame.set;
+          kept.frames = set.frames;
+          kept.active = set.active;
+          kept.map = set.map;
+          kept.frame_index = set.frame_index;
+          kept.changes_ready = set.changes_ready;
+          if (set.changes_ready) kept.changes = set.changes;
+          best_frame.detections = blobs;
+          best_frame.tracks = tracks;
+          best_frame.trails = trails.Trails();
+          best_frame.time_s = time_s;
+          best_frame.kept = true;
           best_blobs = blobs.size();
         }
         post_output_s += Since(t0);
@@ -843,7 +848,10 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     summary.outputs.push_back((out / "events.jsonl").string());
   }
   summary.tracks = static_cast<int64_t>(track_ids.size());
-  if (best_set.frame_index >= 0) best_mosaic = render_mosaic(best_set, best_detections, best_time_s, best_tracks, best_trails);
+  if (best_frame.kept) {
+    best_mosaic =
+        render_mosaic(best_frame.set, best_frame.detections, best_frame.time_s, best_frame.tracks, best_frame.trails);
+  }
   if (!best_mosaic.empty()) {
     OCCMAP_RETURN_IF_ERROR(WritePng(out / "mosaic.png", best_mosaic.view()));
     summary.outputs.push_back((out / "mosaic.png").string());

@@ -279,9 +279,7 @@ void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells,
 // The flat arrays of a partition: points, centres, labels.
 struct PartitionArrays {
   explicit PartitionArrays(SplitScratch& s)
-      : n(s.xs.size()), xs(s.xs.data()), ys(s.ys.data()), cx(s.centre_x.data()), cy(s.centre_y.data()),
-        label(s.label.data()) {}
-  size_t n;
+      : xs(s.xs.data()), ys(s.ys.data()), cx(s.centre_x.data()), cy(s.centre_y.data()), label(s.label.data()) {}
   const double *xs, *ys, *cx, *cy;
   int* label;
 };
@@ -760,9 +758,6 @@ BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOpti
     if (static_cast<int>(seeds.size()) > split.max_people) seeds.resize(static_cast<size_t>(split.max_people));
     split.peaks = seeds.size();
     if (seeds.size() >= 2) {
-      std::vector<Eigen::Vector2d> points;
-      points.reserve(cells.size());
-      for (int64_t c : cells) points.push_back(grid.CellCenter(c));
       const std::vector<int> label = KMeansCells(grid, cells, seeds);
       const size_t num_parts = static_cast<size_t>(*std::max_element(label.begin(), label.end())) + 1;
       if (num_parts >= 2) {
