@@ -86,7 +86,8 @@ struct RenderedResult {
   double fast_all_pps = 0;
   double streaming_1_pps = 0;
   double streaming_all_pps = 0;
-  double primary_failure_fraction = 0;  // failed primary probes / probes tested
+  double primary_failure_fraction = 0;  // failed primary probes / primary probes
+  double primary_tested_fraction = 0;   // primary probes tested (a changed pixel in their first word) / primary probes
   double secondary_probes_per_frame = 0;  // secondary probes tested per frame (1 thread)
   double streamed_frame_fraction = 0;   // frames handed to row streaming (1 thread)
 };
@@ -123,7 +124,8 @@ struct WorkloadResult {
   int64_t probe_bytes_read_per_frame = 0;  // FastFusion::ProbeBytesPerFrame (first pass)
   // Bytes read per frame by row streaming: images + backgrounds + its tables.
   int64_t fast_bytes_read_per_frame = 0;
-  double primary_failure_fraction = 0;  // failed primary probes / probes tested, (c)'s frames
+  double primary_failure_fraction = 0;  // failed primary probes / primary probes, (c)'s frames
+  double primary_tested_fraction = 0;   // of the primary probes, those tested, (c)'s frames
   RenderedResult rendered;              // wildtrack only
 };
 

@@ -341,44 +341,63 @@ __attribute__((target("avx512f,avx512bw,bmi2"), flatten)) int64_t FailsChangesAv
 // 5-8.5 K cache lines per image, yet the probes cost the same in that order), a dense table of
 // second runs beside the primary one, a branch-free first-secondary loop (5 % slower), a larger
 // prefetch distance, the fallback at 35 % instead of 15 %.
-using ProbeGroupKernel = int64_t (*)(const FastFusion::PrimaryProbe* primary, uint32_t begin, uint32_t end,
-                                     const uint64_t* bits, uint8_t* out, FastFusion::Fail* fails, int64_t num_fails);
+using ProbeGroupKernel = int64_t (*)(const FastFusion::PrimaryProbe* primary, const FastFusion::RowGroup& group,
+                                     const uint16_t* word_probes, const uint64_t* bits, unsigned last_word_bits,
+                                     uint8_t* out, FastFusion::Fail* fails, int64_t num_fails, int64_t& tested);
 
 // kBextr: the probe as BMI1's bit-field extract of the window (one instruction with the
 // table's control word), else two shifts and a mask.
+// Only the probes whose first pixel lies in a word of the span with a changed pixel are
+// tested: a probe whose first pixel is unchanged is free, and the map already says so (the
+// frame starts from every seen cell free). word_probes[w] is the group's first probe starting
+// in word w of the span or later; last_word_bits the valid bits of the span's last word (past
+// the image width they are 0, "changed"; 64 = all).
 template <bool kBextr>
-inline int64_t ProbeGroupImpl(const FastFusion::PrimaryProbe* primary, uint32_t begin, uint32_t end,
-                              const uint64_t* bits, uint8_t* out, FastFusion::Fail* fails, int64_t num_fails) {
+inline int64_t ProbeGroupImpl(const FastFusion::PrimaryProbe* primary, const FastFusion::RowGroup& group,
+                              const uint16_t* word_probes, const uint64_t* bits, unsigned last_word_bits,
+                              uint8_t* out, FastFusion::Fail* fails, int64_t num_fails, int64_t& tested) {
   const unsigned char* bytes = reinterpret_cast<const unsigned char*>(bits);
+  const unsigned words = static_cast<unsigned>(group.word_end - group.word_begin);
   int64_t n = num_fails;
+  for (unsigned w = 0; w < words; ++w) {
+    uint64_t changed = ~bits[w];
+    if (w + 1 == words) changed &= LengthMask(last_word_bits);
+    if (changed == 0) continue;  // every probe starting in this word starts unchanged: free
+    const uint32_t begin = group.probes_begin + word_probes[w], end = group.probes_begin + word_probes[w + 1];
+    tested += end - begin;
 #pragma GCC unroll 2
-  for (uint32_t i = begin; i < end; ++i) {
-    const FastFusion::PrimaryProbe p = primary[i];
-    uint64_t window;
-    std::memcpy(&window, bytes + p.byte, sizeof(window));
-    uint64_t run;
-    if constexpr (kBextr) {
-      run = __builtin_ia32_bextr_u64(window, p.extract);
-    } else {
-      run = (window >> (p.extract & 0xffu)) & LengthMask(p.extract >> 8);
+    for (uint32_t i = begin; i < end; ++i) {
+      const FastFusion::PrimaryProbe p = primary[i];
+      uint64_t window;
+      std::memcpy(&window, bytes + p.byte, sizeof(window));
+      uint64_t run;
+      if constexpr (kBextr) {
+        run = __builtin_ia32_bextr_u64(window, p.extract);
+      } else {
+        run = (window >> (p.extract & 0xffu)) & LengthMask(p.extract >> 8);
+      }
+      const bool free = run != 0;
+      out[p.cell] = static_cast<uint8_t>(2 - static_cast<int>(free));  // kFree 1, kOccupied 2
+      fails[n] = FastFusion::Fail{i, p.cell};
+      n += !free;
     }
-    const bool free = run != 0;
-    out[p.cell] = static_cast<uint8_t>(2 - static_cast<int>(free));  // kFree 1, kOccupied 2
-    fails[n] = FastFusion::Fail{i, p.cell};
-    n += !free;
   }
   return n;
 }
 
-int64_t ProbeGroupPortable(const FastFusion::PrimaryProbe* primary, uint32_t begin, uint32_t end,
-                           const uint64_t* bits, uint8_t* out, FastFusion::Fail* fails, int64_t num_fails) {
-  return ProbeGroupImpl<false>(primary, begin, end, bits, out, fails, num_fails);
+int64_t ProbeGroupPortable(const FastFusion::PrimaryProbe* primary, const FastFusion::RowGroup& group,
+                           const uint16_t* word_probes, const uint64_t* bits, unsigned last_word_bits, uint8_t* out,
+                           FastFusion::Fail* fails, int64_t num_fails, int64_t& tested) {
+  return ProbeGroupImpl<false>(primary, group, word_probes, bits, last_word_bits, out, fails, num_fails, tested);
 }
 
-__attribute__((target("bmi,bmi2"), flatten)) int64_t ProbeGroupBmi2(const FastFusion::PrimaryProbe* primary, uint32_t begin,
-                                                                 uint32_t end, const uint64_t* bits,
-                                                                 uint8_t* out, FastFusion::Fail* fails, int64_t num_fails) {
-  return ProbeGroupImpl<true>(primary, begin, end, bits, out, fails, num_fails);
+__attribute__((target("bmi,bmi2"), flatten)) int64_t ProbeGroupBmi2(const FastFusion::PrimaryProbe* primary,
+                                                                 const FastFusion::RowGroup& group,
+                                                                 const uint16_t* word_probes, const uint64_t* bits,
+                                                                 unsigned last_word_bits, uint8_t* out,
+                                                                 FastFusion::Fail* fails, int64_t num_fails,
+                                                                 int64_t& tested) {
+  return ProbeGroupImpl<true>(primary, group, word_probes, bits, last_word_bits, out, fails, num_fails, tested);
 }
 
 ProbeGroupKernel PickProbeGroup() {
@@ -498,13 +517,9 @@ FastFusion::FastFusion(const GroundLut& lut) : grid_(lut.grid()), streaming_fall
     }
   };
   for (const ImageSize& size : sizes_) widths_.push_back(size.width);
-  tiles_x_ = (grid_.cells_x + kTile - 1) / kTile;
-  tiles_y_ = (grid_.cells_y + kTile - 1) / kTile;
-  tiled_.assign(static_cast<size_t>(tiles_x_ * tiles_y_) * kTile * kTile, 0);  // unseen cells stay 0 (kUnseen)
   BuildCellTables(lut);
   cell_task_fn_ = [this](int task, int) { CellTask(task); };
   erode_fn_ = [this](int task, int) { ErodeTask(task); };
-  untile_fn_ = [this](int task, int) { UntileTask(task); };
 }
 
 // Every (camera, row) run of pixels viewing a cell, plus the coverage-fix pairs as runs of one,
@@ -565,7 +580,7 @@ void FastFusion::BuildCellTables(const GroundLut& lut) {
   for (size_t c = 0; c < num_cells; ++c) {
     cell_secondary_offsets[c] = static_cast<uint32_t>(cell_secondary.size());
     const uint32_t b = count[c], e = count[c + 1];
-    if (b == e) continue;  // unseen: no probe, kUnseen in the tiled map
+    if (b == e) continue;  // unseen: no probe, kUnseen in the base map
     std::fill(pixels.begin(), pixels.end(), 0);
     std::fill(best.begin(), best.end(), -1);
     for (uint32_t k = b; k < e; ++k) {
@@ -627,19 +642,36 @@ void FastFusion::BuildCellTables(const GroundLut& lut) {
     const Probe& p = cell_primary[c];
     const int first_word = p.column / 64, last_word = (p.column + p.length - 1) / 64;
     if (row_groups_.empty() || row_groups_.back().camera != p.camera || row_groups_.back().row != p.row) {
-      row_groups_.push_back(RowGroup{static_cast<uint32_t>(i), p.camera, p.row, static_cast<uint16_t>(first_word), 0});
+      row_groups_.push_back(
+          RowGroup{static_cast<uint32_t>(i), p.camera, p.row, static_cast<uint16_t>(first_word), 0, 0});
     }
     RowGroup& group = row_groups_.back();
     group.word_end = std::max<uint16_t>(group.word_end, static_cast<uint16_t>(last_word + 1));
     const int offset = p.column - group.word_begin * 64;  // bits from the group's first word
-    primary_.push_back(PrimaryProbe{TiledIndex(c), static_cast<uint16_t>(offset >> 3),
+    primary_.push_back(PrimaryProbe{c, static_cast<uint16_t>(offset >> 3),
                                     static_cast<uint16_t>((offset & 7) | (p.length << 8))});
     secondary_offsets_[i] = static_cast<uint32_t>(secondary_.size());
     secondary_.insert(secondary_.end(), cell_secondary.begin() + cell_secondary_offsets[c],
                       cell_secondary.begin() + cell_secondary_offsets[c + 1]);
   }
   secondary_offsets_[seen_cells.size()] = static_cast<uint32_t>(secondary_.size());
-  row_groups_.push_back(RowGroup{static_cast<uint32_t>(primary_.size()), 0, 0, 0, 0});  // end marker
+  row_groups_.push_back(RowGroup{static_cast<uint32_t>(primary_.size()), 0, 0, 0, 0, 0});  // end marker
+  // Per group and word w of its span (and one past the span): its first probe whose first
+  // pixel is in word w or later, from the group's first probe (a row holds < 65536 probes).
+  word_probes_.clear();
+  for (size_t g = 0; g + 1 < row_groups_.size(); ++g) {
+    RowGroup& group = row_groups_[g];
+    group.word_probes_begin = static_cast<uint32_t>(word_probes_.size());
+    const uint32_t end = row_groups_[g + 1].probes_begin;
+    uint32_t i = group.probes_begin;
+    for (int w = 0; w <= group.word_end - group.word_begin; ++w) {
+      while (i < end && primary_[i].byte / 8 < w) ++i;
+      word_probes_.push_back(static_cast<uint16_t>(i - group.probes_begin));
+    }
+  }
+  // The map a frame starts from: every seen cell free.
+  base_states_.assign(num_cells, static_cast<uint8_t>(CellState::kUnseen));
+  for (uint32_t c : seen_cells) base_states_[c] = static_cast<uint8_t>(CellState::kFree);
   BuildFirstBits();
 }
 
@@ -698,7 +730,7 @@ int64_t FastFusion::ProbeTableBytes() const {
   return static_cast<int64_t>(primary_.size() * sizeof(PrimaryProbe) + row_groups_.size() * sizeof(RowGroup) +
                               secondary_offsets_.size() * sizeof(uint32_t) + secondary_.size() * sizeof(Probe) +
                               first_bits_.size() * sizeof(uint32_t) + bitmap_.size() * sizeof(uint64_t) +
-                              tiled_.size());
+                              word_probes_.size() * sizeof(uint16_t) + base_states_.size());
 }
 
 int64_t FastFusion::MemoryBytes() const { return StreamingTableBytes() + ProbeTableBytes(); }
@@ -872,6 +904,8 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
     map = OccupancyMap(grid_);
   }
   states_ = map.states().data();
+  // Every seen cell free; the probes write the cells whose primary run has a changed pixel.
+  std::memcpy(states_, base_states_.data(), base_states_.size());
   const size_t cameras = sizes_.size();
   probe_frame_.resize(cameras);
   probe_background_.resize(cameras);
@@ -914,6 +948,7 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
   task_deferred_.assign(static_cast<size_t>(num_tasks_), 0);
   task_stop_.assign(static_cast<size_t>(num_tasks_), 0);
   task_probed_.assign(static_cast<size_t>(num_tasks_), 0);
+  task_tested_.assign(static_cast<size_t>(num_tasks_), 0);
   task_secondary_.assign(static_cast<size_t>(num_tasks_), 0);
   task_bit_tests_.assign(static_cast<size_t>(num_tasks_), 0);
   stats_ = FrameStats{};
@@ -938,60 +973,32 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
   auto gather = [&] {
     stats_.primary_probed = 0;
     stats_.primary_failed = 0;
+    stats_.primary_tested = 0;
     stats_.secondary_probed = 0;
     stats_.secondary_bit_tests = 0;
     for (size_t t = 0; t < static_cast<size_t>(num_tasks_); ++t) {
       stats_.primary_probed += task_probed_[t];
       stats_.primary_failed += task_fails_[t];
+      stats_.primary_tested += task_tested_[t];
       stats_.secondary_probed += task_secondary_[t];
       stats_.secondary_bit_tests += task_bit_tests_[t];
     }
   };
-  auto untile = [&] {
-    untile_tasks_ = static_cast<int>(std::min<int64_t>(threads <= 1 ? 1 : 2 * threads, tiles_y_));
-    if (untile_tasks_ <= 1) {
-      UntileTask(0);
-    } else {
-      ctx.pool().Run(untile_tasks_, untile_fn_);
-    }
-  };
   if (!any_deferred) {
     run(Phase::kResolve);
-    untile();
     gather();
     return;
   }
   if (static_cast<double>(failed) > streaming_fallback_ * static_cast<double>(probed)) {
     // Most cells failed their primary probe (a lighting change, the camera covered): streaming
-    // every pixel once beats probing each cell's secondary runs one by one. The marks of the
-    // tasks that finished are cleared for the next frame.
+    // every pixel once beats probing each cell's secondary runs one by one (it writes every cell).
     gather();
     Execute(ctx, map);
     return;
   }
   run(Phase::kFinish);
   run(Phase::kResolve);
-  untile();
   gather();
-}
-
-// The map in row-major order from the tiled one (tile rows [begin, end) of this task).
-void FastFusion::UntileTask(int task) {
-  const int64_t begin = tiles_y_ * task / untile_tasks_, end = tiles_y_ * (task + 1) / untile_tasks_;
-  uint8_t* out = reinterpret_cast<uint8_t*>(states_);
-  const int cells_x = grid_.cells_x;
-  const int full = cells_x / kTile;
-  const int rest = cells_x - full * kTile;
-  for (int64_t ty = begin; ty < end; ++ty) {
-    const uint8_t* tile_row = tiled_.data() + static_cast<size_t>(ty * tiles_x_) * kTile * kTile;
-    const int rows = static_cast<int>(std::min<int64_t>(kTile, grid_.cells_y - ty * kTile));
-    for (int r = 0; r < rows; ++r) {
-      uint8_t* dst = out + static_cast<size_t>(ty * kTile + r) * static_cast<size_t>(cells_x);
-      const uint8_t* src = tile_row + r * kTile;
-      for (int tx = 0; tx < full; ++tx) std::memcpy(dst + tx * kTile, src + tx * kTile * kTile, kTile);
-      if (rest > 0) std::memcpy(dst + full * kTile, src + full * kTile * kTile, static_cast<size_t>(rest));
-    }
-  }
 }
 
 void FastFusion::CellTask(int task) {
@@ -1001,7 +1008,10 @@ void FastFusion::CellTask(int task) {
   switch (phase_) {
     case Phase::kProbe: {
       int64_t num_fails = 0;
-      const uint32_t stop = ProbeRows(task_groups_[t], task_groups_[t + 1], fails, num_fails, /*may_stop=*/true);
+      int64_t tested = 0;
+      const uint32_t stop =
+          ProbeRows(task_groups_[t], task_groups_[t + 1], fails, num_fails, tested, /*may_stop=*/true);
+      task_tested_[t] = tested;
       task_fails_[t] = num_fails;
       task_stop_[t] = stop;
       task_probed_[t] = row_groups_[stop].probes_begin - first_probe;
@@ -1011,7 +1021,7 @@ void FastFusion::CellTask(int task) {
     case Phase::kFinish: {  // a task that stopped early: its other rows
       if (!task_deferred_[t]) return;
       int64_t num_fails = task_fails_[t];
-      ProbeRows(task_stop_[t], task_groups_[t + 1], fails, num_fails, /*may_stop=*/false);
+      ProbeRows(task_stop_[t], task_groups_[t + 1], fails, num_fails, task_tested_[t], /*may_stop=*/false);
       task_fails_[t] = num_fails;
       task_probed_[t] = row_groups_[task_groups_[t + 1]].probes_begin - first_probe;
       return;
@@ -1030,7 +1040,7 @@ void FastFusion::CellTask(int task) {
         job.src.bits_camera_word = bitmap_camera_word_.data();
         job.src.bits_row_words = bitmap_row_words_.data();
       }
-      job.out = tiled_.data();
+      job.out = reinterpret_cast<uint8_t*>(states_);
       job.bit_tests = &task_bit_tests_[t];
       const FailKernel resolve = input_ == Input::kImages    ? kernels.fails_images
                                  : input_ == Input::kChanges ? kernels.fails_changes
@@ -1045,9 +1055,10 @@ void FastFusion::CellTask(int task) {
 // row's probes touch, then one bit test per probe (branch-free; failures appended to fails).
 // With may_stop, returns early (the first group not done) once more than the fallback fraction
 // of at least fallback_sample_ probes (4096) failed.
-uint32_t FastFusion::ProbeRows(uint32_t begin, uint32_t end, Fail* fails, int64_t& num_fails, bool may_stop) {
+uint32_t FastFusion::ProbeRows(uint32_t begin, uint32_t end, Fail* fails, int64_t& num_fails, int64_t& tested,
+                               bool may_stop) {
   const Kernels& kernels = TheKernels();
-  uint8_t* out = tiled_.data();
+  uint8_t* out = reinterpret_cast<uint8_t*>(states_);
   const PrimaryProbe* primary = primary_.data();
   const uint32_t first_probe = row_groups_[begin].probes_begin;
   // The bits of group g + 1 are computed before the probes of group g read those of g: the
@@ -1080,8 +1091,10 @@ uint32_t FastFusion::ProbeRows(uint32_t begin, uint32_t end, Fail* fails, int64_
       return g;
     }
     uint64_t* next = g + 1 < end ? row_bits(g + 1) : nullptr;
-    num_fails = kernels.probe_group(primary, group.probes_begin, row_groups_[g + 1].probes_begin, bits, out, fails,
-                                    num_fails);
+    const int span_end = std::min(widths_[group.camera], group.word_end * 64);
+    const unsigned last_word_bits = static_cast<unsigned>(span_end - (group.word_end - 1) * 64);
+    num_fails = kernels.probe_group(primary, group, word_probes_.data() + group.word_probes_begin, bits,
+                                    last_word_bits, out, fails, num_fails, tested);
     bits = next;
   }
   return end;

@@ -13,18 +13,19 @@
 // trailing zero bits (neighbouring cells then share image rows and cache lines), its first 56
 // pixels (a longer run's tail is the cell's first secondary run). The primary table is sorted
 // in image order and grouped by image row: per row, the unchanged bits of the words the probes
-// span (the row kernel below), then one bit test per probe (an unaligned 64-bit window of the
-// bits at the probe's first byte, two shifts), writing kFree or kOccupied into a tiled copy of
-// the map (8 x 8 cells per 64-byte line, so probes in image order touch few lines; turned
-// row-major at the end of the frame). The row's bits stay in a bitmap of pass 1 (1 bit per
+// span (the row kernel below); a frame starts from every seen cell free, and only the probes
+// whose first pixel lies in a word with a changed pixel are tested (an unchanged first pixel
+// frees the cell; on the lab ~X % of the probes are tested), each by one bit test (an
+// unaligned 64-bit window of the bits at the probe's first byte, a bit-field extract), writing
+// // kFree or kOccupied into the map. The row's bits stay in a bitmap of pass 1 (1 bit per
 // pixel, only the probed spans written). Pass 2, once every task's pass 1 is done: cells whose
 // primary run is all changed try their secondary runs (cell-major CSR, in primary order: the
 // longest run of each other camera first, then the rest) until one is free; the first of them
 // is, wherever one exists, a run that pass 1 turned into bits (on WILDTRACK 93 % of the cells),
 // so it costs one bit test in the bitmap (in cache) instead of two image reads from memory.
 // Threads take contiguous ranges of the primary table: each cell is written by one thread, no
-// per-thread map, no reduction. Unseen cells are never written in the tiled map and stay
-// kUnseen. On WILDTRACK the 691 200 primary probes touch 3 627 of the 7 560 image rows.
+// per-thread map, no reduction. Unseen cells are never written by the probes and stay kUnseen.
+// On WILDTRACK the 691 200 primary probes touch 3 627 of the 7 560 image rows.
 // When more than 15 % of the probes fail (a lighting change, a covered lens: the worst case),
 // the tasks stop after a sample and the frame is handed to row streaming, so the worst case
 // costs about what row streaming costs.
@@ -101,22 +102,25 @@ class FastFusion {
   // Stored as the probe loop uses it: with o = column - 64 word_begin (the run's first pixel
   // from the group's first word), the byte o / 8 of the group's bits where its 64-bit window
   // starts, and the bit-field extract control (o % 8) | length << 8 (length 1..56; a longer
-  // run's tail is the cell's first secondary run). `cell`: the cell's byte in the tiled map.
+  // run's tail is the cell's first secondary run). `cell`: the cell (row-major map index).
   struct PrimaryProbe {
     uint32_t cell;
     uint16_t byte;
     uint16_t extract;
   };
   // The primary probes of one image row: [probes_begin, next group's probes_begin), covering
-  // the 64-pixel words [word_begin, word_end) of the row.
+  // the 64-pixel words [word_begin, word_end) of the row; word_probes_[word_probes_begin + w]
+  // (w = 0 .. word_end - word_begin) is the group's first probe (from probes_begin) whose first
+  // pixel lies in the span's word w or later.
   struct RowGroup {
     uint32_t probes_begin;
     uint16_t camera;
     uint16_t row;
     uint16_t word_begin;
     uint16_t word_end;
+    uint32_t word_probes_begin;
   };
-  // A failed primary probe: its index in the primary table and its cell's byte in the tiled map.
+  // A failed primary probe: its index in the primary table and its cell.
   struct Fail {
     uint32_t probe;
     uint32_t cell;
@@ -160,7 +164,8 @@ class FastFusion {
 
   // What the last Fuse / FuseChanges call did.
   struct FrameStats {
-    int64_t primary_probed = 0;    // primary probes tested (cell probes)
+    int64_t primary_probed = 0;    // primary probes decided (cell probes)
+    int64_t primary_tested = 0;    // of which tested (their first word has a changed pixel; the rest are free)
     int64_t primary_failed = 0;    // of which all changed
     int64_t secondary_probed = 0;  // secondary probes tested
     int64_t secondary_bit_tests = 0;  // of which in pass 1's bits (the cell's first secondary run)
@@ -179,7 +184,7 @@ class FastFusion {
   int64_t MemoryBytes() const;
   // Row streaming's tables (runs, pairs, row index, view counts), all read every frame.
   int64_t StreamingTableBytes() const;
-  // The cell probes' tables (primary, row groups, secondary CSR, first bits) and buffers (bitmap, tiled map).
+  // The cell probes' tables (primary, row groups, secondary CSR, first bits) and buffers (bitmap, the base map, word index).
   int64_t ProbeTableBytes() const;
   // Bytes read per frame by row streaming from its tables (StreamingTableBytes).
   int64_t TableBytesPerFrame() const;
@@ -213,15 +218,8 @@ class FastFusion {
   void BuildCellTables(const GroundLut& lut);
   void ExecuteCells(Context& ctx, OccupancyMap& map);
   void CellTask(int task);
-  void UntileTask(int task);
   void BuildFirstBits();
-  // The cell's byte in tiled_: tiles of kTile x kTile cells, row-major inside, in row-major order.
-  uint32_t TiledIndex(size_t cell) const {
-    const size_t i = cell % static_cast<size_t>(grid_.cells_x), j = cell / static_cast<size_t>(grid_.cells_x);
-    return static_cast<uint32_t>(((j / kTile) * static_cast<size_t>(tiles_x_) + i / kTile) * kTile * kTile +
-                                 (j % kTile) * kTile + i % kTile);
-  }
-  uint32_t ProbeRows(uint32_t begin, uint32_t end, Fail* fails, int64_t& num_fails, bool may_stop);
+  uint32_t ProbeRows(uint32_t begin, uint32_t end, Fail* fails, int64_t& num_fails, int64_t& tested, bool may_stop);
   void Prepare(Context& ctx, OccupancyMap& map);
   void Execute(Context& ctx, OccupancyMap& map);
   void RunTask(int task, int thread);
@@ -234,14 +232,9 @@ class FastFusion {
   std::vector<Pair> pairs_;
   std::vector<WorkRow> rows_;
   std::vector<uint8_t> view_count_;  // per cell, cameras that see it
-  // The cell probes write the cells' states into a tiled copy of the map (8 x 8 cells per
-  // 64-byte line: probes in image order touch few lines), turned row-major at the end of a
-  // frame. Unseen cells are never written there and stay kUnseen.
-  static constexpr int kTile = 8;
-  int64_t tiles_x_ = 0, tiles_y_ = 0;
-  std::vector<uint8_t> tiled_;
-  int untile_tasks_ = 1;
-  std::function<void(int, int)> untile_fn_;
+  // The map a frame of cell probes starts from: kFree for every seen cell, kUnseen elsewhere.
+  std::vector<uint8_t> base_states_;
+  std::vector<uint16_t> word_probes_;          // RowGroup::word_probes_begin
   std::vector<PrimaryProbe> primary_;          // per seen cell, in image order
   std::vector<RowGroup> row_groups_;           // + an end marker
   std::vector<uint32_t> secondary_offsets_;    // per primary probe + 1
@@ -271,7 +264,8 @@ class FastFusion {
   std::vector<int64_t> task_fails_;              // [task] failed probes
   std::vector<uint8_t> task_deferred_;           // [task] 1 = stopped early, rows and fails left
   std::vector<uint32_t> task_stop_;              // [task] first row group not probed
-  std::vector<int64_t> task_probed_;             // [task] primary probes tested
+  std::vector<int64_t> task_probed_;             // [task] primary probes passed (tested or skipped)
+  std::vector<int64_t> task_tested_;             // [task] of which tested (a changed pixel in the first word)
   std::vector<int64_t> task_secondary_;          // [task] secondary probes tested
   std::vector<int64_t> task_bit_tests_;          // [task] of which in pass 1's bits
   FrameStats stats_;

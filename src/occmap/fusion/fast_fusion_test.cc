@@ -453,6 +453,43 @@ TEST_P(FastFusionKernels, StridedViewsAndReuse) {
   EXPECT_GT(fast.num_runs(), 0);
 }
 
+// A frame starts from every seen cell free and tests only the primary probes whose first pixel
+// lies in a 64-pixel word with a changed pixel: none on an unchanged frame, and on a frame with
+// one changed pixel only those of its word (the map still equal to the reference).
+TEST_P(FastFusionKernels, ProbesOnlyWordsWithChanges) {
+  std::mt19937 rng(5);
+  RandomScene scene = MakeRandomScene(rng);
+  FastFusion fast(scene.lut);
+  Context ctx(2);
+  OccupancyMap map;
+  const int threshold = 25;
+  CameraFrames same = MakeCameraFrames(scene.lut, [&](Image<uint8_t>& f, Image<uint8_t>& b) {
+    MakeFrame(rng, threshold, 0.0, f, b);
+  });
+  std::vector<uint8_t> changes;
+  fast.Fuse(same.frame_views, same.background_views, threshold, ctx, map);
+  EXPECT_EQ(map, Reference(scene.lut, same.frames, same.backgrounds, threshold, changes));
+  EXPECT_EQ(fast.last_frame_stats().primary_probed, fast.num_primary_probes());
+  EXPECT_EQ(fast.last_frame_stats().primary_tested, 0);
+  EXPECT_EQ(fast.last_frame_stats().primary_failed, 0);
+  int64_t free_cells = 0;
+  for (CellState c : map.states()) free_cells += c == CellState::kFree;
+  EXPECT_EQ(free_cells, fast.num_primary_probes());  // one primary probe per seen cell
+  // One changed pixel in camera 0, in the middle of its image.
+  CameraFrames one = same;
+  for (size_t n = 0; n < one.frames.size(); ++n) {
+    one.frame_views[n] = one.frames[n].view();
+    one.background_views[n] = one.backgrounds[n].view();
+  }
+  Image<uint8_t>& f0 = one.frames[0];
+  const int x = f0.width() / 2, y = f0.height() / 2;
+  const int b0 = one.backgrounds[0](x, y);
+  f0(x, y) = static_cast<uint8_t>(b0 > 127 ? b0 - threshold - 1 : b0 + threshold + 1);
+  fast.Fuse(one.frame_views, one.background_views, threshold, ctx, map);
+  EXPECT_EQ(map, Reference(scene.lut, one.frames, one.backgrounds, threshold, changes));
+  EXPECT_LE(fast.last_frame_stats().primary_tested, 64);
+}
+
 TEST(FastFusion, KernelNameIsKnown) {
   const std::string name = FastFusion::KernelName();
   EXPECT_TRUE(name == "avx512bw" || name == "avx2" || name == "portable") << name;
