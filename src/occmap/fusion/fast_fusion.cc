@@ -949,6 +949,7 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
   task_stop_.assign(static_cast<size_t>(num_tasks_), 0);
   task_probed_.assign(static_cast<size_t>(num_tasks_), 0);
   task_tested_.assign(static_cast<size_t>(num_tasks_), 0);
+  task_resolved_.assign(static_cast<size_t>(num_tasks_), 0);
   task_secondary_.assign(static_cast<size_t>(num_tasks_), 0);
   task_bit_tests_.assign(static_cast<size_t>(num_tasks_), 0);
   stats_ = FrameStats{};
@@ -985,7 +986,7 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
     }
   };
   if (!any_deferred) {
-    run(Phase::kResolve);
+    if (input_ != Input::kBits) run(Phase::kResolve);  // with bits, every task resolved its own
     gather();
     return;
   }
@@ -997,7 +998,7 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
     return;
   }
   run(Phase::kFinish);
-  run(Phase::kResolve);
+  if (input_ != Input::kBits) run(Phase::kResolve);
   gather();
 }
 
@@ -1016,6 +1017,13 @@ void FastFusion::CellTask(int task) {
       task_stop_[t] = stop;
       task_probed_[t] = row_groups_[stop].probes_begin - first_probe;
       task_deferred_[t] = stop != task_groups_[t + 1];  // decided once every task has counted its failures
+      // FuseTolerant's bits are all there before pass 1 (pass 0 computed them): a task that
+      // probed all its rows resolves its failures at once, while they are in cache, without
+      // waiting for the others (a frame handed to row streaming afterwards overwrites them).
+      if (input_ == Input::kBits && !task_deferred_[t]) {
+        ResolveTask(t);
+        task_resolved_[t] = 1;
+      }
       return;
     }
     case Phase::kFinish: {  // a task that stopped early: its other rows
@@ -1024,31 +1032,41 @@ void FastFusion::CellTask(int task) {
       ProbeRows(task_stop_[t], task_groups_[t + 1], fails, num_fails, task_tested_[t], /*may_stop=*/false);
       task_fails_[t] = num_fails;
       task_probed_[t] = row_groups_[task_groups_[t + 1]].probes_begin - first_probe;
-      return;
-    }
-    case Phase::kResolve: {
-      const Kernels& kernels = TheKernels();
-      FailJob job;
-      job.secondary_offsets = secondary_offsets_.data();
-      job.secondary = secondary_.data();
-      job.first_bits = first_bits_.data();
-      job.bitmap = reinterpret_cast<const unsigned char*>(bits_base_);
-      job.src = ProbeSource{probe_frame_.data(), probe_frame_stride_.data(), probe_background_.data(),
-                            probe_background_stride_.data(), widths_.data(), threshold_};
       if (input_ == Input::kBits) {
-        job.src.bits = reinterpret_cast<const unsigned char*>(bits_base_);
-        job.src.bits_camera_word = bitmap_camera_word_.data();
-        job.src.bits_row_words = bitmap_row_words_.data();
+        ResolveTask(t);
+        task_resolved_[t] = 1;
       }
-      job.out = reinterpret_cast<uint8_t*>(states_);
-      job.bit_tests = &task_bit_tests_[t];
-      const FailKernel resolve = input_ == Input::kImages    ? kernels.fails_images
-                                 : input_ == Input::kChanges ? kernels.fails_changes
-                                                             : FailsBits;
-      task_secondary_[t] = resolve(job, fails, task_fails_[t]);
       return;
     }
+    case Phase::kResolve:
+      if (!task_resolved_[t]) ResolveTask(t);
+      return;
   }
+}
+
+// Pass 2 of task t: its failed primary probes' secondary runs (ResolveFailsImpl).
+void FastFusion::ResolveTask(size_t t) {
+  const uint32_t first_probe = row_groups_[task_groups_[t]].probes_begin;
+  Fail* fails = fails_.data() + first_probe;
+  const Kernels& kernels = TheKernels();
+  FailJob job;
+  job.secondary_offsets = secondary_offsets_.data();
+  job.secondary = secondary_.data();
+  job.first_bits = first_bits_.data();
+  job.bitmap = reinterpret_cast<const unsigned char*>(bits_base_);
+  job.src = ProbeSource{probe_frame_.data(), probe_frame_stride_.data(), probe_background_.data(),
+                        probe_background_stride_.data(), widths_.data(), threshold_};
+  if (input_ == Input::kBits) {
+    job.src.bits = reinterpret_cast<const unsigned char*>(bits_base_);
+    job.src.bits_camera_word = bitmap_camera_word_.data();
+    job.src.bits_row_words = bitmap_row_words_.data();
+  }
+  job.out = reinterpret_cast<uint8_t*>(states_);
+  job.bit_tests = &task_bit_tests_[t];
+  const FailKernel resolve = input_ == Input::kImages    ? kernels.fails_images
+                             : input_ == Input::kChanges ? kernels.fails_changes
+                                                         : FailsBits;
+  task_secondary_[t] = resolve(job, fails, task_fails_[t]);
 }
 
 // Pass 1 over the row groups [begin, end): per image row, the unchanged bits of the words the

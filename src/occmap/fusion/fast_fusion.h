@@ -23,6 +23,8 @@
 // longest run of each other camera first, then the rest) until one is free; the first of them
 // is, wherever one exists, a run that pass 1 turned into bits (on WILDTRACK 93 % of the cells),
 // so it costs one bit test in the bitmap (in cache) instead of two image reads from memory.
+// With FuseTolerant's bits (every pixel's, from pass 0) a task resolves its own failures right
+// after its pass 1, without the barrier.
 // Threads take contiguous ranges of the primary table: each cell is written by one thread, no
 // per-thread map, no reduction. Unseen cells are never written by the probes and stay kUnseen.
 // On WILDTRACK the 691 200 primary probes touch 3 627 of the 7 560 image rows.
@@ -218,6 +220,7 @@ class FastFusion {
   void BuildCellTables(const GroundLut& lut);
   void ExecuteCells(Context& ctx, OccupancyMap& map);
   void CellTask(int task);
+  void ResolveTask(size_t task);
   void BuildFirstBits();
   uint32_t ProbeRows(uint32_t begin, uint32_t end, Fail* fails, int64_t& num_fails, int64_t& tested, bool may_stop);
   void Prepare(Context& ctx, OccupancyMap& map);
@@ -265,6 +268,7 @@ class FastFusion {
   std::vector<uint8_t> task_deferred_;           // [task] 1 = stopped early, rows and fails left
   std::vector<uint32_t> task_stop_;              // [task] first row group not probed
   std::vector<int64_t> task_probed_;             // [task] primary probes passed (tested or skipped)
+  std::vector<uint8_t> task_resolved_;           // [task] 1 = pass 2 done (FuseTolerant: right after pass 1)
   std::vector<int64_t> task_tested_;             // [task] of which tested (a changed pixel in the first word)
   std::vector<int64_t> task_secondary_;          // [task] secondary probes tested
   std::vector<int64_t> task_bit_tests_;          // [task] of which in pass 1's bits

@@ -126,6 +126,8 @@ void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const ChangeLook
   for (size_t d = 0; d < blobs.size(); ++d) footprint[d].clear();
   for (size_t g = 0; g < kept_index.size(); ++g) {
     const Blob& box = kept_groups[g];
+    const std::vector<int>& candidates = detections_of[g];
+    if (candidates.empty()) continue;  // no cell would be given to anyone
     for (int j = box.min_j; j <= box.max_j; ++j) {
       // The row's occupied cells in order, free spans skipped a word at a time.
       const CellState* row = map.states().data() + int64_t{j} * grid.cells_x;
@@ -133,10 +135,14 @@ void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const ChangeLook
            i = static_cast<int>(NextOccupied(row, i + 1, box.max_i + 1))) {
         const int64_t cell = int64_t{j} * grid.cells_x + i;
         if (labels[static_cast<size_t>(cell)] != kept_index[g]) continue;
+        if (candidates.size() == 1) {  // the nearest of one (a finite distance beats the initial infinity)
+          footprint[static_cast<size_t>(candidates[0])].push_back({i, j});
+          continue;
+        }
         const Eigen::Vector2d c = grid.CellCenter(cell);
         int best = -1;
         double best_d2 = std::numeric_limits<double>::infinity();
-        for (int d : detections_of[g]) {
+        for (int d : candidates) {
           const double d2 = (Eigen::Vector2d(blobs[d].x_m, blobs[d].y_m) - c).squaredNorm();
           if (d2 < best_d2) {
             best_d2 = d2;
