@@ -95,6 +95,34 @@ Detection DetectionFromCells(const FloorGrid& grid, const std::vector<int64_t>& 
   return d;
 }
 
+// DetectionFromCells of the cells whose centres are (xs[k], ys[k]) for k in `indices`, in that
+// order: the same sums in the same order (the same doubles), without a division per cell.
+Detection DetectionFromPoints(const FloorGrid& grid, const std::vector<double>& xs, const std::vector<double>& ys,
+                              const std::vector<int64_t>& indices) {
+  Detection d;
+  d.cells = static_cast<int64_t>(indices.size());
+  d.area_m2 = static_cast<double>(indices.size()) * grid.cell_size_m * grid.cell_size_m;
+  double sum_x = 0, sum_y = 0;
+  for (int64_t k : indices) {
+    sum_x += xs[static_cast<size_t>(k)];
+    sum_y += ys[static_cast<size_t>(k)];
+  }
+  const double n = static_cast<double>(indices.size());
+  const double mean_x = sum_x / n, mean_y = sum_y / n;
+  double sxx = 0, sxy = 0, syx = 0, syy = 0;
+  for (int64_t k : indices) {
+    const double rx = xs[static_cast<size_t>(k)] - mean_x, ry = ys[static_cast<size_t>(k)] - mean_y;
+    sxx += rx * rx;
+    sxy += rx * ry;
+    syx += ry * rx;
+    syy += ry * ry;
+  }
+  d.x_m = mean_x;
+  d.y_m = mean_y;
+  d.spread_m2 << sxx / n, sxy / n, syx / n, syy / n;
+  return d;
+}
+
 // Nearest-centre partition of the cells; ties go to the lower centre.
 std::vector<int> Partition(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Vector2d>& centres) {
   std::vector<int> label(points.size(), 0);
@@ -174,13 +202,14 @@ void SquaredDistanceTransformInto(const std::vector<uint8_t>& inside, int width,
 
 // DistancePeaks into scratch.peaks, the buffers reused and each distance's square root
 // taken only where a persistence is tested (the same expression: the same values).
+// The cells' grid coordinates come in s.ci, s.cj (no division per cell).
 void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells, const TrackerOptions& options,
                        SplitScratch& s) {
   s.peaks.clear();
   if (cells.empty()) return;
   int min_i = grid.cells_x, min_j = grid.cells_y, max_i = -1, max_j = -1;
-  for (int64_t c : cells) {
-    const int i = static_cast<int>(c % grid.cells_x), j = static_cast<int>(c / grid.cells_x);
+  for (size_t k = 0; k < cells.size(); ++k) {
+    const int i = static_cast<int>(s.ci[k]), j = static_cast<int>(s.cj[k]);
     min_i = std::min(min_i, i);
     max_i = std::max(max_i, i);
     min_j = std::min(min_j, j);
@@ -191,8 +220,8 @@ void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells,
   s.inside.assign(size, 0);
   std::vector<int>& locals = s.locals;
   locals.clear();
-  for (int64_t c : cells) {
-    const int local = box.Index(static_cast<int>(c % grid.cells_x) - box.i0, static_cast<int>(c / grid.cells_x) - box.j0);
+  for (size_t k = 0; k < cells.size(); ++k) {
+    const int local = box.Index(static_cast<int>(s.ci[k]) - box.i0, static_cast<int>(s.cj[k]) - box.j0);
     s.inside[local] = 1;
     locals.push_back(local);
   }
@@ -816,20 +845,33 @@ BlobSplit SplitBlobCells(const Blob& blob, const FloorGrid& grid, std::vector<in
   std::vector<std::vector<int64_t>>& parts = scratch.parts;
   size_t num_parts = 0;
   if (split.max_people >= 2) {
+    // Grid coordinates without a division per cell: the cells are sorted, so the row only
+    // moves forward (the same i = c % cells_x, j = c / cells_x).
+    scratch.ci.resize(cells.size());
+    scratch.cj.resize(cells.size());
+    {
+      int64_t j = cells.empty() ? 0 : cells.front() / grid.cells_x;
+      int64_t row = j * grid.cells_x;
+      for (size_t p = 0; p < cells.size(); ++p) {
+        OCCMAP_CHECK(cells[p] >= row, "SplitBlobCells: cells not sorted");
+        while (cells[p] >= row + grid.cells_x) {
+          ++j;
+          row += grid.cells_x;
+        }
+        scratch.ci[p] = cells[p] - row;
+        scratch.cj[p] = j;
+      }
+    }
     DistancePeaksInto(grid, cells, options, scratch);
     const size_t seeds = std::min(scratch.peaks.size(), static_cast<size_t>(split.max_people));
     split.peaks = seeds;
     if (seeds >= 2) {
       scratch.xs.resize(cells.size());
       scratch.ys.resize(cells.size());
-      scratch.ci.resize(cells.size());
-      scratch.cj.resize(cells.size());
       for (size_t p = 0; p < cells.size(); ++p) {
-        const Eigen::Vector2d c = grid.CellCenter(cells[p]);
-        scratch.xs[p] = c.x();
-        scratch.ys[p] = c.y();
-        scratch.ci[p] = cells[p] % grid.cells_x;
-        scratch.cj[p] = cells[p] / grid.cells_x;
+        // FloorGrid::CellCenter's expression.
+        scratch.xs[p] = grid.origin_x_m + (static_cast<double>(scratch.ci[p]) + 0.5) * grid.cell_size_m;
+        scratch.ys[p] = grid.origin_y_m + (static_cast<double>(scratch.cj[p]) + 0.5) * grid.cell_size_m;
       }
       scratch.centre_x.resize(seeds);
       scratch.centre_y.resize(seeds);
@@ -840,9 +882,12 @@ BlobSplit SplitBlobCells(const Blob& blob, const FloorGrid& grid, std::vector<in
       KMeansInto(grid, scratch, seeds);
       num_parts = static_cast<size_t>(*std::max_element(scratch.label.begin(), scratch.label.end())) + 1;
       if (num_parts >= 2) {
+        // The parts as indices into the cells (their centres are in xs, ys).
         if (parts.size() < num_parts) parts.resize(num_parts);
         for (size_t k = 0; k < num_parts; ++k) parts[k].clear();
-        for (size_t p = 0; p < cells.size(); ++p) parts[static_cast<size_t>(scratch.label[p])].push_back(cells[p]);
+        for (size_t p = 0; p < cells.size(); ++p) {
+          parts[static_cast<size_t>(scratch.label[p])].push_back(static_cast<int64_t>(p));
+        }
       } else {
         num_parts = 0;
       }
@@ -858,7 +903,13 @@ BlobSplit SplitBlobCells(const Blob& blob, const FloorGrid& grid, std::vector<in
   if (num_parts == 0) {
     add(cells);
   } else {
-    for (size_t k = 0; k < num_parts; ++k) add(parts[k]);
+    for (size_t k = 0; k < num_parts; ++k) {
+      if (parts[k].empty()) continue;
+      Detection d = DetectionFromPoints(grid, scratch.xs, scratch.ys, parts[k]);
+      if (d.area_m2 < options.min_detection_area_m2) continue;
+      d.blob_index = 0;
+      split.detections.push_back(d);
+    }
   }
   for (Detection& d : split.detections) d.parts = static_cast<int>(split.detections.size());
   return split;
