@@ -174,29 +174,78 @@ std::vector<int> KMeansCells(const FloorGrid& grid, const std::vector<int64_t>& 
   return label;
 }
 
-// SquaredDistanceTransform into scratch.d2, the column runs counted in integers (exact, as
-// the reference's doubles are).
+// SquaredDistance1dInto in integers: f[p] = g[p]^2 for whole g, the intersections kept as
+// fractions num / den (den = 2 (q - p) > 0) and compared by cross-multiplication (|num| <
+// 2^23 and den < 2^13 for boxes under 2 900 cells on a side: the products fit easily). The
+// same envelope as the doubles: each double intersection is the correctly rounded quotient of
+// the same integers, and two distinct quotients differ by at least 1 / (den den') ~ 1e-8, far
+// more than a rounding, so every comparison decides alike; out[q] is a whole number.
+void SquaredDistance1dInt(const int* g, int n, double* out, std::vector<int>& v, std::vector<int64_t>& z_num,
+                          std::vector<int64_t>& z_den) {
+  v.resize(static_cast<size_t>(n));
+  z_num.resize(static_cast<size_t>(n));
+  z_den.resize(static_cast<size_t>(n));
+  auto f = [&](int p) { return int64_t{g[p]} * g[p]; };
+  v[0] = 0;
+  int k = 0;  // z[0] = -inf, z[k + 1] = +inf past the last parabola
+  for (int q = 1; q < n; ++q) {
+    const int64_t fq = f(q) + int64_t{q} * q;
+    int64_t num, den;
+    while (true) {
+      const int p = v[static_cast<size_t>(k)];
+      num = fq - (f(p) + int64_t{p} * p);
+      den = 2 * int64_t{q - p};
+      // s <= z[k] (never for k = 0: z[0] = -inf).
+      if (k > 0 && num * z_den[static_cast<size_t>(k)] <= z_num[static_cast<size_t>(k)] * den) {
+        --k;
+        continue;
+      }
+      break;
+    }
+    ++k;
+    v[static_cast<size_t>(k)] = q;
+    z_num[static_cast<size_t>(k)] = num;
+    z_den[static_cast<size_t>(k)] = den;
+  }
+  const int last = k;
+  k = 0;
+  for (int q = 0; q < n; ++q) {
+    // z[k + 1] < q
+    while (k < last && z_num[static_cast<size_t>(k) + 1] < int64_t{q} * z_den[static_cast<size_t>(k) + 1]) ++k;
+    const int p = v[static_cast<size_t>(k)];
+    out[q] = static_cast<double>(int64_t{q - p} * (q - p) + f(p));
+  }
+}
+
+// SquaredDistanceTransform into scratch.d2, in integers (exact, as the reference's doubles
+// are): the column runs row by row (all columns of a row at once), then the row envelopes.
 void SquaredDistanceTransformInto(const std::vector<uint8_t>& inside, int width, int height, SplitScratch& s) {
   const size_t size = inside.size();
   s.g.resize(size);
-  for (int a = 0; a < width; ++a) {
-    int run = 0;
-    for (int b = 0; b < height; ++b) {
-      run = inside[b * width + a] ? run + 1 : 0;
-      s.g[b * width + a] = run;
-    }
-    run = 0;
-    for (int b = height - 1; b >= 0; --b) {
-      run = inside[b * width + a] ? run + 1 : 0;
-      s.g[b * width + a] = std::min(s.g[b * width + a], run);
+  const size_t w = static_cast<size_t>(width);
+  for (size_t a = 0; a < w; ++a) s.g[a] = inside[a] ? 1 : 0;
+  for (size_t b = 1; b < static_cast<size_t>(height); ++b) {
+    const int* above = s.g.data() + (b - 1) * w;
+    int* row = s.g.data() + b * w;
+    const uint8_t* in = inside.data() + b * w;
+    for (size_t a = 0; a < w; ++a) row[a] = in[a] ? above[a] + 1 : 0;
+  }
+  // From the top down, the run to the last outside cell above; min with the run below.
+  s.v.resize(w);  // the run from below, per column
+  for (size_t a = 0; a < w; ++a) s.v[a] = 0;
+  for (size_t b = static_cast<size_t>(height); b-- > 0;) {
+    int* row = s.g.data() + b * w;
+    const uint8_t* in = inside.data() + b * w;
+    for (size_t a = 0; a < w; ++a) {
+      const int below = in[a] ? s.v[a] + 1 : 0;
+      s.v[a] = below;
+      row[a] = std::min(row[a], below);
     }
   }
   s.d2.resize(size);
-  s.f.resize(static_cast<size_t>(width));
   for (int b = 0; b < height; ++b) {
-    const int* g = s.g.data() + int64_t{b} * width;
-    for (int a = 0; a < width; ++a) s.f[a] = static_cast<double>(g[a]) * static_cast<double>(g[a]);
-    SquaredDistance1dInto(s.f.data(), width, s.d2.data() + int64_t{b} * width, s.v, s.z);
+    SquaredDistance1dInt(s.g.data() + int64_t{b} * width, width, s.d2.data() + int64_t{b} * width, s.v, s.z_num,
+                         s.z_den);
   }
 }
 

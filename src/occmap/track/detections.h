@@ -95,7 +95,7 @@ struct SplitScratch {
   std::vector<uint8_t> inside;
   std::vector<int> g, v, locals, start, sorted, parent, peak, rank_of, significant, label;
   std::vector<uint32_t> recompute;
-  std::vector<int64_t> ci, cj, sum_i, sum_j, counts;
+  std::vector<int64_t> ci, cj, sum_i, sum_j, counts, z_num, z_den;
   std::vector<int> previous;
   std::vector<double> d2, f, z, xs, ys, centre_x, centre_y, shift;
   std::vector<float> gap, shift_f;
