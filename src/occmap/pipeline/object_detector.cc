@@ -139,11 +139,14 @@ void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const ChangeLook
           footprint[static_cast<size_t>(candidates[0])].push_back({i, j});
           continue;
         }
-        const Eigen::Vector2d c = grid.CellCenter(cell);
+        // FloorGrid::CellCenter's expression, from (i, j) without a division.
+        const double cx = grid.origin_x_m + (static_cast<double>(i) + 0.5) * grid.cell_size_m;
+        const double cy = grid.origin_y_m + (static_cast<double>(j) + 0.5) * grid.cell_size_m;
         int best = -1;
         double best_d2 = std::numeric_limits<double>::infinity();
         for (int d : candidates) {
-          const double d2 = (Eigen::Vector2d(blobs[d].x_m, blobs[d].y_m) - c).squaredNorm();
+          const double dx = blobs[d].x_m - cx, dy = blobs[d].y_m - cy;
+          const double d2 = dx * dx + dy * dy;
           if (d2 < best_d2) {
             best_d2 = d2;
             best = d;
