@@ -306,7 +306,20 @@ void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells,
   std::vector<int>& significant = s.significant;
   significant.clear();
   const int offsets[8] = {-box.width - 1, -box.width, -box.width + 1, -1, 1, box.width - 1, box.width, box.width + 1};
+  // Early end: once every processed cell is in one component and the distance has fallen to a
+  // level where a newly born peak could not be significant (its height minus half a cell below
+  // split_min_peak_radius_m), nothing left can add a peak: a component born from here on is
+  // lower than the one holding the highest peak, so it is the one tested when they meet, and
+  // fails the height test. low_key: the largest squared distance (whole cells^2) of that level
+  // (dist_m is monotonic in d2, so the level is d2 <= low_key).
+  int low_key = -1;
+  for (int k = 0; k <= static_cast<int>(d2[order.front()]); ++k) {
+    if (std::sqrt(static_cast<double>(k)) * grid.cell_size_m - half_cell_m >= options.split_min_peak_radius_m) break;
+    low_key = k;
+  }
+  int components = 0;
   for (int c : order) {
+    if (components == 1 && static_cast<int>(d2[c]) <= low_key) break;
     // The parents of the processed neighbours (outside cells and those not processed yet have
     // none), gathered without a branch per neighbour: which ones are processed is unpredictable.
     int linked[8];
@@ -329,6 +342,7 @@ void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells,
     if (num_roots == 0) {
       parent[c] = c;
       peak[c] = c;
+      ++components;
       continue;
     }
     int best = roots[0];
@@ -344,6 +358,7 @@ void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells,
       }
       parent[r] = best;
     }
+    components -= num_roots - 1;
     parent[c] = best;
   }
   significant.push_back(order.front());  // the highest peak always counts
