@@ -589,7 +589,7 @@ std::string BenchTable(const BenchResults& all) {
       s += fmt::format("  rendered frames: {}\n", rr.note);
     } else if (rr.measured) {
       s += fmt::format("  rendered frames (simulator, WILDTRACK trajectories; {}; rendered in {:.1f} s): {:.2f} % of "
-                       "pixels changed, {:.1f} % of primary probes tested (a changed pixel in their first word), "
+                       "pixels changed, {:.1f} % of primary probes tested (their first pixel changed), "
                        "{:.2f} % failed, {:.0f} secondary probes per frame, {:.0f} % of frames handed to row streaming\n",
                        rr.note, rr.render_seconds, 100 * rr.changed_fraction, 100 * rr.primary_tested_fraction,
                        100 * rr.primary_failure_fraction,

@@ -87,7 +87,7 @@ struct RenderedResult {
   double streaming_1_pps = 0;
   double streaming_all_pps = 0;
   double primary_failure_fraction = 0;  // failed primary probes / primary probes
-  double primary_tested_fraction = 0;   // primary probes tested (a changed pixel in their first word) / primary probes
+  double primary_tested_fraction = 0;   // primary probes tested (their first pixel changed) / primary probes
   double secondary_probes_per_frame = 0;  // secondary probes tested per frame (1 thread)
   double streamed_frame_fraction = 0;   // frames handed to row streaming (1 thread)
 };

@@ -342,66 +342,84 @@ __attribute__((target("avx512f,avx512bw,bmi2"), flatten)) int64_t FailsChangesAv
 // second runs beside the primary one, a branch-free first-secondary loop (5 % slower), a larger
 // prefetch distance, the fallback at 35 % instead of 15 %.
 using ProbeGroupKernel = int64_t (*)(const FastFusion::PrimaryProbe* primary, const FastFusion::RowGroup& group,
-                                     const uint16_t* word_probes, const uint64_t* bits, unsigned last_word_bits,
-                                     uint8_t* out, FastFusion::Fail* fails, int64_t num_fails, int64_t& tested);
+                                     const uint16_t* word_probes, const uint64_t* starts, const uint64_t* bits,
+                                     unsigned last_word_bits, uint8_t* out, FastFusion::Fail* fails,
+                                     int64_t num_fails, int64_t& tested);
 
 // kBextr: the probe as BMI1's bit-field extract of the window (one instruction with the
 // table's control word), else two shifts and a mask.
-// Only the probes whose first pixel lies in a word of the span with a changed pixel are
-// tested: a probe whose first pixel is unchanged is free, and the map already says so (the
-// frame starts from every seen cell free). word_probes[w] is the group's first probe starting
-// in word w of the span or later; last_word_bits the valid bits of the span's last word (past
-// the image width they are 0, "changed"; 64 = all).
+// Only the probes whose first pixel is changed are tested: a probe whose first pixel is
+// unchanged is free, and the map already says so (the frame starts from every seen cell free).
+// starts[w]: bit o set when a probe of the group starts at pixel o of the span's word w; the
+// changed starts of a word are found with bit scans, each one's probe index from word_probes[w]
+// (the group's probes starting before word w) and the starts below it. When two probes of the
+// group start at one pixel (coverage-fix pairs), starts is null and every probe starting in a
+// word with a changed pixel is tested. last_word_bits: the valid bits of the span's last word
+// (past the image width they are 0, "changed"; 64 = all).
 template <bool kBextr>
 inline int64_t ProbeGroupImpl(const FastFusion::PrimaryProbe* primary, const FastFusion::RowGroup& group,
-                              const uint16_t* word_probes, const uint64_t* bits, unsigned last_word_bits,
-                              uint8_t* out, FastFusion::Fail* fails, int64_t num_fails, int64_t& tested) {
+                              const uint16_t* word_probes, const uint64_t* starts, const uint64_t* bits,
+                              unsigned last_word_bits, uint8_t* out, FastFusion::Fail* fails, int64_t num_fails,
+                              int64_t& tested) {
   const unsigned char* bytes = reinterpret_cast<const unsigned char*>(bits);
   const unsigned words = static_cast<unsigned>(group.word_end - group.word_begin);
   int64_t n = num_fails;
+  auto probe = [&](uint32_t i) {
+    const FastFusion::PrimaryProbe p = primary[i];
+    uint64_t window;
+    std::memcpy(&window, bytes + p.byte, sizeof(window));
+    uint64_t run;
+    if constexpr (kBextr) {
+      run = __builtin_ia32_bextr_u64(window, p.extract);
+    } else {
+      run = (window >> (p.extract & 0xffu)) & LengthMask(p.extract >> 8);
+    }
+    const bool free = run != 0;
+    out[p.cell] = static_cast<uint8_t>(2 - static_cast<int>(free));  // kFree 1, kOccupied 2
+    fails[n] = FastFusion::Fail{i, p.cell};
+    n += !free;
+  };
   for (unsigned w = 0; w < words; ++w) {
     uint64_t changed = ~bits[w];
     if (w + 1 == words) changed &= LengthMask(last_word_bits);
     if (changed == 0) continue;  // every probe starting in this word starts unchanged: free
-    const uint32_t begin = group.probes_begin + word_probes[w], end = group.probes_begin + word_probes[w + 1];
-    tested += end - begin;
-#pragma GCC unroll 2
-    for (uint32_t i = begin; i < end; ++i) {
-      const FastFusion::PrimaryProbe p = primary[i];
-      uint64_t window;
-      std::memcpy(&window, bytes + p.byte, sizeof(window));
-      uint64_t run;
-      if constexpr (kBextr) {
-        run = __builtin_ia32_bextr_u64(window, p.extract);
-      } else {
-        run = (window >> (p.extract & 0xffu)) & LengthMask(p.extract >> 8);
-      }
-      const bool free = run != 0;
-      out[p.cell] = static_cast<uint8_t>(2 - static_cast<int>(free));  // kFree 1, kOccupied 2
-      fails[n] = FastFusion::Fail{i, p.cell};
-      n += !free;
+    const uint32_t begin = group.probes_begin + word_probes[w];
+    if (starts == nullptr) {
+      const uint32_t end = group.probes_begin + word_probes[w + 1];
+      tested += end - begin;
+      for (uint32_t i = begin; i < end; ++i) probe(i);
+      continue;
+    }
+    const uint64_t word_starts = starts[w];
+    for (uint64_t cand = word_starts & changed; cand != 0; cand &= cand - 1) {
+      const unsigned o = static_cast<unsigned>(std::countr_zero(cand));
+      probe(begin + static_cast<uint32_t>(std::popcount(word_starts & ((uint64_t{1} << o) - 1))));
+      ++tested;
     }
   }
   return n;
 }
 
 int64_t ProbeGroupPortable(const FastFusion::PrimaryProbe* primary, const FastFusion::RowGroup& group,
-                           const uint16_t* word_probes, const uint64_t* bits, unsigned last_word_bits, uint8_t* out,
-                           FastFusion::Fail* fails, int64_t num_fails, int64_t& tested) {
-  return ProbeGroupImpl<false>(primary, group, word_probes, bits, last_word_bits, out, fails, num_fails, tested);
+                           const uint16_t* word_probes, const uint64_t* starts, const uint64_t* bits,
+                           unsigned last_word_bits, uint8_t* out, FastFusion::Fail* fails, int64_t num_fails,
+                           int64_t& tested) {
+  return ProbeGroupImpl<false>(primary, group, word_probes, starts, bits, last_word_bits, out, fails, num_fails,
+                               tested);
 }
 
-__attribute__((target("bmi,bmi2"), flatten)) int64_t ProbeGroupBmi2(const FastFusion::PrimaryProbe* primary,
-                                                                 const FastFusion::RowGroup& group,
-                                                                 const uint16_t* word_probes, const uint64_t* bits,
-                                                                 unsigned last_word_bits, uint8_t* out,
-                                                                 FastFusion::Fail* fails, int64_t num_fails,
-                                                                 int64_t& tested) {
-  return ProbeGroupImpl<true>(primary, group, word_probes, bits, last_word_bits, out, fails, num_fails, tested);
+__attribute__((target("bmi,bmi2,popcnt"), flatten)) int64_t ProbeGroupBmi2(
+    const FastFusion::PrimaryProbe* primary, const FastFusion::RowGroup& group, const uint16_t* word_probes,
+    const uint64_t* starts, const uint64_t* bits, unsigned last_word_bits, uint8_t* out, FastFusion::Fail* fails,
+    int64_t num_fails, int64_t& tested) {
+  return ProbeGroupImpl<true>(primary, group, word_probes, starts, bits, last_word_bits, out, fails, num_fails,
+                              tested);
 }
 
 ProbeGroupKernel PickProbeGroup() {
-  return __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2") ? ProbeGroupBmi2 : ProbeGroupPortable;
+  return __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2") && __builtin_cpu_supports("popcnt")
+             ? ProbeGroupBmi2
+             : ProbeGroupPortable;
 }
 
 struct Kernels {
@@ -658,7 +676,11 @@ void FastFusion::BuildCellTables(const GroundLut& lut) {
   row_groups_.push_back(RowGroup{static_cast<uint32_t>(primary_.size()), 0, 0, 0, 0, 0});  // end marker
   // Per group and word w of its span (and one past the span): its first probe whose first
   // pixel is in word w or later, from the group's first probe (a row holds < 65536 probes).
+  // And the starts bitmap beside it (starts_[word_probes_begin + w], the extra entry 0), or
+  // the group marked in shared_starts_ when two of its probes start at one pixel.
   word_probes_.clear();
+  starts_.clear();
+  shared_starts_.assign(row_groups_.size(), 0);
   for (size_t g = 0; g + 1 < row_groups_.size(); ++g) {
     RowGroup& group = row_groups_[g];
     group.word_probes_begin = static_cast<uint32_t>(word_probes_.size());
@@ -667,6 +689,14 @@ void FastFusion::BuildCellTables(const GroundLut& lut) {
     for (int w = 0; w <= group.word_end - group.word_begin; ++w) {
       while (i < end && primary_[i].byte / 8 < w) ++i;
       word_probes_.push_back(static_cast<uint16_t>(i - group.probes_begin));
+      starts_.push_back(0);
+    }
+    for (uint32_t k = group.probes_begin; k < end; ++k) {
+      const unsigned offset = primary_[k].byte * 8u + (primary_[k].extract & 7u);  // the first pixel in the span
+      uint64_t& word = starts_[group.word_probes_begin + offset / 64];
+      const uint64_t bit = uint64_t{1} << (offset % 64);
+      if ((word & bit) != 0) shared_starts_[g] = 1;
+      word |= bit;
     }
   }
   // The map a frame starts from: every seen cell free.
@@ -730,7 +760,8 @@ int64_t FastFusion::ProbeTableBytes() const {
   return static_cast<int64_t>(primary_.size() * sizeof(PrimaryProbe) + row_groups_.size() * sizeof(RowGroup) +
                               secondary_offsets_.size() * sizeof(uint32_t) + secondary_.size() * sizeof(Probe) +
                               first_bits_.size() * sizeof(uint32_t) + bitmap_.size() * sizeof(uint64_t) +
-                              word_probes_.size() * sizeof(uint16_t) + base_states_.size());
+                              word_probes_.size() * sizeof(uint16_t) + starts_.size() * sizeof(uint64_t) +
+                              shared_starts_.size() + base_states_.size());
 }
 
 int64_t FastFusion::MemoryBytes() const { return StreamingTableBytes() + ProbeTableBytes(); }
@@ -1111,7 +1142,8 @@ uint32_t FastFusion::ProbeRows(uint32_t begin, uint32_t end, Fail* fails, int64_
     uint64_t* next = g + 1 < end ? row_bits(g + 1) : nullptr;
     const int span_end = std::min(widths_[group.camera], group.word_end * 64);
     const unsigned last_word_bits = static_cast<unsigned>(span_end - (group.word_end - 1) * 64);
-    num_fails = kernels.probe_group(primary, group, word_probes_.data() + group.word_probes_begin, bits,
+    num_fails = kernels.probe_group(primary, group, word_probes_.data() + group.word_probes_begin,
+                                    shared_starts_[g] ? nullptr : starts_.data() + group.word_probes_begin, bits,
                                     last_word_bits, out, fails, num_fails, tested);
     bits = next;
   }

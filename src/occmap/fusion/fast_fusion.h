@@ -14,8 +14,9 @@
 // pixels (a longer run's tail is the cell's first secondary run). The primary table is sorted
 // in image order and grouped by image row: per row, the unchanged bits of the words the probes
 // span (the row kernel below); a frame starts from every seen cell free, and only the probes
-// whose first pixel lies in a word with a changed pixel are tested (an unchanged first pixel
-// frees the cell; on the lab ~X % of the probes are tested), each by one bit test (an
+// whose first pixel is changed are tested (an unchanged first pixel frees the cell; found by
+// bit scans of the changed words against a bitmap of the probes' first pixels), each by one
+// bit test (an
 // unaligned 64-bit window of the bits at the probe's first byte, a bit-field extract), writing
 // // kFree or kOccupied into the map. The row's bits stay in a bitmap of pass 1 (1 bit per
 // pixel, only the probed spans written). Pass 2, once every task's pass 1 is done: cells whose
@@ -167,7 +168,7 @@ class FastFusion {
   // What the last Fuse / FuseChanges call did.
   struct FrameStats {
     int64_t primary_probed = 0;    // primary probes decided (cell probes)
-    int64_t primary_tested = 0;    // of which tested (their first word has a changed pixel; the rest are free)
+    int64_t primary_tested = 0;    // of which tested (their first pixel changed; the rest are free)
     int64_t primary_failed = 0;    // of which all changed
     int64_t secondary_probed = 0;  // secondary probes tested
     int64_t secondary_bit_tests = 0;  // of which in pass 1's bits (the cell's first secondary run)
@@ -238,6 +239,8 @@ class FastFusion {
   // The map a frame of cell probes starts from: kFree for every seen cell, kUnseen elsewhere.
   std::vector<uint8_t> base_states_;
   std::vector<uint16_t> word_probes_;          // RowGroup::word_probes_begin
+  std::vector<uint64_t> starts_;               // the same index: the probes' first pixels, a bit each
+  std::vector<uint8_t> shared_starts_;         // per group: 1 = two probes start at one pixel
   std::vector<PrimaryProbe> primary_;          // per seen cell, in image order
   std::vector<RowGroup> row_groups_;           // + an end marker
   std::vector<uint32_t> secondary_offsets_;    // per primary probe + 1
@@ -269,7 +272,7 @@ class FastFusion {
   std::vector<uint32_t> task_stop_;              // [task] first row group not probed
   std::vector<int64_t> task_probed_;             // [task] primary probes passed (tested or skipped)
   std::vector<uint8_t> task_resolved_;           // [task] 1 = pass 2 done (FuseTolerant: right after pass 1)
-  std::vector<int64_t> task_tested_;             // [task] of which tested (a changed pixel in the first word)
+  std::vector<int64_t> task_tested_;             // [task] of which tested (their first pixel changed)
   std::vector<int64_t> task_secondary_;          // [task] secondary probes tested
   std::vector<int64_t> task_bit_tests_;          // [task] of which in pass 1's bits
   FrameStats stats_;

@@ -454,8 +454,9 @@ TEST_P(FastFusionKernels, StridedViewsAndReuse) {
 }
 
 // A frame starts from every seen cell free and tests only the primary probes whose first pixel
-// lies in a 64-pixel word with a changed pixel: none on an unchanged frame, and on a frame with
-// one changed pixel only those of its word (the map still equal to the reference).
+// is changed: none on an unchanged frame, and on a frame with one changed pixel at most those
+// starting in its 64-pixel word (one, unless two probes of the row start at one pixel); the map
+// still equal to the reference.
 TEST_P(FastFusionKernels, ProbesOnlyWordsWithChanges) {
   std::mt19937 rng(5);
   RandomScene scene = MakeRandomScene(rng);
