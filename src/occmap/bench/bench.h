@@ -143,6 +143,9 @@ struct EndToEndResult {
   double run_startup_s = 0;           // RunSite's start-up (sources, backgrounds, tables, first frames)
   double run_overall_fps = 0;         // frames / the whole RunSite call, start-up included
   double run_cpu_ms_per_frame = 0, decode_cpu_ms_per_frame = 0;  // process CPU time per frame set
+  // The same over the steady state only (after the warm-up frame sets, as the rates): what
+  // occmap's own work costs per frame set is run_steady - decode_steady.
+  double run_steady_cpu_ms_per_frame = 0, decode_steady_cpu_ms_per_frame = 0;
   double fuse_s = 0, detect_s = 0, decode_s = 0;  // RunSite's own split
   double blobs_s = 0, track_s = 0, output_s = 0;
 };

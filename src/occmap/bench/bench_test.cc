@@ -152,9 +152,16 @@ TEST(Bench, EndToEndMeasuresRunAndDecode) {
   EXPECT_EQ(e->frames, 4);
   EXPECT_GT(e->run_fps, 0.0);
   EXPECT_GT(e->decode_fps, 0.0);
+  // CPU per frame set over the steady sets (here from the second: a short pass), in the JSON.
+  EXPECT_GT(e->decode_steady_cpu_ms_per_frame, 0.0);
+  EXPECT_GT(e->run_steady_cpu_ms_per_frame, 0.0);
   BenchResults all;
   all.end_to_end = *e;
-  EXPECT_TRUE(BenchJson(all)["end_to_end_vs_decode"].is_number());
+  const nlohmann::json j = BenchJson(all);
+  EXPECT_TRUE(j["end_to_end_vs_decode"].is_number());
+  EXPECT_DOUBLE_EQ(j["end_to_end"]["run_steady_cpu_ms_per_frame"].get<double>(), e->run_steady_cpu_ms_per_frame);
+  EXPECT_DOUBLE_EQ(j["end_to_end"]["decode_steady_cpu_ms_per_frame"].get<double>(),
+                   e->decode_steady_cpu_ms_per_frame);
 }
 
 TEST(Bench, WildtrackSkippedWithoutItsSiteFile) {

@@ -54,7 +54,13 @@ double Median(std::vector<double> v) {
 struct DecodePass {
   double steady_fps = 0;
   double cpu_ms_per_set = 0;
+  double steady_cpu_ms_per_set = 0;  // from set kWarmUp + 1 to the last, as steady_fps
 };
+
+// CPU milliseconds per frame set between two points of a pass (0 when they are the same set).
+double CpuMsPerSet(double cpu_from, int64_t set_from, double cpu_to, int64_t set_to) {
+  return set_to > set_from ? 1e3 * (cpu_to - cpu_from) / static_cast<double>(set_to - set_from) : 0;
+}
 
 // Decodes every camera's file to the end, a frame set at a time (one frame of each camera), as
 // RunSite's reader does: in parallel, one task per camera (parallel), or in turn on this thread.
@@ -71,6 +77,7 @@ Result<DecodePass> Decode(const Site& site, const FrameSourceOptions& options, b
   const double cpu0 = CpuSeconds();
   int64_t sets = 0;
   Clock::time_point t_first, t_warm, t_last;
+  double cpu_first = cpu0, cpu_warm = cpu0, cpu_last = cpu0;
   while (true) {
     decode_ctx.pool().Run(static_cast<int>(sources.size()), [&](int n, int) {
       auto r = sources[n]->Read(frames[n]);
@@ -81,8 +88,15 @@ Result<DecodePass> Decode(const Site& site, const FrameSourceOptions& options, b
     if (std::count(got.begin(), got.end(), 1) != static_cast<ptrdiff_t>(got.size())) break;
     ++sets;
     t_last = Clock::now();
-    if (sets == 1) t_first = t_last;
-    if (sets == kWarmUp + 1) t_warm = t_last;
+    cpu_last = CpuSeconds();
+    if (sets == 1) {
+      t_first = t_last;
+      cpu_first = cpu_last;
+    }
+    if (sets == kWarmUp + 1) {
+      t_warm = t_last;
+      cpu_warm = cpu_last;
+    }
   }
   DecodePass pass;
   pass.cpu_ms_per_set = sets > 0 ? 1e3 * (CpuSeconds() - cpu0) / static_cast<double>(sets) : 0;
@@ -91,6 +105,8 @@ Result<DecodePass> Decode(const Site& site, const FrameSourceOptions& options, b
   const int64_t steady_sets = long_pass ? sets - kWarmUp - 1 : sets - 1;
   const double seconds = std::chrono::duration<double>(t_last - (long_pass ? t_warm : t_first)).count();
   pass.steady_fps = steady_sets > 0 && seconds > 0 ? static_cast<double>(steady_sets) / seconds : 0;
+  pass.steady_cpu_ms_per_set = long_pass ? CpuMsPerSet(cpu_warm, kWarmUp + 1, cpu_last, sets)
+                                         : CpuMsPerSet(cpu_first, 1, cpu_last, sets);
   return pass;
 }
 
@@ -165,6 +181,7 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
   r.occupancy_video = false;
   r.mosaic_video = false;
   std::vector<double> parallel_fps, interleaved_fps, decode_cpu, run_fps, run_cpu, startup, overall;
+  std::vector<double> decode_steady_cpu, run_steady_cpu;
   RunSummary run;
   for (int k = 0; k < kRepeats; ++k) {
     OCCMAP_ASSIGN_OR_RETURN(DecodePass par, Decode(site, parallel_options, /*parallel=*/true));
@@ -172,8 +189,23 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
     parallel_fps.push_back(par.steady_fps);
     interleaved_fps.push_back(inter.steady_fps);
     decode_cpu.push_back(par.steady_fps >= inter.steady_fps ? par.cpu_ms_per_set : inter.cpu_ms_per_set);
+    decode_steady_cpu.push_back(par.steady_fps >= inter.steady_fps ? par.steady_cpu_ms_per_set
+                                                                   : inter.steady_cpu_ms_per_set);
     const double cpu0 = CpuSeconds();
-    OCCMAP_ASSIGN_OR_RETURN(run, RunSite(site, r, ctx));
+    // The process's CPU time at the frame sets RunSite's steady rate is timed between (its
+    // progress is reported after each frame set's post stage).
+    double cpu_first = 0, cpu_warm = 0, cpu_last = 0;
+    int64_t done_last = 0;
+    const ProgressCallback progress = [&](const RunProgress& p) {
+      const double now = CpuSeconds();
+      if (p.frames_done == 1) cpu_first = now;
+      if (p.frames_done == kWarmUp + 1) cpu_warm = now;
+      cpu_last = now;
+      done_last = p.frames_done;
+    };
+    OCCMAP_ASSIGN_OR_RETURN(run, RunSite(site, r, ctx, progress));
+    run_steady_cpu.push_back(done_last > 2 * kWarmUp ? CpuMsPerSet(cpu_warm, kWarmUp + 1, cpu_last, done_last)
+                                                     : CpuMsPerSet(cpu_first, 1, cpu_last, done_last));
     run_cpu.push_back(run.frames > 0 ? 1e3 * (CpuSeconds() - cpu0) / static_cast<double>(run.frames) : 0);
     run_fps.push_back(run.steady_fps);
     startup.push_back(run.startup_s);
@@ -189,6 +221,8 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
   e.run_overall_fps = Median(overall);
   e.run_startup_s = Median(startup);
   e.run_cpu_ms_per_frame = Median(run_cpu);
+  e.run_steady_cpu_ms_per_frame = Median(run_steady_cpu);
+  e.decode_steady_cpu_ms_per_frame = Median(decode_steady_cpu);
   e.decode_s = run.decode_s;
   e.detect_s = run.detect_s;
   e.fuse_s = run.fuse_s;
