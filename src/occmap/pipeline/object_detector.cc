@@ -14,6 +14,11 @@ ObjectDetector::ObjectDetector(const BlobSettings& settings, const TrackerOption
                                double plane_height_m, std::vector<CameraView> cameras)
     : settings_(settings), tracker_options_(tracker_options), plane_height_m_(plane_height_m),
       cameras_(std::move(cameras)) {
+  for (const CameraView& v : cameras_) {
+    const ImageSize size = v.camera->image_size();
+    OCCMAP_CHECK(size.width <= 65536 && size.height <= 32768,
+                 "ObjectDetector: camera images up to 65536 x 32768 pixels (the elevated check packs pixels)");
+  }
   ghost_options_ = {.occluder_radius_m = tracker_options_.person_radius_m(),
                     .occluder_height_m = settings_.occluder_height_m};
   for (const CameraView& v : cameras_) {
@@ -69,7 +74,7 @@ int32_t ObjectDetector::SupportPixel(size_t h, size_t n, int64_t cell, int32_t* 
   // A masked pixel (outside the floor, or a static object in front) tells nothing.
   const Image<uint8_t>* mask = cameras_[n].mask;
   if (mask != nullptr && !mask->empty() && (*mask)(x, y) == 0) return pixel;
-  pixel = y * size.width + x;
+  pixel = PackPixel(x, y);
   return pixel;
 }
 
@@ -91,18 +96,14 @@ int ObjectDetector::SupportState(size_t h, int64_t cell, int32_t* pixels, const 
     const int32_t p = SupportPixel(h, n, cell, pixels);
     if (p < 0) continue;
     ++seeing;
-    const int width = cameras_[n].camera->image_size().width;
+    const size_t x = PixelX(p), y = PixelY(p);  // no division, no virtual call
     if (!buffers.empty() && buffers[n].unchanged_bits != nullptr) {
       const ChangeBuffer& b = buffers[n];
-      const size_t x = static_cast<size_t>(p % width), y = static_cast<size_t>(p / width);
       if ((b.unchanged_bits[y * b.row_words + x / 64] >> (x % 64)) & 1u) return 0;
     } else if (!buffers.empty()) {
       const ChangeBuffer& b = buffers[n];
-      const size_t at = b.stride == static_cast<size_t>(width)
-                            ? static_cast<size_t>(p)
-                            : static_cast<size_t>(p / width) * b.stride + static_cast<size_t>(p % width);
-      if (b.pixels[at] == 0) return 0;
-    } else if (!changed(static_cast<int>(n), p % width, p / width)) {
+      if (b.pixels[y * b.stride + x] == 0) return 0;
+    } else if (!changed(static_cast<int>(n), static_cast<int>(x), static_cast<int>(y))) {
       return 0;
     }
   }

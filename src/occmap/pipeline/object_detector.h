@@ -88,12 +88,19 @@ class ObjectDetector {
   // SupportAt without the memo: the cameras' pixels asked.
   int SupportState(size_t h, int64_t cell, int32_t* pixels, const ChangeLookup& changed,
                    std::span<const ChangeBuffer> buffers);
-  // The cameras' pixels (row * width + column) where the cell's centre at plane h projects
+  // The cameras' pixels (PackPixel: (row << 16) | column) where the cell's centre at plane h projects
   // (entry n for camera n; -1 when it does not see it, kNotProjected until first used), then
   // the memo of SupportAt (generation * 4 + state + 1, or kNotProjected).
   int32_t* SupportPixels(size_t h, int64_t cell);
   // Camera n's entry of `pixels` (SupportPixels), projected on first use.
   int32_t SupportPixel(size_t h, size_t n, int64_t cell, int32_t* pixels);
+  // A projection's pixel as SupportPixels holds it: (y << 16) | x, so the test reads x and y
+  // without a division (images up to 65536 x 32768, checked by the constructor).
+  static int32_t PackPixel(int x, int y) {
+    return static_cast<int32_t>((static_cast<uint32_t>(y) << 16) | static_cast<uint32_t>(x));
+  }
+  static size_t PixelX(int32_t p) { return static_cast<uint32_t>(p) & 0xffffu; }
+  static size_t PixelY(int32_t p) { return static_cast<uint32_t>(p) >> 16; }
   void RemoveUnsupported(const OccupancyMap& map, const ChangeLookup& changed, std::span<const ChangeBuffer> buffers,
                          std::vector<int>& blob_group, const std::vector<int>& kept_index,
                          const std::vector<Blob>& kept_groups, DetectedObjects& out);
