@@ -57,10 +57,25 @@ struct DecodePass {
   double steady_cpu_ms_per_set = 0;  // from set kWarmUp + 1 to the last, as steady_fps
 };
 
-// CPU milliseconds per frame set between two points of a pass (0 when they are the same set).
-double CpuMsPerSet(double cpu_from, int64_t set_from, double cpu_to, int64_t set_to) {
-  return set_to > set_from ? 1e3 * (cpu_to - cpu_from) / static_cast<double>(set_to - set_from) : 0;
-}
+// The process's CPU time at the frame sets a pass's steady rate is timed between (the first,
+// kWarmUp + 1, the last), and the CPU per frame set over them (as RunSummary::steady_fps: after
+// the warm-up, or from the first set in a short pass; 0 with fewer than two sets).
+struct SteadyCpu {
+  double first = 0, warm = 0, last = 0;
+  int64_t sets = 0;
+  void At(int64_t set) {
+    const double now = CpuSeconds();
+    if (set == 1) first = now;
+    if (set == kWarmUp + 1) warm = now;
+    last = now;
+    sets = set;
+  }
+  double MsPerSet() const {
+    const bool long_pass = sets > 2 * kWarmUp;
+    const int64_t from = long_pass ? kWarmUp + 1 : 1;
+    return sets > from ? 1e3 * (last - (long_pass ? warm : first)) / static_cast<double>(sets - from) : 0;
+  }
+};
 
 // Decodes every camera's file to the end, a frame set at a time (one frame of each camera), as
 // RunSite's reader does: in parallel, one task per camera (parallel), or in turn on this thread.
@@ -77,7 +92,7 @@ Result<DecodePass> Decode(const Site& site, const FrameSourceOptions& options, b
   const double cpu0 = CpuSeconds();
   int64_t sets = 0;
   Clock::time_point t_first, t_warm, t_last;
-  double cpu_first = cpu0, cpu_warm = cpu0, cpu_last = cpu0;
+  SteadyCpu steady_cpu;
   while (true) {
     decode_ctx.pool().Run(static_cast<int>(sources.size()), [&](int n, int) {
       auto r = sources[n]->Read(frames[n]);
@@ -88,15 +103,9 @@ Result<DecodePass> Decode(const Site& site, const FrameSourceOptions& options, b
     if (std::count(got.begin(), got.end(), 1) != static_cast<ptrdiff_t>(got.size())) break;
     ++sets;
     t_last = Clock::now();
-    cpu_last = CpuSeconds();
-    if (sets == 1) {
-      t_first = t_last;
-      cpu_first = cpu_last;
-    }
-    if (sets == kWarmUp + 1) {
-      t_warm = t_last;
-      cpu_warm = cpu_last;
-    }
+    steady_cpu.At(sets);
+    if (sets == 1) t_first = t_last;
+    if (sets == kWarmUp + 1) t_warm = t_last;
   }
   DecodePass pass;
   pass.cpu_ms_per_set = sets > 0 ? 1e3 * (CpuSeconds() - cpu0) / static_cast<double>(sets) : 0;
@@ -105,8 +114,7 @@ Result<DecodePass> Decode(const Site& site, const FrameSourceOptions& options, b
   const int64_t steady_sets = long_pass ? sets - kWarmUp - 1 : sets - 1;
   const double seconds = std::chrono::duration<double>(t_last - (long_pass ? t_warm : t_first)).count();
   pass.steady_fps = steady_sets > 0 && seconds > 0 ? static_cast<double>(steady_sets) / seconds : 0;
-  pass.steady_cpu_ms_per_set = long_pass ? CpuMsPerSet(cpu_warm, kWarmUp + 1, cpu_last, sets)
-                                         : CpuMsPerSet(cpu_first, 1, cpu_last, sets);
+  pass.steady_cpu_ms_per_set = steady_cpu.MsPerSet();
   return pass;
 }
 
@@ -194,18 +202,10 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
     const double cpu0 = CpuSeconds();
     // The process's CPU time at the frame sets RunSite's steady rate is timed between (its
     // progress is reported after each frame set's post stage).
-    double cpu_first = 0, cpu_warm = 0, cpu_last = 0;
-    int64_t done_last = 0;
-    const ProgressCallback progress = [&](const RunProgress& p) {
-      const double now = CpuSeconds();
-      if (p.frames_done == 1) cpu_first = now;
-      if (p.frames_done == kWarmUp + 1) cpu_warm = now;
-      cpu_last = now;
-      done_last = p.frames_done;
-    };
+    SteadyCpu steady_cpu;
+    const ProgressCallback progress = [&](const RunProgress& p) { steady_cpu.At(p.frames_done); };
     OCCMAP_ASSIGN_OR_RETURN(run, RunSite(site, r, ctx, progress));
-    run_steady_cpu.push_back(done_last > 2 * kWarmUp ? CpuMsPerSet(cpu_warm, kWarmUp + 1, cpu_last, done_last)
-                                                     : CpuMsPerSet(cpu_first, 1, cpu_last, done_last));
+    run_steady_cpu.push_back(steady_cpu.MsPerSet());
     run_cpu.push_back(run.frames > 0 ? 1e3 * (CpuSeconds() - cpu0) / static_cast<double>(run.frames) : 0);
     run_fps.push_back(run.steady_fps);
     startup.push_back(run.startup_s);

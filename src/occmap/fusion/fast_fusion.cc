@@ -980,7 +980,6 @@ void FastFusion::ExecuteCells(Context& ctx, OccupancyMap& map) {
   task_stop_.assign(static_cast<size_t>(num_tasks_), 0);
   task_probed_.assign(static_cast<size_t>(num_tasks_), 0);
   task_tested_.assign(static_cast<size_t>(num_tasks_), 0);
-  task_resolved_.assign(static_cast<size_t>(num_tasks_), 0);
   task_secondary_.assign(static_cast<size_t>(num_tasks_), 0);
   task_bit_tests_.assign(static_cast<size_t>(num_tasks_), 0);
   stats_ = FrameStats{};
@@ -1050,11 +1049,9 @@ void FastFusion::CellTask(int task) {
       task_deferred_[t] = stop != task_groups_[t + 1];  // decided once every task has counted its failures
       // FuseTolerant's bits are all there before pass 1 (pass 0 computed them): a task that
       // probed all its rows resolves its failures at once, while they are in cache, without
-      // waiting for the others (a frame handed to row streaming afterwards overwrites them).
-      if (input_ == Input::kBits && !task_deferred_[t]) {
-        ResolveTask(t);
-        task_resolved_[t] = 1;
-      }
+      // waiting for the others (a frame handed to row streaming afterwards overwrites them);
+      // a deferred one does so in kFinish. kResolve then never runs with bits.
+      if (input_ == Input::kBits && !task_deferred_[t]) ResolveTask(t);
       return;
     }
     case Phase::kFinish: {  // a task that stopped early: its other rows
@@ -1063,14 +1060,11 @@ void FastFusion::CellTask(int task) {
       ProbeRows(task_stop_[t], task_groups_[t + 1], fails, num_fails, task_tested_[t], /*may_stop=*/false);
       task_fails_[t] = num_fails;
       task_probed_[t] = row_groups_[task_groups_[t + 1]].probes_begin - first_probe;
-      if (input_ == Input::kBits) {
-        ResolveTask(t);
-        task_resolved_[t] = 1;
-      }
+      if (input_ == Input::kBits) ResolveTask(t);
       return;
     }
-    case Phase::kResolve:
-      if (!task_resolved_[t]) ResolveTask(t);
+    case Phase::kResolve:  // frames and change buffers: once every task's pass 1 is done
+      ResolveTask(t);
       return;
   }
 }

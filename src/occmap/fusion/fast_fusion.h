@@ -271,7 +271,6 @@ class FastFusion {
   std::vector<uint8_t> task_deferred_;           // [task] 1 = stopped early, rows and fails left
   std::vector<uint32_t> task_stop_;              // [task] first row group not probed
   std::vector<int64_t> task_probed_;             // [task] primary probes passed (tested or skipped)
-  std::vector<uint8_t> task_resolved_;           // [task] 1 = pass 2 done (FuseTolerant: right after pass 1)
   std::vector<int64_t> task_tested_;             // [task] of which tested (their first pixel changed)
   std::vector<int64_t> task_secondary_;          // [task] secondary probes tested
   std::vector<int64_t> task_bit_tests_;          // [task] of which in pass 1's bits

@@ -14,15 +14,13 @@ ObjectDetector::ObjectDetector(const BlobSettings& settings, const TrackerOption
                                double plane_height_m, std::vector<CameraView> cameras)
     : settings_(settings), tracker_options_(tracker_options), plane_height_m_(plane_height_m),
       cameras_(std::move(cameras)) {
-  for (const CameraView& v : cameras_) {
-    const ImageSize size = v.camera->image_size();
-    OCCMAP_CHECK(size.width <= 65536 && size.height <= 32768,
-                 "ObjectDetector: camera images up to 65536 x 32768 pixels (the elevated check packs pixels)");
-  }
   ghost_options_ = {.occluder_radius_m = tracker_options_.person_radius_m(),
                     .occluder_height_m = settings_.occluder_height_m};
   for (const CameraView& v : cameras_) {
     const CameraModel* model = v.camera;
+    // Sites allow 16384 pixels a side (site.cc): an invariant here.
+    OCCMAP_CHECK(model->image_size().width <= 65536 && model->image_size().height <= 32768,
+                 "ObjectDetector: camera images up to 65536 x 32768 pixels (the elevated check packs pixels)");
     const Image<uint8_t>* mask = v.mask;
     const double z = plane_height_m;
     const std::optional<Eigen::Vector3d> centre = model->CenterInWorld();
