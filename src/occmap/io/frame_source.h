@@ -3,7 +3,8 @@
 //
 // Video and streams are decoded with FFmpeg's libav* directly: frame threading on the
 // decoder's threads, grey taken straight from the Y plane (no colour conversion unless colour
-// is asked for), presentation timestamps in seconds. Image sequences are a printf-style
+// is asked for), chroma (when asked for) straight from the U and V planes of yuv420p video,
+// presentation timestamps in seconds. Image sequences are a printf-style
 // pattern (`frames/c1_%06d.png`, first index found automatically, 0 or 1), a folder (its
 // PNG/JPEG files in name order) or one image file. A mask source reads 8-bit foreground masks
 // the same way.
@@ -22,6 +23,15 @@
 // - Frame::gray is full-range luma, 0..255, whatever the source: limited-range (16..235) video
 //   is expanded, so a grey level means the same thing for video and image files. For masks it
 //   is the mask file as it is (non-zero = foreground).
+// - Frame::u and v (with FrameSourceOptions::chroma) are 4:2:0 chroma, Cb and Cr: one sample
+//   per 2x2 block of pixels (ceil(width / 2) x ceil(height / 2), block (i, j) = pixels
+//   2i..2i+1 x 2j..2j+1), full range 0..255 with 128 = neutral (grey), BT.601, as JPEG's
+//   YCbCr: the convention of util/yuv.h, where gray is its Y. Image files: computed from the
+//   RGB pixels (util/yuv.h: ChromaFromRgb, the mean over each block; gray = LumaFromRgb, Y of
+//   the same formulas). yuv420p / yuvj420p video: the decoder's U and V planes, limited range
+//   (16..240) expanded to 0..255 around 128 (io/limited_range.h); other pixel formats through
+//   libswscale to full-range yuv420p. The two agree within a few levels on the same picture
+//   (encoding losses). Never filled for masks.
 // - Every frame of a source has the size of its first frame; a frame of another size is an
 //   error, not a silent resize.
 // - A source is used from one thread at a time.
@@ -63,10 +73,12 @@ struct Frame {
   double timestamp_s = std::nan("");  // presentation time when the source has one
   Image<uint8_t> gray;                // always filled (for masks: the mask itself)
   Image<Rgb8> rgb;                    // filled only when colour was asked for (never for masks)
+  Image<uint8_t> u, v;                // chroma (Cb, Cr), filled only when asked for (never for masks)
 };
 
 struct FrameSourceOptions {
   bool colour = false;      // also fill Frame::rgb (ignored for masks)
+  bool chroma = false;      // also fill Frame::u and v (ignored for masks)
   int decoder_threads = 0;  // FFmpeg frame threads; 0 = all cores
   // Image sequences and masks: timestamp_s = index / image_fps when > 0 (fps() reports it);
   // NaN otherwise. Video and streams take their own timestamps and ignore it.

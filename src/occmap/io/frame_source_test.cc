@@ -10,6 +10,7 @@
 
 #include "occmap/util/image_io.h"
 #include "occmap/util/testing.h"
+#include "occmap/util/yuv.h"
 
 namespace occmap {
 namespace {
@@ -275,6 +276,94 @@ TEST(ImageSequence, ColourOptionFillsRgbAndGreyIsItsLuma) {
   }
 }
 
+// 2x2 blocks of known colours, left to right: white, red, green, blue, two red and two blue.
+Image<Rgb8> ColourBlocks() {
+  const Rgb8 white{255, 255, 255}, red{255, 0, 0}, green{0, 255, 0}, blue{0, 0, 255};
+  const Rgb8 blocks[5][4] = {{white, white, white, white}, {red, red, red, red}, {green, green, green, green},
+                             {blue, blue, blue, blue},     {red, blue, blue, red}};
+  Image<Rgb8> rgb(10, 2);
+  for (int i = 0; i < 5; ++i) {
+    rgb(2 * i, 0) = blocks[i][0];
+    rgb(2 * i + 1, 0) = blocks[i][1];
+    rgb(2 * i, 1) = blocks[i][2];
+    rgb(2 * i + 1, 1) = blocks[i][3];
+  }
+  return rgb;
+}
+
+TEST(ImageSequence, ChromaOptionGivesTheBt601ChromaOfKnownColours) {
+  testing::TempDir dir;
+  const Image<Rgb8> rgb = ColourBlocks();
+  ASSERT_TRUE(WritePng(dir / "c.png", rgb.view()).ok());
+  FrameSourceOptions options;
+  options.chroma = true;
+  auto source = Open(Kind::kImages, dir / "c.png", options);
+  ASSERT_TRUE(source.ok()) << source.status().message();
+  Frame frame;
+  ASSERT_TRUE(*(*source)->Read(frame));
+  ASSERT_EQ(frame.u.width(), 5);
+  ASSERT_EQ(frame.u.height(), 1);
+  ASSERT_EQ(frame.v.width(), 5);
+  ASSERT_EQ(frame.v.height(), 1);
+  // Full-range BT.601: U = 128 - 0.168736 R - 0.331264 G + 0.5 B, V = 128 + 0.5 R - 0.418688 G
+  // - 0.081312 B, rounded and clamped (red's V 255.5 -> 255); the last block is the mean.
+  const int expected_u[5] = {128, 85, 44, 255, 170};
+  const int expected_v[5] = {128, 255, 21, 107, 181};
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_EQ(frame.u(i, 0), expected_u[i]) << "block " << i;
+    EXPECT_EQ(frame.v(i, 0), expected_v[i]) << "block " << i;
+  }
+  // Grey is the Y of the same formulas; no colour was asked for.
+  Image<uint8_t> luma;
+  LumaFromRgb(rgb.view(), luma);
+  EXPECT_TRUE(frame.gray == luma);
+  EXPECT_TRUE(frame.rgb.empty());
+}
+
+TEST(ImageSequence, ChromaOfAnOddSizeCoversTheLastColumnAndRow) {
+  testing::TempDir dir;
+  Image<Rgb8> rgb(641, 481);
+  for (int y = 0; y < rgb.height(); ++y) {
+    for (int x = 0; x < rgb.width(); ++x) {
+      rgb(x, y) = {static_cast<uint8_t>(x * 3 + y), static_cast<uint8_t>(255 - y / 2), static_cast<uint8_t>((x ^ y) & 255)};
+    }
+  }
+  ASSERT_TRUE(WritePng(dir / "f_000000.png", rgb.view()).ok());
+  ASSERT_TRUE(WritePng(dir / "f_000001.png", rgb.view()).ok());
+  FrameSourceOptions options;
+  options.chroma = true;
+  options.colour = true;
+  auto source = Open(Kind::kImages, dir / "f_%06d.png", options);
+  ASSERT_TRUE(source.ok()) << source.status().message();
+  Image<uint8_t> u, v;
+  ChromaFromRgb(rgb.view(), u, v);
+  Frame frame;
+  for (int k = 0; k < 2; ++k) {  // the first frame (decoded by Open) and a later one
+    ASSERT_TRUE(*(*source)->Read(frame));
+    EXPECT_EQ(frame.u.width(), 321);
+    EXPECT_EQ(frame.u.height(), 241);
+    EXPECT_TRUE(frame.u == u);
+    EXPECT_TRUE(frame.v == v);
+    EXPECT_TRUE(frame.rgb == rgb);
+  }
+}
+
+TEST(ImageSequence, ChromaOffLeavesUAndVEmpty) {
+  testing::TempDir dir;
+  ASSERT_TRUE(WritePng(dir / "c.png", ColourBlocks().view()).ok());
+  for (const bool colour : {false, true}) {
+    FrameSourceOptions options;
+    options.colour = colour;
+    auto source = Open(Kind::kImages, dir / "c.png", options);
+    ASSERT_TRUE(source.ok()) << source.status().message();
+    Frame frame;
+    frame.u = Image<uint8_t>(5, 1);  // a reused frame loses its old planes
+    ASSERT_TRUE(*(*source)->Read(frame));
+    EXPECT_TRUE(frame.u.empty());
+    EXPECT_TRUE(frame.v.empty());
+  }
+}
+
 TEST(MaskSource, MasksAreReadAsTheyAreAndNeverInColour) {
   testing::TempDir dir;
   Image<uint8_t> mask(kWidth, kHeight, 0);
@@ -285,6 +374,7 @@ TEST(MaskSource, MasksAreReadAsTheyAreAndNeverInColour) {
   ASSERT_TRUE(WritePng(dir / "m_0.png", mask.view()).ok());
   FrameSourceOptions options;
   options.colour = true;
+  options.chroma = true;
   auto source = Open(Kind::kMasks, dir / "m_%d.png", options);
   ASSERT_TRUE(source.ok()) << source.status().message();
   EXPECT_EQ((*source)->Describe(), fmt::format("mask sequence '{}' (from 0, 32x24)", (dir / "m_%d.png").string()));
@@ -292,6 +382,8 @@ TEST(MaskSource, MasksAreReadAsTheyAreAndNeverInColour) {
   ASSERT_TRUE(*(*source)->Read(frame));
   EXPECT_TRUE(frame.gray == mask);
   EXPECT_TRUE(frame.rgb.empty());
+  EXPECT_TRUE(frame.u.empty());
+  EXPECT_TRUE(frame.v.empty());
 }
 
 TEST(MaskSource, ReadsTheGopro4BackgroundSubtractionMask) {

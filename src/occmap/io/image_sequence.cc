@@ -11,6 +11,7 @@
 
 #include "occmap/io/frame_source.h"
 #include "occmap/util/image_io.h"
+#include "occmap/util/yuv.h"
 
 namespace occmap {
 namespace fs = std::filesystem;
@@ -122,18 +123,6 @@ bool FileExists(const fs::path& path) {
   return fs::is_regular_file(path, ec);
 }
 
-// Luma of an RGB image with OpenCV's RGB2GRAY fixed-point weights (0.299, 0.587, 0.114).
-void RgbToGray(const Image<Rgb8>& rgb, Image<uint8_t>& gray) {
-  if (gray.width() != rgb.width() || gray.height() != rgb.height()) gray = Image<uint8_t>(rgb.width(), rgb.height());
-  for (int y = 0; y < rgb.height(); ++y) {
-    const Rgb8* src = rgb.row(y);
-    uint8_t* dst = gray.row(y);
-    for (int x = 0; x < rgb.width(); ++x) {
-      dst[x] = static_cast<uint8_t>((src[x].r * 4899 + src[x].g * 9617 + src[x].b * 1868 + (1 << 13)) >> 14);
-    }
-  }
-}
-
 class ImageSequence final : public FrameSource {
  public:
   // Files: a fixed list (folder or single file). Pattern: numbered files from `first_number`.
@@ -148,6 +137,7 @@ class ImageSequence final : public FrameSource {
       : location_(std::move(location)),
         masks_(masks),
         colour_(options.colour && !masks),
+        chroma_(options.chroma && !masks),
         image_fps_(options.image_fps),
         files_(std::move(files)) {
     const char* what = masks_ ? "mask" : "image";
@@ -193,11 +183,17 @@ class ImageSequence final : public FrameSource {
     if (index == 0 && have_first_) {
       frame.gray = std::move(first_.gray);
       frame.rgb = std::move(first_.rgb);
+      frame.u = std::move(first_.u);
+      frame.v = std::move(first_.v);
       have_first_ = false;
     } else {
       OCCMAP_RETURN_IF_ERROR(Decode(index, PathOf(index), frame));
     }
     if (!colour_) frame.rgb = Image<Rgb8>();
+    if (!chroma_) {
+      frame.u = Image<uint8_t>();
+      frame.v = Image<uint8_t>();
+    }
     frame.index = index;
     frame.timestamp_s = image_fps_ > 0 ? static_cast<double>(index) / image_fps_ : std::nan("");
     next_ = index + 1;
@@ -238,11 +234,13 @@ class ImageSequence final : public FrameSource {
 
   Status Decode(int64_t index, const fs::path& path, Frame& frame) const {
     const std::string context = fmt::format("{}: frame {}", name_, index);
-    if (colour_) {
+    if (colour_ || chroma_) {
+      // Grey, u and v from the same RGB pixels: gray is the Y of util/yuv.h's formulas.
       auto rgb = ReadRgbImage(path);
       if (!rgb.ok()) return rgb.status().WithContext(context);
       frame.rgb = std::move(rgb).value();
-      RgbToGray(frame.rgb, frame.gray);
+      LumaFromRgb(frame.rgb.view(), frame.gray);
+      if (chroma_) ChromaFromRgb(frame.rgb.view(), frame.u, frame.v);
     } else {
       auto gray = ReadGrayImage(path);
       if (!gray.ok()) return gray.status().WithContext(context);
@@ -260,6 +258,7 @@ class ImageSequence final : public FrameSource {
   std::string name_;  // for messages: "image sequence 'frames/c1_%06d.png'"
   bool masks_;
   bool colour_;
+  bool chroma_;
   double image_fps_;
   std::variant<Files, Numbered> files_;
   ImageSize size_;

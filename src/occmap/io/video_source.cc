@@ -2,8 +2,9 @@
 //
 // Decoding runs with frame and slice threading; grey comes straight from the Y plane for the
 // 8-bit YUV / NV12 / grey formats (a row copy, or a vectorised loop that expands limited-range
-// 16..235 luma to 0..255); other formats, and colour, go through libswscale with a cached
-// context per conversion.
+// 16..235 luma to 0..255), chroma straight from the U and V planes of yuv420p / yuvj420p (the
+// same, 16..240 to 0..255); other formats, colour, and chroma of other formats go through
+// libswscale with a cached context per conversion.
 extern "C" {
 #include <libavcodec/avcodec.h>
 #include <libavdevice/avdevice.h>
@@ -27,6 +28,8 @@ extern "C" {
 
 #include "occmap/io/ffmpeg_util.h"
 #include "occmap/io/frame_source.h"
+#include "occmap/io/limited_range.h"
+#include "occmap/util/yuv.h"
 
 namespace occmap {
 
@@ -55,20 +58,6 @@ std::string RedactUrl(const std::string& url) {
   const size_t colon = url.find(':', host_start);
   if (colon == std::string::npos || colon > at) return url;
   return url.substr(0, colon + 1) + "***" + url.substr(at);
-}
-
-// Limited-range luma (16..235) to full range (0..255): (y - 16) x 255/219 with BT.601's
-// fixed-point factor 298/256, rounded, clamped (at most 1 level from the exact ratio). In 16-bit
-// arithmetic so that GCC vectorises it: 0.29 ms per 1920x1080 frame, against 1.2 ms for a
-// 256-entry table (2-core x86-64 development machine, -O3, SSE2 baseline); cloned for AVX2
-// (32 pixels per step, picked at load time).
-__attribute__((target_clones("avx2", "default"))) void ExpandLimitedRangeLuma(const uint8_t* src, uint8_t* dst,
-                                                                             int width) {
-  for (int x = 0; x < width; ++x) {
-    const uint8_t above_black = src[x] > 16 ? static_cast<uint8_t>(src[x] - 16) : uint8_t{0};
-    const uint8_t clamped = std::min(above_black, uint8_t{219});
-    dst[x] = static_cast<uint8_t>(static_cast<uint16_t>(clamped * 298 + 128) >> 8);
-  }
 }
 
 bool IsFullRangeFormat(AVPixelFormat format) {
@@ -100,7 +89,16 @@ bool IsFullRange(const AVFrame& frame) {
 class SwsConverter {
  public:
   Status Convert(const AVFrame& frame, AVPixelFormat dst_format, uint8_t* dst, int dst_stride_bytes) {
-    const Key key{frame.width, frame.height, frame.format, IsFullRange(frame), frame.colorspace};
+    uint8_t* dst_planes[4] = {dst, nullptr, nullptr, nullptr};
+    const int dst_strides[4] = {dst_stride_bytes, 0, 0, 0};
+    return Convert(frame, dst_format, dst_planes, dst_strides, /*dst_full_range=*/true);
+  }
+
+  // dst_planes / dst_strides_bytes: one entry per plane of dst_format, the rest null / 0.
+  // dst_full_range false: YUV output in limited range (16..235 / 16..240).
+  Status Convert(const AVFrame& frame, AVPixelFormat dst_format, uint8_t* const dst_planes[4],
+                 const int dst_strides_bytes[4], bool dst_full_range) {
+    const Key key{frame.width, frame.height, frame.format, IsFullRange(frame), frame.colorspace, dst_full_range};
     if (context_ == nullptr || !(key == key_)) {
       context_.reset(sws_getContext(frame.width, frame.height, static_cast<AVPixelFormat>(frame.format), frame.width,
                                     frame.height, dst_format, SWS_BILINEAR | SWS_ACCURATE_RND | SWS_FULL_CHR_H_INT,
@@ -110,16 +108,14 @@ class SwsConverter {
                                         av_get_pix_fmt_name(static_cast<AVPixelFormat>(frame.format)),
                                         av_get_pix_fmt_name(dst_format)));
       }
-      // Source matrix and range as the stream says (unspecified -> BT.601); output full range.
+      // Source matrix and range as the stream says (unspecified -> BT.601); output as asked.
       // Fails harmlessly (returns -1) for RGB inputs, which have no matrix.
       const int* coefficients = sws_getCoefficients(static_cast<int>(frame.colorspace));
       sws_setColorspaceDetails(context_.get(), coefficients, key.full_range ? 1 : 0,
-                               sws_getCoefficients(SWS_CS_DEFAULT), 1, 0, 1 << 16, 1 << 16);
+                               sws_getCoefficients(SWS_CS_DEFAULT), dst_full_range ? 1 : 0, 0, 1 << 16, 1 << 16);
       key_ = key;
     }
-    uint8_t* dst_planes[4] = {dst, nullptr, nullptr, nullptr};
-    const int dst_strides[4] = {dst_stride_bytes, 0, 0, 0};
-    sws_scale(context_.get(), frame.data, frame.linesize, 0, frame.height, dst_planes, dst_strides);
+    sws_scale(context_.get(), frame.data, frame.linesize, 0, frame.height, dst_planes, dst_strides_bytes);
     return Status::Ok();
   }
 
@@ -128,6 +124,7 @@ class SwsConverter {
     int width = 0, height = 0, format = -1;
     bool full_range = false;
     AVColorSpace colorspace = AVCOL_SPC_UNSPECIFIED;
+    bool dst_full_range = true;
     bool operator==(const Key&) const = default;
   };
   std::unique_ptr<SwsContext, SwsDeleter> context_;
@@ -199,6 +196,7 @@ class VideoSource final : public FrameSource {
   // read error (truncated file) is returned after the frames already decoded.
   Result<bool> DecodeNext();
   Status ConvertFrame(int64_t index, Frame& out);
+  Status ConvertChroma(int64_t index, Frame& out);
   Status OpenOnce();
   Status OpenError(const char* what, int error) const;
   Status FrameError(int64_t index, const std::string& what) const {
@@ -223,6 +221,8 @@ class VideoSource final : public FrameSource {
   std::unique_ptr<AVPacket, PacketDeleter> packet_;
   SwsConverter gray_converter_;
   SwsConverter rgb_converter_;
+  SwsConverter chroma_converter_;  // formats other than yuv420p / yuvj420p
+  Image<uint8_t> chroma_luma_;     // the Y plane of chroma_converter_'s output (not used)
   int stream_index_ = -1;
   AVRational time_base_{0, 1};
   std::string codec_name_;
@@ -446,6 +446,12 @@ Status VideoSource::ConvertFrame(int64_t index, Frame& out) {
         gray_converter_.Convert(picture, AV_PIX_FMT_GRAY8, out.gray.row(0), static_cast<int>(out.gray.stride_elems()));
     if (!status.ok()) return status.WithContext(fmt::format("{}: frame {}", name_, index));
   }
+  if (options_.chroma) {
+    OCCMAP_RETURN_IF_ERROR(ConvertChroma(index, out));
+  } else {
+    out.u = Image<uint8_t>();
+    out.v = Image<uint8_t>();
+  }
   if (!options_.colour) {
     out.rgb = Image<Rgb8>();
     return Status::Ok();
@@ -456,6 +462,50 @@ Status VideoSource::ConvertFrame(int64_t index, Frame& out) {
   Status status = rgb_converter_.Convert(picture, AV_PIX_FMT_RGB24, reinterpret_cast<uint8_t*>(out.rgb.row(0)),
                                          static_cast<int>(out.rgb.stride_elems() * 3));
   if (!status.ok()) return status.WithContext(fmt::format("{}: frame {}", name_, index));
+  return Status::Ok();
+}
+
+Status VideoSource::ConvertChroma(int64_t index, Frame& out) {
+  const AVFrame& picture = *frame_;
+  const int chroma_width = ChromaPlaneSize(size_.width), chroma_height = ChromaPlaneSize(size_.height);
+  for (Image<uint8_t>* plane : {&out.u, &out.v}) {
+    if (plane->width() != chroma_width || plane->height() != chroma_height) {
+      *plane = Image<uint8_t>(chroma_width, chroma_height);
+    }
+  }
+  const auto format = static_cast<AVPixelFormat>(picture.format);
+  if (format == AV_PIX_FMT_YUV420P || format == AV_PIX_FMT_YUVJ420P) {
+    const bool full_range = IsFullRange(picture);
+    for (int p = 1; p <= 2; ++p) {
+      Image<uint8_t>& plane = p == 1 ? out.u : out.v;
+      for (int y = 0; y < chroma_height; ++y) {
+        const uint8_t* src = picture.data[p] + static_cast<ptrdiff_t>(y) * picture.linesize[p];
+        if (full_range) {
+          std::memcpy(plane.row(y), src, static_cast<size_t>(chroma_width));
+        } else {
+          ExpandLimitedRangeChroma(src, plane.row(y), chroma_width);
+        }
+      }
+    }
+    return Status::Ok();
+  }
+  if (chroma_luma_.width() != size_.width || chroma_luma_.height() != size_.height) {
+    chroma_luma_ = Image<uint8_t>(size_.width, size_.height);
+  }
+  uint8_t* const planes[4] = {chroma_luma_.row(0), out.u.row(0), out.v.row(0), nullptr};
+  const int strides[4] = {static_cast<int>(chroma_luma_.stride_elems()), static_cast<int>(out.u.stride_elems()),
+                          static_cast<int>(out.v.stride_elems()), 0};
+  // A limited-range source stays limited through libswscale (whose own range conversion of
+  // chroma is off by about 1 level) and is expanded as the yuv420p planes above: the same
+  // chroma whichever layout the decoder gives.
+  const bool full_range = IsFullRange(picture);
+  Status status = chroma_converter_.Convert(picture, AV_PIX_FMT_YUV420P, planes, strides, full_range);
+  if (!status.ok()) return status.WithContext(fmt::format("{}: frame {}", name_, index));
+  if (!full_range) {
+    for (Image<uint8_t>* plane : {&out.u, &out.v}) {
+      for (int y = 0; y < chroma_height; ++y) ExpandLimitedRangeChroma(plane->row(y), plane->row(y), chroma_width);
+    }
+  }
   return Status::Ok();
 }
 

@@ -20,7 +20,9 @@ extern "C" {
 #include "occmap/io/frame_source.h"
 #include "occmap/io/video_writer.h"
 #include "occmap/util/file_util.h"
+#include "occmap/util/image_io.h"
 #include "occmap/util/testing.h"
+#include "occmap/util/yuv.h"
 
 namespace occmap {
 namespace {
@@ -297,14 +299,16 @@ TEST(VideoSource, SkipToReturnsTheRequestedFrameForwardAndBack) {
 
 // Writes `frames` clip frames as uncompressed video in `pixel_format` (NUT container), converted
 // from RGB by libswscale with BT.601 and the given range: pictures as a camera could deliver them.
-void WriteRawVideo(const fs::path& path, AVPixelFormat pixel_format, bool full_range, int frames) {
+void WriteRawVideo(const fs::path& path, AVPixelFormat pixel_format, bool full_range, int frames,
+                   ImageSize size = {kWidth, kHeight}) {
+  const int width = size.width, height = size.height;
   AVFormatContext* format = nullptr;
   ASSERT_GE(avformat_alloc_output_context2(&format, nullptr, "nut", path.c_str()), 0);
   const AVCodec* encoder = avcodec_find_encoder(AV_CODEC_ID_RAWVIDEO);
   AVStream* stream = avformat_new_stream(format, nullptr);
   AVCodecContext* codec = avcodec_alloc_context3(encoder);
-  codec->width = kWidth;
-  codec->height = kHeight;
+  codec->width = width;
+  codec->height = height;
   codec->pix_fmt = pixel_format;
   codec->time_base = {1, static_cast<int>(kFps)};
   ASSERT_GE(avcodec_open2(codec, encoder, nullptr), 0);
@@ -312,23 +316,23 @@ void WriteRawVideo(const fs::path& path, AVPixelFormat pixel_format, bool full_r
   stream->time_base = codec->time_base;
   ASSERT_GE(avio_open(&format->pb, path.c_str(), AVIO_FLAG_WRITE), 0);
   ASSERT_GE(avformat_write_header(format, nullptr), 0);
-  SwsContext* sws = sws_getContext(kWidth, kHeight, AV_PIX_FMT_RGB24, kWidth, kHeight, pixel_format,
+  SwsContext* sws = sws_getContext(width, height, AV_PIX_FMT_RGB24, width, height, pixel_format,
                                    SWS_BILINEAR | SWS_ACCURATE_RND, nullptr, nullptr, nullptr);
   const int* bt601 = sws_getCoefficients(SWS_CS_ITU601);
   sws_setColorspaceDetails(sws, bt601, 1, bt601, full_range ? 1 : 0, 0, 1 << 16, 1 << 16);
   AVFrame* frame = av_frame_alloc();
   frame->format = pixel_format;
-  frame->width = kWidth;
-  frame->height = kHeight;
+  frame->width = width;
+  frame->height = height;
   ASSERT_GE(av_frame_get_buffer(frame, 0), 0);
   AVPacket* packet = av_packet_alloc();
   for (int t = 0; t <= frames; ++t) {
     if (t < frames) {
-      const Image<Rgb8> rgb = ClipFrame(kWidth, kHeight, t);
+      const Image<Rgb8> rgb = ClipFrame(width, height, t);
       const uint8_t* src[4] = {reinterpret_cast<const uint8_t*>(rgb.row(0)), nullptr, nullptr, nullptr};
       const int src_stride[4] = {static_cast<int>(rgb.stride_elems() * 3), 0, 0, 0};
       ASSERT_GE(av_frame_make_writable(frame), 0);
-      sws_scale(sws, src, src_stride, 0, kHeight, frame->data, frame->linesize);
+      sws_scale(sws, src, src_stride, 0, height, frame->data, frame->linesize);
       frame->pts = t;
     }
     ASSERT_GE(avcodec_send_frame(codec, t < frames ? frame : nullptr), 0);
@@ -376,6 +380,137 @@ TEST(VideoSource, EveryPixelFormatGivesFullRangeLumaAndRgb) {
       }
     }
   }
+}
+
+// |a - b| over two planes of the same size: its mean, and the share of samples within 2.
+struct PlaneDifference {
+  double mean = 0;
+  double within_2 = 0;
+};
+PlaneDifference Difference(const Image<uint8_t>& a, const Image<uint8_t>& b) {
+  PlaneDifference d;
+  EXPECT_EQ(a.width(), b.width());
+  EXPECT_EQ(a.height(), b.height());
+  if (a.width() != b.width() || a.height() != b.height()) return {1e9, 0};
+  for (int y = 0; y < a.height(); ++y) {
+    for (int x = 0; x < a.width(); ++x) {
+      const int e = std::abs(a(x, y) - b(x, y));
+      d.mean += e;
+      d.within_2 += e <= 2 ? 1 : 0;
+    }
+  }
+  d.mean /= a.width() * a.height();
+  d.within_2 /= a.width() * a.height();
+  return d;
+}
+
+TEST(VideoSource, EveryPixelFormatGivesChromaCloseToTheRgbFilesChroma) {
+  testing::TempDir dir;
+  // yuv420p straight from the planes (limited range expanded); the others through libswscale.
+  // Grey video has neutral chroma. 33x25: odd planes, rounded up. (NUT keeps no range tag:
+  // full-range yuvj420p would read back as limited, so it is not among the cases.)
+  const struct {
+    AVPixelFormat format;
+    bool full_range;
+    ImageSize size;
+  } cases[] = {{AV_PIX_FMT_YUV420P, false, {kWidth, kHeight}},      {AV_PIX_FMT_YUV420P, false, {33, 25}},
+               {AV_PIX_FMT_NV12, false, {kWidth, kHeight}},         {AV_PIX_FMT_YUV444P, false, {kWidth, kHeight}},
+               {AV_PIX_FMT_YUV420P10LE, false, {kWidth, kHeight}}, {AV_PIX_FMT_RGB24, true, {kWidth, kHeight}},
+               {AV_PIX_FMT_GRAY8, true, {kWidth, kHeight}}};
+  constexpr int kRawFrames = 2;
+  for (const auto& c : cases) {
+    SCOPED_TRACE(fmt::format("{} {}x{}", av_get_pix_fmt_name(c.format), c.size.width, c.size.height));
+    const fs::path path = dir / fmt::format("{}_{}.nut", av_get_pix_fmt_name(c.format), c.size.width);
+    WriteRawVideo(path, c.format, c.full_range, kRawFrames, c.size);
+    FrameSourceOptions options;
+    options.chroma = true;
+    auto source = OpenVideo(path, options);
+    ASSERT_TRUE(source.ok()) << source.status().message();
+    const std::vector<Frame> frames = ReadAll(**source);
+    ASSERT_EQ(frames.size(), static_cast<size_t>(kRawFrames));
+    for (int t = 0; t < kRawFrames; ++t) {
+      const Frame& frame = frames[static_cast<size_t>(t)];
+      Image<uint8_t> u, v;
+      ChromaFromRgb(ClipFrame(c.size.width, c.size.height, t).view(), u, v);
+      if (c.format == AV_PIX_FMT_GRAY8) {
+        u = Image<uint8_t>(u.width(), u.height(), 128);
+        v = Image<uint8_t>(v.width(), v.height(), 128);
+      }
+      ASSERT_EQ(frame.u.width(), (c.size.width + 1) / 2);
+      ASSERT_EQ(frame.u.height(), (c.size.height + 1) / 2);
+      const PlaneDifference du = Difference(frame.u, u), dv = Difference(frame.v, v);
+      // Rounding in the two conversions (limited range: about half a level), and at the
+      // square's sharp edges the sample positions of libswscale's 4:2:0 (up to 30 levels there).
+      EXPECT_LT(du.mean, 1.5) << "frame " << t;
+      EXPECT_LT(dv.mean, 1.5) << "frame " << t;
+      EXPECT_GE(du.within_2, 0.9) << "frame " << t;
+      EXPECT_GE(dv.within_2, 0.9) << "frame " << t;
+      EXPECT_TRUE(frame.rgb.empty());
+    }
+  }
+}
+
+// 32x32 tiles of six colours (3 x 2 tiles): flat areas where H.264 keeps chroma well.
+Image<Rgb8> ColourTiles(int width, int height) {
+  const Rgb8 colours[6] = {{200, 40, 40}, {40, 170, 60}, {50, 60, 200}, {220, 200, 60}, {60, 190, 200}, {150, 120, 100}};
+  Image<Rgb8> rgb(width, height);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) rgb(x, y) = colours[(y / 32 * 3 + x / 32) % 6];
+  }
+  return rgb;
+}
+
+TEST(VideoRoundTrip, H264ChromaIsWithinAFewLevelsOfThePngChroma) {
+  testing::TempDir dir;
+  const ImageSize size{96, 64};
+  const Image<Rgb8> tiles = ColourTiles(size.width, size.height);
+  {
+    auto writer = VideoWriter::Open(dir / "tiles.mp4", size, kFps);
+    ASSERT_TRUE(writer.ok()) << writer.status().message();
+    for (int t = 0; t < 3; ++t) ASSERT_TRUE((*writer)->Write(tiles.view()).ok());
+    ASSERT_TRUE((*writer)->Close().ok());
+  }
+  ASSERT_TRUE(WritePng(dir / "tiles.png", tiles.view()).ok());
+  FrameSourceOptions options;
+  options.chroma = true;
+  auto video = OpenVideo(dir / "tiles.mp4", options);
+  ASSERT_TRUE(video.ok()) << video.status().message();
+  auto png = OpenFrameSource({FrameSourceSpec::Kind::kImages, (dir / "tiles.png").string()}, options);
+  ASSERT_TRUE(png.ok()) << png.status().message();
+  Frame from_png;
+  ASSERT_TRUE(*(*png)->Read(from_png));
+  const std::vector<Frame> frames = ReadAll(**video);
+  ASSERT_EQ(frames.size(), 3u);
+  for (const Frame& frame : frames) {
+    ASSERT_EQ(frame.u.width(), 48);
+    ASSERT_EQ(frame.u.height(), 32);
+    // Inside the tiles (chroma samples 2 or more away from a tile's edge).
+    int max_error = 0;
+    for (int j = 0; j < 32; ++j) {
+      for (int i = 0; i < 48; ++i) {
+        if (i % 16 < 2 || i % 16 > 13 || j % 16 < 2 || j % 16 > 13) continue;
+        max_error = std::max({max_error, std::abs(frame.u(i, j) - from_png.u(i, j)),
+                              std::abs(frame.v(i, j) - from_png.v(i, j))});
+      }
+    }
+    EXPECT_LE(max_error, 3);
+    EXPECT_LT(Difference(frame.u, from_png.u).mean, 1.5);
+    EXPECT_LT(Difference(frame.v, from_png.v).mean, 1.5);
+    EXPECT_LE(Difference(frame.gray, from_png.gray).mean, 1.5);
+  }
+}
+
+TEST(VideoSource, ChromaOffLeavesUAndVEmpty) {
+  testing::TempDir dir;
+  WriteClip(dir / "clip.mp4", 2);
+  auto source = OpenVideo(dir / "clip.mp4");
+  ASSERT_TRUE(source.ok()) << source.status().message();
+  Frame frame;
+  frame.u = Image<uint8_t>(4, 4);  // a reused frame loses its old planes
+  frame.v = Image<uint8_t>(4, 4);
+  ASSERT_TRUE(*(*source)->Read(frame));
+  EXPECT_TRUE(frame.u.empty());
+  EXPECT_TRUE(frame.v.empty());
 }
 
 TEST(StreamSource, ReadsAnythingAvformatOpensWithoutAFrameCount) {
