@@ -282,6 +282,55 @@ Status ParseDetection(const YamlField& f, ChangeDetectionOptions& d) {
   return Status::Ok();
 }
 
+// The `backgrounds:` section (detect/background_model.h); each value checked by Validate(),
+// the message placed at the section.
+Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"adaptive", "learning", "learn_s", "learn_samples", "mode_radius", "adapt_s",
+                                      "relight_s", "absorb_s", "person_height_m", "chroma_threshold", "shadows"}));
+  OCCMAP_ASSIGN_OR_RETURN(b.adaptive, f.GetBool("adaptive", b.adaptive));
+  OCCMAP_ASSIGN_OR_RETURN(std::string learning, f.GetString("learning", ToString(b.learning)));
+  auto method = ParseBackgroundLearning(learning);
+  if (!method.ok()) return f.Find("learning")->Error(method.status().message());
+  b.learning = *method;
+  OCCMAP_ASSIGN_OR_RETURN(b.learn_s, f.GetDouble("learn_s", b.learn_s));
+  OCCMAP_ASSIGN_OR_RETURN(int64_t samples, f.GetInt("learn_samples", b.learn_samples));
+  b.learn_samples = static_cast<int>(std::clamp<int64_t>(samples, -1, 1000));
+  OCCMAP_ASSIGN_OR_RETURN(int64_t radius, f.GetInt("mode_radius", b.mode_radius));
+  b.mode_radius = static_cast<int>(std::clamp<int64_t>(radius, -1, 1000));
+  OCCMAP_ASSIGN_OR_RETURN(b.adapt_s, f.GetDouble("adapt_s", b.adapt_s));
+  OCCMAP_ASSIGN_OR_RETURN(b.relight_s, f.GetDouble("relight_s", b.relight_s));
+  OCCMAP_ASSIGN_OR_RETURN(b.absorb_s, f.GetDouble("absorb_s", b.absorb_s));
+  OCCMAP_ASSIGN_OR_RETURN(b.person_height_m, f.GetDouble("person_height_m", b.person_height_m));
+  OCCMAP_ASSIGN_OR_RETURN(int64_t tc, f.GetInt("chroma_threshold", b.chroma_threshold));
+  b.chroma_threshold = static_cast<int>(std::clamp<int64_t>(tc, -1, 1000));
+  if (auto s = f.Find("shadows")) {
+    OCCMAP_RETURN_IF_ERROR(s->CheckKeys({"enabled", "min_ratio", "max_ratio", "chroma_tolerance"}));
+    OCCMAP_ASSIGN_OR_RETURN(b.shadows.enabled, s->GetBool("enabled", b.shadows.enabled));
+    OCCMAP_ASSIGN_OR_RETURN(b.shadows.min_ratio, s->GetDouble("min_ratio", b.shadows.min_ratio));
+    OCCMAP_ASSIGN_OR_RETURN(b.shadows.max_ratio, s->GetDouble("max_ratio", b.shadows.max_ratio));
+    OCCMAP_ASSIGN_OR_RETURN(int64_t tol, s->GetInt("chroma_tolerance", b.shadows.chroma_tolerance));
+    b.shadows.chroma_tolerance = static_cast<int>(std::clamp<int64_t>(tol, -1, 1000));
+  }
+  // Validate() names the field ("backgrounds.shadows.min_ratio: ..."): the message goes to its line.
+  if (Status v = b.Validate(); !v.ok()) {
+    std::string_view what = v.message();
+    constexpr std::string_view kPrefix = "backgrounds.";
+    const size_t colon = what.find(": ");
+    if (what.starts_with(kPrefix) && colon != std::string_view::npos) {
+      std::string_view path = what.substr(kPrefix.size(), colon - kPrefix.size());
+      std::optional<YamlField> field = f;
+      while (field && !path.empty()) {
+        const size_t dot = path.find('.');
+        field = field->Find(path.substr(0, dot));
+        path = dot == std::string_view::npos ? std::string_view() : path.substr(dot + 1);
+      }
+      if (field) return field->Error(what.substr(colon + 2));
+    }
+    return f.Error(v.message());
+  }
+  return Status::Ok();
+}
+
 Status ParseFusion(const YamlField& f, size_t num_cameras, FusionOptions& s) {
   OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"algorithm", "max_free_views"}));
   OCCMAP_ASSIGN_OR_RETURN(std::string algo, f.GetString("algorithm", "image-based"));
@@ -338,7 +387,8 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
   OCCMAP_ASSIGN_OR_RETURN(YamlField root, ParseYaml(yaml_text, path.string()));
   if (!root.IsMap()) return root.Error("expected a site description (a map with floor and cameras)");
   OCCMAP_RETURN_IF_ERROR(
-      root.CheckKeys({"version", "name", "data_root", "floor", "cameras", "detection", "fusion", "blobs", "lut", "tracking"}));
+      root.CheckKeys({"version", "name", "data_root", "floor", "cameras", "detection", "backgrounds", "fusion", "blobs", "lut",
+                      "tracking"}));
   OCCMAP_ASSIGN_OR_RETURN(int64_t version, root.GetInt("version", 1));
   if (version != 1) return root.Find("version")->Error(fmt::format("expected site format version 1, found {}", version));
   Site site;
@@ -376,6 +426,7 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
     site.cameras.push_back(std::move(cam));
   }
   if (auto f = root.Find("detection")) OCCMAP_RETURN_IF_ERROR(ParseDetection(*f, site.detection));
+  if (auto f = root.Find("backgrounds")) OCCMAP_RETURN_IF_ERROR(ParseBackgrounds(*f, site.backgrounds));
   if (auto f = root.Find("fusion")) OCCMAP_RETURN_IF_ERROR(ParseFusion(*f, site.cameras.size(), site.fusion));
   if (auto f = root.Find("blobs")) {
     OCCMAP_RETURN_IF_ERROR(f->CheckKeys({"group_radius_m", "min_area_m2", "split", "remove_ghosts", "occluder_height_m",

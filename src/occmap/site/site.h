@@ -14,6 +14,7 @@
 //       source: {video: c1.mp4}
 //       background: c1_bg.png
 //   detection: {threshold: 30, tolerance_px: 0}
+//   backgrounds: {adaptive: true, learning: mode, learn_s: 60, shadows: {enabled: true}}
 //   fusion: {algorithm: image-based, max_free_views: 0}
 //   blobs: {group_radius_m: 0.2, min_area_m2: 0.003, split: true, remove_ghosts: true}
 //   lut: {add_cell_projections: true}
@@ -32,6 +33,7 @@
 #include <string>
 #include <vector>
 
+#include "occmap/detect/background_model.h"
 #include "occmap/detect/change_detection.h"
 #include "occmap/fusion/fusion.h"
 #include "occmap/geometry/camera_model.h"
@@ -86,6 +88,7 @@ struct Site {
   std::vector<SiteCamera> cameras;
   LutOptions lut;
   ChangeDetectionOptions detection;
+  BackgroundOptions backgrounds;  // the `backgrounds:` section: learning, maintenance, shadows
   FusionOptions fusion;
   BlobSettings blobs;
   TrackerOptions tracking;  // the `tracking:` section (trackers, zones, trails)

@@ -99,6 +99,23 @@ TEST_F(SiteFixture, LoadsAValidSite) {
   EXPECT_EQ(site->blobs.support_heights_m, (std::vector<double>{0.35, 1.0}));
   EXPECT_EQ(site->blobs.min_support, 0.3);
   EXPECT_EQ(site->blobs.support_slack_m, 0.04);
+  EXPECT_FALSE(site->backgrounds.adaptive);  // the paper's fixed background unless asked
+}
+
+TEST_F(SiteFixture, ReadsTheBackgroundsSection) {
+  auto site = Parse(Valid() +
+                    "backgrounds:\n  adaptive: true\n  learning: knn\n  learn_s: 90\n  learn_samples: 45\n"
+                    "  absorb_s: 12\n  person_height_m: 1.1\n  shadows: {enabled: false, min_ratio: 0.3}\n");
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  EXPECT_TRUE(site->backgrounds.adaptive);
+  EXPECT_EQ(site->backgrounds.learning, BackgroundLearning::kKnn);
+  EXPECT_EQ(site->backgrounds.learn_s, 90);
+  EXPECT_EQ(site->backgrounds.learn_samples, 45);
+  EXPECT_EQ(site->backgrounds.absorb_s, 12);
+  EXPECT_EQ(site->backgrounds.person_height_m, 1.1);
+  EXPECT_FALSE(site->backgrounds.shadows.enabled);
+  EXPECT_EQ(site->backgrounds.shadows.min_ratio, 0.3);
+  EXPECT_EQ(site->backgrounds.shadows.max_ratio, ShadowOptions{}.max_ratio);
 }
 
 TEST_F(SiteFixture, ResizedCameraProjectsToScaledPixels) {
@@ -201,6 +218,14 @@ INSTANTIATE_TEST_SUITE_P(
         BadSite{"version", "version: 1", "version: 2", ":1: version: expected site format version 1, found 2"},
         BadSite{"tracking_speed", "  support_slack_m: 0.04\n", "  support_slack_m: 0.04\ntracking:\n  max_speed_mps: -1\n",
                 ":37: tracking.max_speed_mps: expected a number > 0, found -1"},
+        BadSite{"background_learning", "  support_slack_m: 0.04\n", "  support_slack_m: 0.04\nbackgrounds:\n  learning: gmm\n",
+                ":37: backgrounds.learning: expected median, mode, mog2 or knn, found 'gmm'"},
+        BadSite{"background_absorb", "  support_slack_m: 0.04\n", "  support_slack_m: 0.04\nbackgrounds:\n  absorb_s: -3\n",
+                ":37: backgrounds.absorb_s: expected > 0, found -3"},
+        BadSite{"shadow_ratio", "  support_slack_m: 0.04\n",
+                "  support_slack_m: 0.04\nbackgrounds:\n  shadows: {min_ratio: 0.5, max_ratio: 0.4}\n", ":37: backgrounds.shadows: expected 0 < min_ratio < max_ratio < 1, found min_ratio 0.5 and max_ratio 0.4"},
+        BadSite{"shadow_key", "  support_slack_m: 0.04\n",
+                "  support_slack_m: 0.04\nbackgrounds:\n  shadows: {min_ration: 0.5}\n", ":37: backgrounds.shadows: unknown field 'min_ration' (did you mean 'min_ratio'?)"},
         BadSite{"support_height", "support_heights_m: [0.35, 1.0]", "support_heights_m: [0.35, -1]",
                 ":33: blobs.support_heights_m: expected heights in (0, 10) m, found -1"},
         BadSite{"support_heights_not_a_list", "support_heights_m: [0.35, 1.0]", "support_heights_m: high",
@@ -210,7 +235,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadSite{"support_slack", "support_slack_m: 0.04", "support_slack_m: -0.1",
                 ":35: blobs.support_slack_m: expected >= 0 m, found -0.1"},
         BadSite{"no_cameras", "cameras:\n  - id: a", "cameras: []\nx:\n  - id: a",
-                ":8: unknown field 'x' (expected one of: version, name, data_root, floor, cameras, detection, fusion, blobs, lut, tracking)"},
+                ":8: unknown field 'x' (expected one of: version, name, data_root, floor, cameras, detection, backgrounds, fusion, blobs, lut, tracking)"},
         BadSite{"yaml_syntax", "origin_m: [0, 0]", "origin_m: [0, 0",
                 ":5:9: YAML syntax error: end of sequence flow not found"}),
     [](const ::testing::TestParamInfo<BadSite>& param_info) { return std::string(param_info.param.name); });

@@ -1,0 +1,607 @@
+#include "occmap/detect/background_model.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <opencv2/core.hpp>
+#include <opencv2/video/background_segm.hpp>
+
+namespace occmap {
+namespace {
+
+constexpr int kBinLevels = 8;  // background levels per bin of the transfer fit
+constexpr int kBins = 256 / kBinLevels;
+constexpr double kFitOutlierLevels = 12;
+
+uint8_t Clamp8(double v) { return static_cast<uint8_t>(std::clamp(std::lround(v), 0L, 255L)); }
+int ClampInt(double v, int lo, int hi) { return static_cast<int>(std::clamp(std::lround(v), static_cast<long>(lo), static_cast<long>(hi))); }
+
+// Weighted least squares of y = a x + b; false when the xs do not spread.
+bool FitLine(const std::vector<std::array<double, 3>>& points, double* a, double* b) {
+  double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (const auto& [x, y, w] : points) {
+    sw += w;
+    sx += w * x;
+    sy += w * y;
+    sxx += w * x * x;
+    sxy += w * x * y;
+  }
+  const double det = sw * sxx - sx * sx;
+  if (sw <= 0 || det <= 1e-9 * sw * sw) return false;
+  *a = (sw * sxy - sx * sy) / det;
+  *b = (sy - *a * sx) / sw;
+  return true;
+}
+
+// The lower median of n values (copied).
+uint8_t MedianOf(uint8_t* values, size_t n) {
+  const size_t rank = (n - 1) / 2;
+  std::nth_element(values, values + rank, values + n);
+  return values[rank];
+}
+
+}  // namespace
+
+YuvImage YuvFromRgb(ImageView<const Rgb8> rgb) {
+  YuvImage out;
+  LumaFromRgb(rgb, out.y);
+  ChromaFromRgb(rgb, out.u, out.v);
+  return out;
+}
+
+Image<Rgb8> RgbFromYuv(const YuvView& yuv) {
+  Image<Rgb8> out(yuv.y.width(), yuv.y.height());
+  for (int y = 0; y < out.height(); ++y) {
+    for (int x = 0; x < out.width(); ++x) {
+      const double l = yuv.y(x, y);
+      const double cb = yuv.has_chroma() ? yuv.u(x / 2, y / 2) - 128.0 : 0.0;
+      const double cr = yuv.has_chroma() ? yuv.v(x / 2, y / 2) - 128.0 : 0.0;
+      out(x, y) = {Clamp8(l + 1.402 * cr), Clamp8(l - 0.344136 * cb - 0.714136 * cr), Clamp8(l + 1.772 * cb)};
+    }
+  }
+  return out;
+}
+
+const char* ToString(BackgroundLearning method) {
+  switch (method) {
+    case BackgroundLearning::kMedian: return "median";
+    case BackgroundLearning::kMode: return "mode";
+    case BackgroundLearning::kMog2: return "mog2";
+    case BackgroundLearning::kKnn: return "knn";
+  }
+  return "?";
+}
+
+Result<BackgroundLearning> ParseBackgroundLearning(std::string_view name) {
+  for (BackgroundLearning m : {BackgroundLearning::kMedian, BackgroundLearning::kMode, BackgroundLearning::kMog2,
+                               BackgroundLearning::kKnn}) {
+    if (name == ToString(m)) return m;
+  }
+  return InvalidInput(fmt::format("expected median, mode, mog2 or knn, found '{}'", name));
+}
+
+Status ShadowOptions::Validate() const {
+  if (!(min_ratio > 0 && min_ratio < max_ratio && max_ratio < 1)) {
+    return InvalidInput(fmt::format("backgrounds.shadows: expected 0 < min_ratio < max_ratio < 1, found min_ratio {} and max_ratio {}",
+                                    min_ratio, max_ratio));
+  }
+  if (chroma_tolerance < 0 || chroma_tolerance > 128) {
+    return InvalidInput(fmt::format("backgrounds.shadows.chroma_tolerance: expected 0..128, found {}", chroma_tolerance));
+  }
+  return Status::Ok();
+}
+
+Status BackgroundOptions::Validate() const {
+  if (!(learn_s > 0)) return InvalidInput(fmt::format("backgrounds.learn_s: expected > 0, found {}", learn_s));
+  if (learn_samples < 1 || learn_samples > 255) {
+    return InvalidInput(fmt::format("backgrounds.learn_samples: expected 1..255, found {}", learn_samples));
+  }
+  if (mode_radius < 1 || mode_radius > 64) {
+    return InvalidInput(fmt::format("backgrounds.mode_radius: expected 1..64 grey levels, found {}", mode_radius));
+  }
+  if (!(adapt_s > 0)) return InvalidInput(fmt::format("backgrounds.adapt_s: expected > 0, found {}", adapt_s));
+  if (!(relight_s > 0)) return InvalidInput(fmt::format("backgrounds.relight_s: expected > 0, found {}", relight_s));
+  if (!(absorb_s > 0)) return InvalidInput(fmt::format("backgrounds.absorb_s: expected > 0, found {}", absorb_s));
+  if (!(person_height_m > 0 && person_height_m < 3)) {
+    return InvalidInput(fmt::format("backgrounds.person_height_m: expected 0 < h < 3 m, found {}", person_height_m));
+  }
+  if (chroma_threshold < 0 || chroma_threshold > 255) {
+    return InvalidInput(fmt::format("backgrounds.chroma_threshold: expected 0..255, found {}", chroma_threshold));
+  }
+  return shadows.Validate();
+}
+
+PhotometricTransfer EstimateTransfer(ImageView<const uint8_t> background_y, ImageView<const uint8_t> frame_y,
+                                     int step_px) {
+  OCCMAP_CHECK(background_y.width() == frame_y.width() && background_y.height() == frame_y.height(),
+               "transfer: sizes differ");
+  OCCMAP_CHECK(step_px >= 1, "transfer: step must be >= 1");
+  // Per background bin, a histogram of the frame's levels.
+  std::vector<uint32_t> hist(static_cast<size_t>(kBins) * 256, 0);
+  std::array<uint32_t, kBins> counts{};
+  std::array<double, kBins> sum_b{};
+  int total = 0;
+  for (int y = step_px / 2; y < frame_y.height(); y += step_px) {
+    const uint8_t* b = background_y.row(y);
+    const uint8_t* f = frame_y.row(y);
+    for (int x = step_px / 2; x < frame_y.width(); x += step_px) {
+      if (b[x] < 8 || b[x] > 247) continue;
+      const int bin = b[x] / kBinLevels;
+      ++hist[static_cast<size_t>(bin) * 256 + f[x]];
+      ++counts[static_cast<size_t>(bin)];
+      sum_b[static_cast<size_t>(bin)] += b[x];
+      ++total;
+    }
+  }
+  PhotometricTransfer t;
+  t.samples = total;
+  const uint32_t min_count = std::max<uint32_t>(16, static_cast<uint32_t>(total / 500));
+  std::vector<std::array<double, 3>> points;  // background level, frame median, weight
+  for (int bin = 0; bin < kBins; ++bin) {
+    const uint32_t n = counts[static_cast<size_t>(bin)];
+    if (n < min_count) continue;
+    const uint32_t half = (n + 1) / 2;
+    uint32_t acc = 0;
+    int median = 0;
+    for (int level = 0; level < 256; ++level) {
+      acc += hist[static_cast<size_t>(bin) * 256 + level];
+      if (acc >= half) {
+        median = level;
+        break;
+      }
+    }
+    // A clipped median says nothing of the slope (the frame saturates there).
+    if (median <= 4 || median >= 251) continue;
+    points.push_back({sum_b[static_cast<size_t>(bin)] / n, static_cast<double>(median), static_cast<double>(n)});
+  }
+  if (points.size() < 2) return t;
+  double a = 1, b = 0;
+  if (!FitLine(points, &a, &b)) return t;
+  // Bins far from the line (a crowd of one colour over one floor level) are left out, twice.
+  for (int round = 0; round < 2; ++round) {
+    std::vector<std::array<double, 3>> inliers;
+    for (const auto& p : points) {
+      if (std::abs(a * p[0] + b - p[1]) <= kFitOutlierLevels) inliers.push_back(p);
+    }
+    if (inliers.size() < 2 || inliers.size() == points.size()) break;
+    if (!FitLine(inliers, &a, &b)) break;
+    points = std::move(inliers);
+  }
+  if (!(a > 0.2 && a < 5)) return t;  // not a photometric change: leave it to the change test
+  t.gain = a;
+  t.offset = b;
+  return t;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Learning.
+
+BackgroundLearner::BackgroundLearner(int width, int height, bool chroma, int expected_samples)
+    : width_(width), height_(height), cw_(ChromaPlaneSize(width)), ch_(ChromaPlaneSize(height)), chroma_(chroma) {
+  OCCMAP_CHECK(width > 0 && height > 0, "background learner: empty size");
+  const size_t n = static_cast<size_t>(std::clamp(expected_samples, 1, 255));
+  y_.reserve(n * static_cast<size_t>(width_) * height_);
+  if (chroma_) {
+    u_.reserve(n * static_cast<size_t>(cw_) * ch_);
+    v_.reserve(n * static_cast<size_t>(cw_) * ch_);
+  }
+}
+
+void BackgroundLearner::Add(const YuvView& frame) {
+  OCCMAP_CHECK(frame.y.width() == width_ && frame.y.height() == height_, "background learner: frame size differs");
+  OCCMAP_CHECK(count_ < 255, "background learner: more than 255 frames");
+  auto append = [](std::vector<uint8_t>& dst, ImageView<const uint8_t> plane) {
+    const size_t w = static_cast<size_t>(plane.width());
+    const size_t at = dst.size();
+    dst.resize(at + w * static_cast<size_t>(plane.height()));
+    for (int y = 0; y < plane.height(); ++y) std::memcpy(dst.data() + at + w * y, plane.row(y), w);
+  };
+  append(y_, frame.y);
+  if (chroma_) {
+    OCCMAP_CHECK(frame.has_chroma() && frame.u.width() == cw_ && frame.u.height() == ch_ && frame.v.width() == cw_ &&
+                     frame.v.height() == ch_,
+                 "background learner: chroma planes missing or of the wrong size");
+    append(u_, frame.u);
+    append(v_, frame.v);
+  }
+  ++count_;
+}
+
+YuvImage BackgroundLearner::Learn(BackgroundLearning method, int mode_radius) const {
+  OCCMAP_CHECK(count_ > 0, "background learner: no frames");
+  const size_t k = static_cast<size_t>(count_);
+  const size_t np = static_cast<size_t>(width_) * height_, nc = static_cast<size_t>(cw_) * ch_;
+  // 1. A provisional median of luma, and each sample's transfer to it.
+  Image<uint8_t> provisional(width_, height_);
+  std::vector<uint8_t> column(k);
+  for (size_t p = 0; p < np; ++p) {
+    for (size_t f = 0; f < k; ++f) column[f] = y_[f * np + p];
+    provisional(static_cast<int>(p % width_), static_cast<int>(p / width_)) = MedianOf(column.data(), k);
+  }
+  // 2. Samples normalised to the provisional background's photometry.
+  std::vector<uint8_t> ny(y_.size()), nu(u_.size()), nv(v_.size());
+  for (size_t f = 0; f < k; ++f) {
+    const ImageView<const uint8_t> frame(y_.data() + f * np, width_, height_, width_);
+    const PhotometricTransfer t = EstimateTransfer(provisional.view(), frame);
+    std::array<uint8_t, 256> luma{}, chroma{};
+    for (int level = 0; level < 256; ++level) {
+      luma[static_cast<size_t>(level)] = Clamp8(t.Invert(level));
+      chroma[static_cast<size_t>(level)] = Clamp8(128 + (level - 128) / t.gain);
+    }
+    for (size_t p = 0; p < np; ++p) ny[f * np + p] = luma[y_[f * np + p]];
+    if (chroma_) {
+      for (size_t p = 0; p < nc; ++p) {
+        nu[f * nc + p] = chroma[u_[f * nc + p]];
+        nv[f * nc + p] = chroma[v_[f * nc + p]];
+      }
+    }
+  }
+  YuvImage out;
+  out.y = Image<uint8_t>(width_, height_);
+  if (chroma_) {
+    out.u = Image<uint8_t>(cw_, ch_);
+    out.v = Image<uint8_t>(cw_, ch_);
+  }
+  switch (method) {
+    case BackgroundLearning::kMedian: {
+      for (size_t p = 0; p < np; ++p) {
+        for (size_t f = 0; f < k; ++f) column[f] = ny[f * np + p];
+        out.y(static_cast<int>(p % width_), static_cast<int>(p / width_)) = MedianOf(column.data(), k);
+      }
+      for (size_t p = 0; p < nc && chroma_; ++p) {
+        for (size_t f = 0; f < k; ++f) column[f] = nu[f * nc + p];
+        out.u(static_cast<int>(p % cw_), static_cast<int>(p / cw_)) = MedianOf(column.data(), k);
+        for (size_t f = 0; f < k; ++f) column[f] = nv[f * nc + p];
+        out.v(static_cast<int>(p % cw_), static_cast<int>(p / cw_)) = MedianOf(column.data(), k);
+      }
+      break;
+    }
+    case BackgroundLearning::kMode: {
+      // Per pixel: the samples sorted by level (packed with their frame), the widest run within
+      // 2 * mode_radius levels; its mean. Chroma: the mean of the same frames' samples at the
+      // block's top-left pixel.
+      std::vector<uint16_t> packed(k);
+      for (int y = 0; y < height_; ++y) {
+        for (int x = 0; x < width_; ++x) {
+          const size_t p = static_cast<size_t>(y) * width_ + x;
+          for (size_t f = 0; f < k; ++f) packed[f] = static_cast<uint16_t>((ny[f * np + p] << 8) | f);
+          std::sort(packed.begin(), packed.end());
+          size_t best_i = 0, best_n = 0, i = 0;
+          for (size_t j = 0; j < k; ++j) {
+            while ((packed[j] >> 8) - (packed[i] >> 8) > 2 * mode_radius) ++i;
+            if (j - i + 1 > best_n) {
+              best_n = j - i + 1;
+              best_i = i;
+            }
+          }
+          int sum = 0;
+          for (size_t q = best_i; q < best_i + best_n; ++q) sum += packed[q] >> 8;
+          out.y(x, y) = Clamp8(static_cast<double>(sum) / static_cast<double>(best_n));
+          if (chroma_ && x % 2 == 0 && y % 2 == 0) {
+            const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+            int su = 0, sv = 0;
+            for (size_t q = best_i; q < best_i + best_n; ++q) {
+              const size_t f = packed[q] & 0xff;
+              su += nu[f * nc + c];
+              sv += nv[f * nc + c];
+            }
+            out.u(x / 2, y / 2) = Clamp8(static_cast<double>(su) / static_cast<double>(best_n));
+            out.v(x / 2, y / 2) = Clamp8(static_cast<double>(sv) / static_cast<double>(best_n));
+          }
+        }
+      }
+      break;
+    }
+    case BackgroundLearning::kMog2:
+    case BackgroundLearning::kKnn: {
+      // OpenCV's subtractors over the normalised samples (luma, and chroma brought to full size).
+      cv::Ptr<cv::BackgroundSubtractor> model;
+      if (method == BackgroundLearning::kMog2) {
+        model = cv::createBackgroundSubtractorMOG2(static_cast<int>(k), 16, false);
+      } else {
+        model = cv::createBackgroundSubtractorKNN(static_cast<int>(k), 400, false);
+      }
+      cv::Mat sample(height_, width_, chroma_ ? CV_8UC3 : CV_8UC1), mask;
+      for (size_t f = 0; f < k; ++f) {
+        for (int y = 0; y < height_; ++y) {
+          uint8_t* dst = sample.ptr<uint8_t>(y);
+          for (int x = 0; x < width_; ++x) {
+            const size_t p = static_cast<size_t>(y) * width_ + x;
+            if (!chroma_) {
+              dst[x] = ny[f * np + p];
+              continue;
+            }
+            const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+            dst[3 * x] = ny[f * np + p];
+            dst[3 * x + 1] = nu[f * nc + c];
+            dst[3 * x + 2] = nv[f * nc + c];
+          }
+        }
+        model->apply(sample, mask);
+      }
+      cv::Mat bg;
+      model->getBackgroundImage(bg);
+      OCCMAP_CHECK(bg.rows == height_ && bg.cols == width_, "background subtractor: unexpected image size");
+      for (int y = 0; y < height_; ++y) {
+        const uint8_t* src = bg.ptr<uint8_t>(y);
+        for (int x = 0; x < width_; ++x) {
+          out.y(x, y) = chroma_ ? src[3 * x] : src[x];
+          if (chroma_ && x % 2 == 0 && y % 2 == 0) {
+            out.u(x / 2, y / 2) = src[3 * x + 1];
+            out.v(x / 2, y / 2) = src[3 * x + 2];
+          }
+        }
+      }
+      break;
+    }
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The model.
+
+BackgroundModel::BackgroundModel(const BackgroundOptions& options, double fps) : options_(options), fps_(fps) {
+  OCCMAP_CHECK(fps > 0, "background model: fps must be > 0");
+  for (int level = 0; level < 256; ++level) {
+    pred_[level] = level;
+    pred_c_[level] = level;
+    shadow_lo_[level] = 256;
+    shadow_hi_[level] = -1;
+  }
+}
+
+void BackgroundModel::Reset(const YuvImage& background) {
+  width_ = background.y.width();
+  height_ = background.y.height();
+  cw_ = ChromaPlaneSize(width_);
+  ch_ = ChromaPlaneSize(height_);
+  chroma_ = background.has_chroma();
+  const size_t np = static_cast<size_t>(width_) * height_, nc = static_cast<size_t>(cw_) * ch_;
+  by_.resize(np);
+  for (int y = 0; y < height_; ++y) {
+    for (int x = 0; x < width_; ++x) by_[static_cast<size_t>(y) * width_ + x] = static_cast<uint16_t>(background.y(x, y) << 8);
+  }
+  bu_.clear();
+  bv_.clear();
+  if (chroma_) {
+    OCCMAP_CHECK(background.u.width() == cw_ && background.u.height() == ch_, "background model: chroma size");
+    bu_.resize(nc);
+    bv_.resize(nc);
+    for (int y = 0; y < ch_; ++y) {
+      for (int x = 0; x < cw_; ++x) {
+        bu_[static_cast<size_t>(y) * cw_ + x] = static_cast<uint16_t>(background.u(x, y) << 8);
+        bv_[static_cast<size_t>(y) * cw_ + x] = static_cast<uint16_t>(background.v(x, y) << 8);
+      }
+    }
+  }
+  class_.assign(np, kBackground);
+  prev_y_.assign(np, 0);
+  steady_frames_.assign(np, 0);
+  set_frame_.assign(np, -1);
+  stats_ = BackgroundStats{};
+  first_frame_ = -1;
+  stats_.pixels = static_cast<int64_t>(np);
+  transfer_ = PhotometricTransfer{};
+}
+
+YuvImage BackgroundModel::Current() const {
+  YuvImage out;
+  out.y = Image<uint8_t>(width_, height_);
+  for (int y = 0; y < height_; ++y) {
+    for (int x = 0; x < width_; ++x) out.y(x, y) = static_cast<uint8_t>(std::min(255, (by_[static_cast<size_t>(y) * width_ + x] + 128) >> 8));
+  }
+  if (chroma_) {
+    out.u = Image<uint8_t>(cw_, ch_);
+    out.v = Image<uint8_t>(cw_, ch_);
+    for (int y = 0; y < ch_; ++y) {
+      for (int x = 0; x < cw_; ++x) {
+        const size_t i = static_cast<size_t>(y) * cw_ + x;
+        out.u(x, y) = static_cast<uint8_t>(std::min(255, (bu_[i] + 128) >> 8));
+        out.v(x, y) = static_cast<uint8_t>(std::min(255, (bv_[i] + 128) >> 8));
+      }
+    }
+  }
+  return out;
+}
+
+// The class of one pixel from its frame values and its background's 8-bit levels, under the
+// current transfer (the reference's formulas; DetectChanges reads the same from tables).
+uint8_t BackgroundModel::Classify(int y, int u, int v, int by, int bu, int bv, int threshold) const {
+  const int expected = ClampInt(transfer_.Apply(by), 0, 255);
+  const int d = y - expected;
+  bool changed = std::abs(d) > threshold;
+  int eu = 0, ev = 0;
+  if (chroma_) {
+    eu = ClampInt(128 + transfer_.gain * (bu - 128), 0, 255);
+    ev = ClampInt(128 + transfer_.gain * (bv - 128), 0, 255);
+    if (options_.chroma_threshold > 0) {
+      changed |= std::abs(u - eu) > options_.chroma_threshold || std::abs(v - ev) > options_.chroma_threshold;
+    }
+  }
+  if (!changed) return kBackground;
+  const ShadowOptions& s = options_.shadows;
+  if (!s.enabled || d >= 0 || expected <= 0) return kChanged;
+  if (y < static_cast<int>(std::ceil(s.min_ratio * expected)) || y > static_cast<int>(std::floor(s.max_ratio * expected))) {
+    return kChanged;
+  }
+  if (!chroma_) return kShadow;
+  const float r = static_cast<float>(y) / static_cast<float>(expected);
+  const float su = 128.0f + r * static_cast<float>(eu - 128), sv = 128.0f + r * static_cast<float>(ev - 128);
+  const float tol = static_cast<float>(s.chroma_tolerance);
+  return std::abs(static_cast<float>(u) - su) <= tol && std::abs(static_cast<float>(v) - sv) <= tol ? kShadow : kChanged;
+}
+
+void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold, ImageView<uint8_t> changes) const {
+  OCCMAP_CHECK(frame.y.width() == width_ && frame.y.height() == height_, "background model: frame size differs");
+  OCCMAP_CHECK(!chroma_ || frame.has_chroma(), "background model: the frame has no chroma");
+  for (int y = 0; y < height_; ++y) {
+    for (int x = 0; x < width_; ++x) {
+      const size_t i = static_cast<size_t>(y) * width_ + x;
+      const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+      const int by = std::min(255, (by_[i] + 128) >> 8);
+      const int bu = chroma_ ? std::min(255, (bu_[c] + 128) >> 8) : 128;
+      const int bv = chroma_ ? std::min(255, (bv_[c] + 128) >> 8) : 128;
+      const int u = chroma_ ? frame.u(x / 2, y / 2) : 128, v = chroma_ ? frame.v(x / 2, y / 2) : 128;
+      changes(x, y) = Classify(frame.y(x, y), u, v, by, bu, bv, threshold) == kChanged ? 1 : 0;
+    }
+  }
+}
+
+void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageView<uint8_t> changes) {
+  OCCMAP_CHECK(!empty(), "background model: no background");
+  OCCMAP_CHECK(frame.y.width() == width_ && frame.y.height() == height_, "background model: frame size differs");
+  OCCMAP_CHECK(!chroma_ || frame.has_chroma(), "background model: the frame has no chroma");
+  OCCMAP_CHECK(changes.width() == width_ && changes.height() == height_, "background model: change mask size");
+  // The transfer against the current background's luma (8-bit).
+  if (bg8_.width() != width_ || bg8_.height() != height_) bg8_ = Image<uint8_t>(width_, height_);
+  for (int y = 0; y < height_; ++y) {
+    uint8_t* dst = bg8_.row(y);
+    const uint16_t* src = by_.data() + static_cast<size_t>(y) * width_;
+    for (int x = 0; x < width_; ++x) dst[x] = static_cast<uint8_t>(std::min(255, (src[x] + 128) >> 8));
+  }
+  transfer_ = EstimateTransfer(bg8_.view(), frame.y);
+  const ShadowOptions& s = options_.shadows;
+  for (int level = 0; level < 256; ++level) {
+    const int expected = ClampInt(transfer_.Apply(level), 0, 255);
+    pred_[level] = expected;
+    pred_c_[level] = ClampInt(128 + transfer_.gain * (level - 128), 0, 255);
+    shadow_lo_[level] = static_cast<int>(std::ceil(s.min_ratio * expected));
+    shadow_hi_[level] = static_cast<int>(std::floor(s.max_ratio * expected));
+    if (!s.enabled || expected <= 0) {
+      shadow_lo_[level] = 256;
+      shadow_hi_[level] = -1;
+    }
+  }
+  const int tc = chroma_ ? options_.chroma_threshold : 0;
+  const float tol = static_cast<float>(s.chroma_tolerance);
+  int64_t changed = 0, shadow = 0;
+  for (int y = 0; y < height_; ++y) {
+    const uint8_t* fy = frame.y.row(y);
+    const uint8_t* fu = chroma_ ? frame.u.row(y / 2) : nullptr;
+    const uint8_t* fv = chroma_ ? frame.v.row(y / 2) : nullptr;
+    const uint16_t* rby = by_.data() + static_cast<size_t>(y) * width_;
+    const uint16_t* rbu = chroma_ ? bu_.data() + static_cast<size_t>(y / 2) * cw_ : nullptr;
+    const uint16_t* rbv = chroma_ ? bv_.data() + static_cast<size_t>(y / 2) * cw_ : nullptr;
+    uint8_t* cls = class_.data() + static_cast<size_t>(y) * width_;
+    uint8_t* out = changes.row(y);
+    for (int x = 0; x < width_; ++x) {
+      const int b = std::min(255, (rby[x] + 128) >> 8);
+      const int expected = pred_[b];
+      const int d = fy[x] - expected;
+      bool is_changed = std::abs(d) > threshold;
+      int eu = 0, ev = 0, u = 0, v = 0;
+      if (chroma_) {
+        eu = pred_c_[std::min(255, (rbu[x >> 1] + 128) >> 8)];
+        ev = pred_c_[std::min(255, (rbv[x >> 1] + 128) >> 8)];
+        u = fu[x >> 1];
+        v = fv[x >> 1];
+        if (tc > 0) is_changed |= std::abs(u - eu) > tc || std::abs(v - ev) > tc;
+      }
+      uint8_t c = kBackground;
+      if (is_changed) {
+        c = kChanged;
+        if (d < 0 && fy[x] >= shadow_lo_[b] && fy[x] <= shadow_hi_[b]) {
+          if (!chroma_) {
+            c = kShadow;
+          } else {
+            const float r = static_cast<float>(fy[x]) / static_cast<float>(expected);
+            const float su = 128.0f + r * static_cast<float>(eu - 128), sv = 128.0f + r * static_cast<float>(ev - 128);
+            if (std::abs(static_cast<float>(u) - su) <= tol && std::abs(static_cast<float>(v) - sv) <= tol) c = kShadow;
+          }
+        }
+      }
+      cls[x] = c;
+      out[x] = c == kChanged ? 1 : 0;
+      changed += c == kChanged;
+      shadow += c == kShadow;
+    }
+  }
+  const double np = static_cast<double>(width_) * height_;
+  stats_.changed_fraction = static_cast<double>(changed) / np;
+  stats_.shadow_fraction = static_cast<double>(shadow) / np;
+  stats_.transfer = transfer_;
+}
+
+void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> protection, int64_t frame_index) {
+  OCCMAP_CHECK(frame.y.width() == width_ && frame.y.height() == height_, "background model: frame size differs");
+  OCCMAP_CHECK(protection.width() == width_ && protection.height() == height_, "background model: protection size");
+  // Frame levels brought back to the background's photometry, in 8.8.
+  std::array<int32_t, 256> inv_y{}, inv_c{};
+  for (int level = 0; level < 256; ++level) {
+    inv_y[static_cast<size_t>(level)] = ClampInt(transfer_.Invert(level) * 256, 0, 65535);
+    inv_c[static_cast<size_t>(level)] = ClampInt((128 + (level - 128) / transfer_.gain) * 256, 0, 65535);
+  }
+  // Exponential forgetting with time constant adapt_s, in 1/65536.
+  const int32_t alpha = std::max<int32_t>(1, static_cast<int32_t>(std::lround(65536.0 / std::max(1.0, options_.adapt_s * fps_))));
+  const int relight = std::max(1, static_cast<int>(std::lround(options_.relight_s * fps_)));
+  const int absorb = std::max(1, static_cast<int>(std::lround(options_.absorb_s * fps_)));
+  const int steady_levels = 8;  // frame-to-frame change of a steady pixel (noise, compression)
+  const int32_t f = static_cast<int32_t>(frame_index);
+  if (first_frame_ < 0) first_frame_ = frame_index;
+  int64_t absorbed = 0;
+  for (int y = 0; y < height_; ++y) {
+    const uint8_t* fy = frame.y.row(y);
+    const uint8_t* prot = protection.row(y);
+    const bool chroma_row = chroma_ && y % 2 == 0;
+    const uint8_t* fu = chroma_row ? frame.u.row(y / 2) : nullptr;
+    const uint8_t* fv = chroma_row ? frame.v.row(y / 2) : nullptr;
+    const size_t row = static_cast<size_t>(y) * width_;
+    for (int x = 0; x < width_; ++x) {
+      const size_t i = row + x;
+      const uint8_t cls = class_[i];
+      const int level = fy[x];
+      const int prev = prev_y_[i];
+      prev_y_[i] = static_cast<uint8_t>(level);
+      if (prot[x] == kPerson || cls == kShadow) {
+        steady_frames_[i] = 0;
+        continue;
+      }
+      const bool chroma_here = chroma_row && x % 2 == 0;
+      const size_t c = chroma_here ? static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2) : 0;
+      if (cls == kBackground) {
+        steady_frames_[i] = 0;
+        if (prot[x] != kFree) continue;
+        by_[i] = static_cast<uint16_t>(by_[i] + ((inv_y[static_cast<size_t>(level)] - by_[i]) * alpha + 32768) / 65536);
+        if (chroma_here) {
+          bu_[c] = static_cast<uint16_t>(bu_[c] + ((inv_c[fu[x >> 1]] - bu_[c]) * alpha + 32768) / 65536);
+          bv_[c] = static_cast<uint16_t>(bv_[c] + ((inv_c[fv[x >> 1]] - bv_[c]) * alpha + 32768) / 65536);
+        }
+        set_frame_[i] = f;
+        continue;
+      }
+      // Changed: count the frames it stays steady; taken as background after relight_s (no
+      // object there) or absorb_s (an object that is not a person).
+      const int steady = std::abs(level - prev) <= steady_levels ? steady_frames_[i] + 1 : 0;
+      steady_frames_[i] = static_cast<uint16_t>(std::min(steady, 65535));
+      if (steady >= (prot[x] == kFree ? relight : absorb)) {
+        by_[i] = static_cast<uint16_t>(inv_y[static_cast<size_t>(level)]);
+        if (chroma_here) {
+          bu_[c] = static_cast<uint16_t>(inv_c[fu[x >> 1]]);
+          bv_[c] = static_cast<uint16_t>(inv_c[fv[x >> 1]]);
+        }
+        steady_frames_[i] = 0;
+        set_frame_[i] = f;
+        ++absorbed;
+      }
+    }
+  }
+  ++stats_.frames;
+  stats_.pixels_absorbed += absorbed;
+  int64_t updated = 0;
+  for (int32_t s : set_frame_) updated += s >= 0;
+  stats_.pixels_updated = updated;
+}
+
+double BackgroundModel::MeanAgeS(int64_t frame_index) const {
+  if (set_frame_.empty()) return 0;
+  double sum = 0;
+  const int64_t start = first_frame_ < 0 ? frame_index : first_frame_;
+  for (int32_t s : set_frame_) sum += static_cast<double>(frame_index - (s < 0 ? start : s));
+  return sum / static_cast<double>(set_frame_.size()) / fps_;
+}
+
+}  // namespace occmap

@@ -1,0 +1,196 @@
+// Backgrounds for real scenes: learned from busy video, kept up to date while the run goes on,
+// and a change test that tells a cast shadow from an object.
+//
+// Colour is Y'CbCr, as video decoders give it: luma at full resolution, chroma planes (u = Cb,
+// v = Cr) at half the width and height (4:2:0, sizes rounded up), full range, 128 = no colour.
+// Chroma is optional: a grey source gives luma alone and every chroma test is skipped.
+//
+// Three parts, each a plain function or class over images (the pipeline wires them to the
+// fused map, pipeline/background_maintenance.h):
+// 1. The photometric transfer of a frame: the affine map background -> frame luma
+//    (frame ~ gain * background + offset) fitted robustly each frame from per-level medians of
+//    a sparse grid of pixels. Auto-exposure, clouds and lights switched on move every pixel at
+//    once; the transfer follows them in one frame, so the per-pixel model does not need to.
+// 2. Learning without an empty frame (BackgroundLearner): K frames sampled over a long window,
+//    each normalised by its transfer to a provisional median, then one of four estimators:
+//    kMedian (per-pixel median), kMode (the centre of the densest cluster of a pixel's samples:
+//    what the pixel shows most of the time, even when people cover it for over half of it, as
+//    long as no one person stays longer than the floor is seen), kMog2 and kKnn (OpenCV's
+//    background subtractors' background images, for comparison).
+// 3. BackgroundModel: the per-camera background (luma and chroma, 8.8 fixed point), the change
+//    test with shadow suppression, and the update from a per-pixel protection map:
+//      - unprotected and unchanged (or shadow): follows the frame with time constant adapt_s
+//        (the sun moving, slow local light changes);
+//      - unprotected, changed and steady for relight_s: taken as background (a light change no
+//        object explains: the fused map sees nothing there);
+//      - protected by an object that is not a person, changed and steady for absorb_s: taken
+//        as background (a chair pushed and left);
+//      - protected by a person: never updated (a person standing still stays a person).
+//
+// The shadow test (Cucchiara et al. 2003, Horprasert et al. 1999, in Y'CbCr): a changed pixel
+// is a cast shadow when it is darker than the expected background by a ratio r in
+// [min_ratio, max_ratio] and its chroma is the background's scaled by r within
+// chroma_tolerance (a shadow darkens the floor but keeps its colour). Without chroma only the
+// ratio is tested, and dark clothing of the floor's hue passes for a shadow.
+//
+//   BackgroundModel model(options, shadows);
+//   model.Reset(learned);                                  // a YuvImage
+//   model.DetectChanges(frame, threshold, changes.view()); // 1 changed, 0 not
+//   model.Update(frame, protection.view(), frame_index);   // after the fusion
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "occmap/util/image.h"
+#include "occmap/util/status.h"
+#include "occmap/util/yuv.h"
+
+namespace occmap {
+
+// A frame or background in Y'CbCr 4:2:0; u and v empty for grey.
+struct YuvView {
+  ImageView<const uint8_t> y, u, v;
+  bool has_chroma() const { return !u.empty() && !v.empty(); }
+};
+struct YuvImage {
+  Image<uint8_t> y, u, v;
+  YuvView view() const {
+    if (u.empty()) return {y.view(), {}, {}};
+    return {y.view(), u.view(), v.view()};
+  }
+  bool has_chroma() const { return !u.empty(); }
+};
+// util/yuv.h's conversion (the frame sources' convention), and back (chroma of a 2 x 2 block
+// shared by its pixels), for pictures of a background.
+YuvImage YuvFromRgb(ImageView<const Rgb8> rgb);
+Image<Rgb8> RgbFromYuv(const YuvView& yuv);
+
+enum class BackgroundLearning { kMedian, kMode, kMog2, kKnn };
+const char* ToString(BackgroundLearning method);
+Result<BackgroundLearning> ParseBackgroundLearning(std::string_view name);  // message lists the names
+
+struct ShadowOptions {
+  bool enabled = true;
+  double min_ratio = 0.25;     // a shadow keeps at least this share of the lit brightness
+  double max_ratio = 0.90;     // and loses at least 1 - max_ratio of it
+  int chroma_tolerance = 12;   // levels of Cb, Cr (after scaling by the ratio)
+  Status Validate() const;
+};
+
+struct BackgroundOptions {
+  // The adaptive model (photometric transfer, maintenance, shadow test) instead of the paper's
+  // fixed background and plain |I - B| > T.
+  bool adaptive = false;
+  // Learning, when the site gives no background.
+  BackgroundLearning learning = BackgroundLearning::kMode;
+  double learn_s = 60;         // the window read at start-up
+  int learn_samples = 60;      // frames sampled evenly over it (at most 255)
+  int mode_radius = 6;         // kMode: half-width of a cluster, grey levels (after normalising)
+  // Maintenance.
+  double adapt_s = 30;         // time constant of unprotected, unchanged pixels
+  double relight_s = 2;        // unexplained steady changes become background after this
+  double absorb_s = 30;        // still objects that are not people become background after this
+  double person_height_m = 1.2;  // a detection changed up to this height is a person
+  int chroma_threshold = 16;   // Cb/Cr difference that is a change by itself (0: luma only)
+  ShadowOptions shadows;
+  Status Validate() const;
+};
+
+// frame ~ gain * background + offset, in luma levels.
+struct PhotometricTransfer {
+  double gain = 1, offset = 0;
+  int samples = 0;  // grid pixels used
+  double Apply(double background) const { return gain * background + offset; }
+  double Invert(double frame) const { return (frame - offset) / gain; }
+};
+// Fitted from the pixels of a grid of step_px: per background level bin (8 levels) the median
+// frame level, then a weighted least-squares line through the bins' medians, refitted without
+// the bins further than 12 levels from it. Background levels under 8 or over 247 and bins
+// whose frame median is clipped (under 5, over 250) are left out. Identity when fewer than two
+// bins have enough pixels.
+PhotometricTransfer EstimateTransfer(ImageView<const uint8_t> background_y, ImageView<const uint8_t> frame_y,
+                                     int step_px = 4);
+
+// Learns a background from frames of a busy scene (see the top of this file).
+class BackgroundLearner {
+ public:
+  BackgroundLearner(int width, int height, bool chroma, int expected_samples);
+  // Same size as given to the constructor (a CHECK); chroma when constructed with it.
+  void Add(const YuvView& frame);
+  int count() const { return count_; }
+  // Needs at least one frame (a CHECK). mode_radius is used by kMode.
+  YuvImage Learn(BackgroundLearning method, int mode_radius = 6) const;
+
+ private:
+  int width_, height_, cw_, ch_;
+  bool chroma_;
+  int count_ = 0;
+  std::vector<uint8_t> y_, u_, v_;  // frame-major samples
+};
+
+// What the change test found in the last frame, and what the updates did over the run.
+struct BackgroundStats {
+  int64_t frames = 0;
+  double changed_fraction = 0;  // of the last frame's pixels
+  double shadow_fraction = 0;   // changed in luma but explained as a shadow, last frame
+  PhotometricTransfer transfer; // of the last frame
+  int64_t pixels_updated = 0;   // pixels updated at least once since Reset
+  int64_t pixels_absorbed = 0;  // absorptions (relight or still objects), counted per pixel event
+  int64_t pixels = 0;
+};
+
+class BackgroundModel {
+ public:
+  // Protection values of Update's map.
+  static constexpr uint8_t kFree = 0, kObject = 1, kPerson = 2;
+
+  BackgroundModel(const BackgroundOptions& options, double fps);
+  // Starts from a background (chroma optional; the frames must then have it too).
+  void Reset(const YuvImage& background);
+  bool empty() const { return width_ == 0; }
+
+  // The background now, 8-bit (for pictures and saving).
+  YuvImage Current() const;
+
+  // Estimates the frame's transfer, then writes 1 where the pixel changed, 0 elsewhere.
+  // Shadows are 0 in `changes`; the classes are kept for Update.
+  void DetectChanges(const YuvView& frame, int threshold, ImageView<uint8_t> changes);
+  // The plain per-pixel loop of DetectChanges (no tables), for tests: the same output.
+  void DetectChangesReference(const YuvView& frame, int threshold, ImageView<uint8_t> changes) const;
+
+  // After the fusion: protection per pixel (kFree, kObject, kPerson), the frame's index.
+  void Update(const YuvView& frame, ImageView<const uint8_t> protection, int64_t frame_index);
+
+  const BackgroundStats& stats() const { return stats_; }
+  // Mean over pixels of the time since each was last set (learning counts as a set at the
+  // first updated frame), at frame_index.
+  double MeanAgeS(int64_t frame_index) const;
+  const PhotometricTransfer& transfer() const { return transfer_; }
+
+ private:
+  enum Class : uint8_t { kBackground = 0, kChanged = 1, kShadow = 2 };
+  uint8_t Classify(int y, int u, int v, int by, int bu, int bv, int threshold) const;
+
+  BackgroundOptions options_;
+  double fps_;
+  int width_ = 0, height_ = 0, cw_ = 0, ch_ = 0;
+  bool chroma_ = false;
+  std::vector<uint16_t> by_, bu_, bv_;   // 8.8 fixed point
+  std::vector<uint8_t> class_;           // Class per luma pixel, last frame
+  std::vector<uint8_t> prev_y_;          // last frame's luma (steadiness)
+  std::vector<uint16_t> steady_frames_;  // frames changed and steady in a row
+  std::vector<int32_t> set_frame_;       // frame of the last set (-1: learning)
+  int64_t first_frame_ = -1;             // of the first Update since Reset
+  Image<uint8_t> bg8_;                   // the luma background in 8 bits, for the transfer
+  PhotometricTransfer transfer_;
+  BackgroundStats stats_;
+  // Tables of the last frame's transfer, per background level.
+  int pred_[256];          // expected frame luma
+  int pred_c_[256];        // expected frame chroma
+  int shadow_lo_[256], shadow_hi_[256];  // luma range of a shadow
+};
+
+}  // namespace occmap

@@ -1,0 +1,306 @@
+#include "occmap/detect/background_model.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace occmap {
+namespace {
+
+// A textured background: levels 40..220 with structure (tiles) and grain.
+YuvImage TexturedBackground(int w, int h, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> grain(-6, 6);
+  YuvImage b;
+  b.y = Image<uint8_t>(w, h);
+  b.u = Image<uint8_t>(ChromaPlaneSize(w), ChromaPlaneSize(h));
+  b.v = Image<uint8_t>(ChromaPlaneSize(w), ChromaPlaneSize(h));
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) b.y(x, y) = static_cast<uint8_t>(40 + ((x / 8 + y / 8) % 6) * 30 + grain(rng) + 6);
+  }
+  for (int y = 0; y < b.u.height(); ++y) {
+    for (int x = 0; x < b.u.width(); ++x) {
+      b.u(x, y) = static_cast<uint8_t>(115 + (x / 4) % 3 * 5);
+      b.v(x, y) = static_cast<uint8_t>(135 - (y / 4) % 3 * 4);
+    }
+  }
+  return b;
+}
+
+uint8_t Clamp(double v) { return static_cast<uint8_t>(std::clamp(std::lround(v), 0L, 255L)); }
+
+// The background seen with a gain and offset, noise, and chroma scaled by the gain.
+YuvImage Seen(const YuvImage& b, double gain, double offset, uint32_t seed, double noise = 1.5) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0, noise);
+  YuvImage f = b;
+  for (int y = 0; y < b.y.height(); ++y) {
+    for (int x = 0; x < b.y.width(); ++x) f.y(x, y) = Clamp(gain * b.y(x, y) + offset + n(rng));
+  }
+  for (int y = 0; y < b.u.height(); ++y) {
+    for (int x = 0; x < b.u.width(); ++x) {
+      f.u(x, y) = Clamp(128 + gain * (b.u(x, y) - 128.0));
+      f.v(x, y) = Clamp(128 + gain * (b.v(x, y) - 128.0));
+    }
+  }
+  return f;
+}
+
+// Paints a block (luma and its chroma) with a colour.
+void Paint(YuvImage& f, int x0, int y0, int x1, int y1, uint8_t y, uint8_t u, uint8_t v) {
+  for (int r = y0; r < y1; ++r) {
+    for (int c = x0; c < x1; ++c) {
+      f.y(c, r) = y;
+      f.u(c / 2, r / 2) = u;
+      f.v(c / 2, r / 2) = v;
+    }
+  }
+}
+
+TEST(PhotometricTransfer, RecoversGainAndOffsetWithAThirdOfThePixelsCovered) {
+  const YuvImage b = TexturedBackground(320, 240, 1);
+  YuvImage f = Seen(b, 1.2, 10, 2);
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> any(0, 255);
+  // People: random blocks covering about a third of the picture.
+  for (int k = 0; k < 20; ++k) {
+    const int x = static_cast<int>(rng() % 300), y = static_cast<int>(rng() % 200);
+    Paint(f, x, y, std::min(320, x + 30), std::min(240, y + 50), static_cast<uint8_t>(any(rng)), 128, 128);
+  }
+  int covered = 0;
+  for (int y = 0; y < 240; ++y) {
+    for (int x = 0; x < 320; ++x) covered += f.y(x, y) != Clamp(1.2 * b.y(x, y) + 10) && std::abs(f.y(x, y) - (1.2 * b.y(x, y) + 10)) > 8;
+  }
+  EXPECT_GT(covered, 320 * 240 / 4);
+  const PhotometricTransfer t = EstimateTransfer(b.y.view(), f.y.view());
+  EXPECT_NEAR(t.gain, 1.2, 0.03);
+  EXPECT_NEAR(t.offset, 10, 3);
+  EXPECT_GT(t.samples, 1000);
+}
+
+TEST(PhotometricTransfer, IsTheIdentityWithoutEnoughSpread) {
+  Image<uint8_t> flat(64, 64, 100), frame(64, 64, 140);
+  const PhotometricTransfer t = EstimateTransfer(flat.view(), frame.view());
+  EXPECT_EQ(t.gain, 1);
+  EXPECT_EQ(t.offset, 0);
+}
+
+TEST(BackgroundLearner, ModeFindsTheFloorWhenPassersByCoverItMoreThanHalfTheTime) {
+  const int w = 64, h = 48;
+  const YuvImage truth = TexturedBackground(w, h, 5);
+  BackgroundLearner learner(w, h, true, 40);
+  std::mt19937 rng(6);
+  std::uniform_int_distribution<int> bright(230, 255);
+  for (int k = 0; k < 40; ++k) {
+    YuvImage f = Seen(truth, 1.0, 0, 100 + k, 1.0);
+    // 55 % of the samples: the left half is covered by passers-by of random bright clothes.
+    if (k % 20 < 11) Paint(f, 0, 0, w / 2, h, static_cast<uint8_t>(bright(rng)), 90, 170);
+    learner.Add(f.view());
+  }
+  const YuvImage mode = learner.Learn(BackgroundLearning::kMode, 6);
+  const YuvImage median = learner.Learn(BackgroundLearning::kMedian);
+  int mode_bad = 0, median_bad = 0;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w / 2; ++x) {
+      mode_bad += std::abs(mode.y(x, y) - truth.y(x, y)) > 4;
+      median_bad += std::abs(median.y(x, y) - truth.y(x, y)) > 4;
+    }
+  }
+  EXPECT_EQ(mode_bad, 0);
+  EXPECT_GT(median_bad, w * h / 4);  // the median is taken by the crowd
+  EXPECT_NEAR(mode.u(4, 4), truth.u(4, 4), 2);
+  EXPECT_NEAR(mode.v(4, 4), truth.v(4, 4), 2);
+}
+
+TEST(BackgroundLearner, NormalisesExposureDriftBetweenSamples) {
+  const int w = 96, h = 64;
+  const YuvImage truth = TexturedBackground(w, h, 7);
+  BackgroundLearner learner(w, h, false, 30);
+  for (int k = 0; k < 30; ++k) {
+    const double gain = 1.0 + 0.15 * std::sin(k * 0.5);
+    YuvImage f = Seen(truth, gain, 0, 200 + k, 1.0);
+    f.u = Image<uint8_t>();
+    f.v = Image<uint8_t>();
+    learner.Add(f.view());
+  }
+  for (BackgroundLearning m : {BackgroundLearning::kMode, BackgroundLearning::kMedian, BackgroundLearning::kMog2,
+                               BackgroundLearning::kKnn}) {
+    const YuvImage learned = learner.Learn(m, 6);
+    ASSERT_FALSE(learned.has_chroma());
+    double err = 0;
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) err += std::abs(learned.y(x, y) - truth.y(x, y));
+    }
+    // Within a few levels of the truth (the samples are normalised to a median of mixed gains).
+    EXPECT_LT(err / (w * h), 6.0) << ToString(m);
+  }
+}
+
+TEST(BackgroundModel, ShadowsAreNotChangesButObjectsOfTheSameBrightnessAre) {
+  const int w = 32, h = 32;
+  YuvImage b;
+  b.y = Image<uint8_t>(w, h, 160);
+  b.u = Image<uint8_t>(16, 16, 118);
+  b.v = Image<uint8_t>(16, 16, 138);
+  BackgroundModel model(BackgroundOptions{}, 10);
+  model.Reset(b);
+  YuvImage f = b;
+  Paint(f, 0, 0, 8, 8, 80, static_cast<uint8_t>(128 + 0.5 * (118 - 128)), static_cast<uint8_t>(128 + 0.5 * (138 - 128)));  // shadow
+  Paint(f, 8, 0, 16, 8, 80, 170, 100);   // a blue object as dark as the shadow
+  Paint(f, 16, 0, 24, 8, 30, 128, 128);  // black clothes: darker than any shadow
+  Paint(f, 24, 0, 32, 8, 220, 118, 138); // brighter: never a shadow
+  Image<uint8_t> changes(w, h);
+  model.DetectChanges(f.view(), 20, changes.view());
+  EXPECT_EQ(changes(2, 2), 0);
+  EXPECT_EQ(changes(10, 2), 1);
+  EXPECT_EQ(changes(18, 2), 1);
+  EXPECT_EQ(changes(26, 2), 1);
+  EXPECT_EQ(changes(2, 20), 0);
+  EXPECT_NEAR(model.stats().shadow_fraction, 64.0 / (w * h), 1e-9);
+
+  BackgroundOptions no_shadows;
+  no_shadows.shadows.enabled = false;
+  BackgroundModel plain(no_shadows, 10);
+  plain.Reset(b);
+  plain.DetectChanges(f.view(), 20, changes.view());
+  EXPECT_EQ(changes(2, 2), 1);
+}
+
+TEST(BackgroundModel, DetectChangesEqualsItsReference) {
+  for (bool chroma : {true, false}) {
+    for (uint32_t seed = 0; seed < 4; ++seed) {
+      const int w = 77, h = 53;  // odd sizes: the last chroma column and row cover one pixel
+      YuvImage b = TexturedBackground(w, h, seed);
+      YuvImage f = Seen(b, 0.9 + 0.05 * seed, 5.0 * seed, 50 + seed, 4.0);
+      std::mt19937 rng(seed);
+      for (int k = 0; k < 6; ++k) {
+        const int x = static_cast<int>(rng() % 60), y = static_cast<int>(rng() % 40);
+        Paint(f, x, y, x + 12, y + 10, static_cast<uint8_t>(rng() % 256), static_cast<uint8_t>(rng() % 256),
+              static_cast<uint8_t>(rng() % 256));
+        Paint(f, y, x % 40, y + 9, x % 40 + 9, static_cast<uint8_t>(b.y(y, x % 40) / 2), 128, 128);
+      }
+      if (!chroma) {
+        b.u = b.v = f.u = f.v = Image<uint8_t>();
+      }
+      BackgroundModel model(BackgroundOptions{}, 10);
+      model.Reset(b);
+      Image<uint8_t> fast(w, h), reference(w, h);
+      model.DetectChanges(f.view(), 18, fast.view());
+      model.DetectChangesReference(f.view(), 18, reference.view());
+      EXPECT_TRUE(fast == reference) << "chroma " << chroma << " seed " << seed;
+    }
+  }
+}
+
+TEST(BackgroundModel, AGlobalStepOfFortyLevelsIsFollowedAtOnce) {
+  const YuvImage b = TexturedBackground(160, 120, 9);
+  BackgroundModel model(BackgroundOptions{}, 10);
+  model.Reset(b);
+  YuvImage f = Seen(b, 1.0, 40, 10);
+  Image<uint8_t> changes(160, 120);
+  model.DetectChanges(f.view(), 20, changes.view());
+  EXPECT_LT(model.stats().changed_fraction, 0.01);
+  EXPECT_NEAR(model.transfer().offset, 40, 3);
+}
+
+// Frames of a background with one steady block changed; the block's protection as given.
+struct UpdateRun {
+  BackgroundModel model;
+  YuvImage background, frame;
+  Image<uint8_t> changes, protection;
+  UpdateRun(const BackgroundOptions& o, uint8_t protect)
+      : model(o, 10), background(TexturedBackground(64, 64, 11)), changes(64, 64), protection(64, 64, 0) {
+    model.Reset(background);
+    frame = Seen(background, 1.0, 0, 12, 0.0);
+    Paint(frame, 16, 16, 32, 40, 240, 100, 160);
+    for (int y = 16; y < 40; ++y) {
+      for (int x = 16; x < 32; ++x) protection(x, y) = protect;
+    }
+  }
+  // Runs n frames; returns the frame at which the block stopped being changed, or -1.
+  int Run(int n) {
+    for (int k = 0; k < n; ++k) {
+      model.DetectChanges(frame.view(), 20, changes.view());
+      if (changes(20, 20) == 0) return k;
+      model.Update(frame.view(), protection.view(), k);
+    }
+    return -1;
+  }
+};
+
+TEST(BackgroundModel, APersonStandingStillIsNeverAbsorbed) {
+  BackgroundOptions o;
+  o.absorb_s = 5;
+  UpdateRun run(o, BackgroundModel::kPerson);
+  EXPECT_EQ(run.Run(600), -1);  // 60 s at 10 fps
+  EXPECT_EQ(run.model.stats().pixels_absorbed, 0);
+}
+
+TEST(BackgroundModel, AnObjectLeftStillIsAbsorbedAfterAbsorbS) {
+  BackgroundOptions o;
+  o.absorb_s = 5;
+  UpdateRun run(o, BackgroundModel::kObject);
+  const int at = run.Run(600);
+  EXPECT_GE(at, 50);
+  EXPECT_LE(at, 52);
+  EXPECT_EQ(run.model.stats().pixels_absorbed, 16 * 24);
+  EXPECT_NEAR(run.model.Current().y(20, 20), 240, 1);
+}
+
+TEST(BackgroundModel, AChangeNoObjectExplainsIsBackgroundAfterRelightS) {
+  BackgroundOptions o;
+  o.relight_s = 2;
+  UpdateRun run(o, BackgroundModel::kFree);
+  const int at = run.Run(100);
+  EXPECT_GE(at, 20);
+  EXPECT_LE(at, 22);
+}
+
+TEST(BackgroundModel, FreePixelsFollowSlowChangesAndReportTheirAge) {
+  BackgroundOptions o;
+  o.adapt_s = 2;
+  BackgroundModel model(o, 10);
+  YuvImage b = TexturedBackground(64, 64, 13);
+  b.u = b.v = Image<uint8_t>();
+  model.Reset(b);
+  YuvImage f = b;
+  // The left half brightens by 10 levels (under the threshold): the background follows.
+  for (int y = 0; y < 64; ++y) {
+    for (int x = 0; x < 32; ++x) f.y(x, y) = static_cast<uint8_t>(b.y(x, y) + 10);
+  }
+  Image<uint8_t> changes(64, 64), protection(64, 64, 0);
+  for (int y = 0; y < 64; ++y) {
+    for (int x = 48; x < 64; ++x) protection(x, y) = BackgroundModel::kObject;  // not updated
+  }
+  for (int k = 0; k < 100; ++k) {
+    model.DetectChanges(f.view(), 20, changes.view());
+    model.Update(f.view(), protection.view(), k);
+  }
+  const YuvImage now = model.Current();
+  // The transfer takes part of the change as global; the pixels take the rest.
+  const double expected_left = model.transfer().Invert(f.y(5, 5));
+  EXPECT_NEAR(now.y(5, 5), expected_left, 1.5);
+  EXPECT_EQ(now.y(50, 5), b.y(50, 5));
+  EXPECT_NEAR(static_cast<double>(model.stats().pixels_updated) / static_cast<double>(model.stats().pixels), 0.75, 1e-9);
+  EXPECT_NEAR(model.MeanAgeS(99), 0.25 * 9.9, 0.01);
+}
+
+TEST(BackgroundOptions, ValidateNamesTheField) {
+  BackgroundOptions o;
+  EXPECT_TRUE(o.Validate().ok());
+  o.learn_samples = 0;
+  EXPECT_EQ(o.Validate().message(), "backgrounds.learn_samples: expected 1..255, found 0");
+  o = {};
+  o.shadows.min_ratio = 0.95;
+  EXPECT_EQ(o.Validate().message(),
+            "backgrounds.shadows: expected 0 < min_ratio < max_ratio < 1, found min_ratio 0.95 and max_ratio 0.9");
+  o = {};
+  o.absorb_s = 0;
+  EXPECT_EQ(o.Validate().message(), "backgrounds.absorb_s: expected > 0, found 0");
+  EXPECT_EQ(ParseBackgroundLearning("gmm").status().message(), "expected median, mode, mog2 or knn, found 'gmm'");
+  EXPECT_EQ(*ParseBackgroundLearning("knn"), BackgroundLearning::kKnn);
+}
+
+}  // namespace
+}  // namespace occmap
