@@ -387,9 +387,10 @@ Eigen::Vector3f Shade(const Material& material, const Eigen::Vector3d& point_m, 
   double intensity = 0, dist = 0;
   lighting.DirectAt(point_m, &to_light, &intensity, &dist);
   const double cosine = std::max(0.0, normal.dot(to_light));
-  const Eigen::Vector3f direct = albedo * static_cast<float>(intensity * cosine);
+  // With white lights the products by the colours are exact: the same bits as albedo * k.
+  const Eigen::Vector3f direct = albedo.cwiseProduct(lighting.direct_colour) * static_cast<float>(intensity * cosine);
   if (direct_out != nullptr) *direct_out = direct;
-  return albedo * static_cast<float>(lighting.ambient) + direct;
+  return albedo.cwiseProduct(lighting.ambient_colour) * static_cast<float>(lighting.ambient) + direct;
 }
 
 }  // namespace occmap::sim

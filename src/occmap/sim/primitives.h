@@ -119,13 +119,19 @@ struct Lighting {
   Eigen::Vector3d position_m = Eigen::Vector3d(0, 0, 3);                             // kPoint
   double intensity = 0.5;               // direct light on a surface facing it (kPoint: at 1 m... see DirectAt)
   double falloff_per_m2 = 0.0;          // kPoint: intensity / (1 + falloff * d^2)
+  // Colours of the two lights, per channel (0..2; white = (1, 1, 1), the default): outdoors the
+  // sky's ambient light is slightly blue and the sun slightly warm, so that cast shadows, lit by
+  // the sky alone, are bluer than the sunlit ground around them.
+  Eigen::Vector3f ambient_colour = Eigen::Vector3f::Ones();
+  Eigen::Vector3f direct_colour = Eigen::Vector3f::Ones();
 
   // Unit vector from the point towards the light, and the direct intensity before the cosine.
   void DirectAt(const Eigen::Vector3d& point_m, Eigen::Vector3d* to_light, double* intensity_out,
                 double* distance_m) const;
 };
 
-// Radiance (0..1 scale, before exposure) of a surface point: albedo * (ambient + direct * cos).
+// Radiance (0..1 scale, before exposure) of a surface point, per channel:
+// albedo * (ambient * ambient_colour + direct * cos * direct_colour).
 // `direct_out` receives the direct part alone (for cast shadows), when non-null.
 Eigen::Vector3f Shade(const Material& material, const Eigen::Vector3d& point_m, const Eigen::Vector3d& normal,
                       const Lighting& lighting, Eigen::Vector3f* direct_out = nullptr);

@@ -5,6 +5,9 @@
 
 #include <random>
 
+#include "occmap/sim/renderer.h"
+#include "occmap/sim/sim_test_util.h"
+
 namespace occmap::sim {
 namespace {
 
@@ -151,6 +154,40 @@ TEST(Primitives, LambertShadingIsAlbedoTimesAmbientPlusCosine) {
   EXPECT_NEAR(c[2], 1.0 * (0.4 + 0.5 * 0.8), 1e-6);
   const Eigen::Vector3f back = Shade(m, {0, 0, 0}, {0, 0, -1}, light);  // facing away: ambient only
   EXPECT_NEAR(back[0], 0.5 * 0.4, 1e-6);
+}
+
+TEST(Primitives, WhiteLightColoursShadeAndRenderExactlyAsBefore) {
+  // Shade with the default (white) colours is albedo * ambient + albedo * (intensity * cos),
+  // bit for bit, as it was before the colours existed.
+  Lighting light;
+  light.ambient = 0.37;
+  light.intensity = 0.61;
+  light.direction_to_light = Eigen::Vector3d(0.3, -0.2, 0.9).normalized();
+  uint64_t h = 99;
+  for (int k = 0; k < 1000; ++k) {
+    Material m;
+    h = Mix64(h);
+    m.colour = {static_cast<float>(UnitFromHash(h)), static_cast<float>(UnitFromHash(Mix64(h + 1))),
+                static_cast<float>(UnitFromHash(Mix64(h + 2)))};
+    const Eigen::Vector3d n = Eigen::Vector3d(UnitFromHash(Mix64(h + 3)) - 0.5, UnitFromHash(Mix64(h + 4)) - 0.5, 1).normalized();
+    const double cosine = std::max(0.0, n.dot(light.direction_to_light));
+    const Eigen::Vector3f direct = m.colour * static_cast<float>(light.intensity * cosine);
+    const Eigen::Vector3f before = m.colour * static_cast<float>(light.ambient) + direct;
+    ASSERT_TRUE(Shade(m, {0, 0, 0}, n, light) == before) << k;
+  }
+  // And a lab frame hashes as rendered before (FNV-1a of the RGB bytes of camera 0, frame 20,
+  // scale 0.25, seed 1, noise on; computed with the renderer of the commit before the colours).
+  const Scene lab = sim_testing::SmallLab(0.25, 30);
+  Context ctx(2);
+  RenderedView view;
+  CameraRenderer(lab, 0, ctx).Render(lab.StateAt(20), ctx, &view);
+  uint64_t fnv = 0xcbf29ce484222325ULL;
+  for (int y = 0; y < view.rgb.height(); ++y) {
+    for (int x = 0; x < view.rgb.width(); ++x) {
+      for (uint8_t byte : {view.rgb(x, y).r, view.rgb(x, y).g, view.rgb(x, y).b}) fnv = (fnv ^ byte) * 0x100000001b3ULL;
+    }
+  }
+  EXPECT_EQ(fnv, 0x2cdc42b5f3de7aa5ULL);
 }
 
 }  // namespace

@@ -356,6 +356,11 @@ Status SceneSpec::Validate() const {
     return InvalidInput("lighting: expected a unit direction towards the light");
   }
   if (!l.position_m.allFinite()) return InvalidInput("lighting: expected a finite light position");
+  for (const auto& [key, c] : {std::pair{"ambient_colour", &l.ambient_colour}, std::pair{"direct_colour", &l.direct_colour}}) {
+    if (!(c->allFinite() && c->minCoeff() >= 0 && c->maxCoeff() <= 2)) {
+      return InvalidInput(fmt::format("lighting: {}: expected values in 0..2, found [{}, {}, {}]", key, (*c)[0], (*c)[1], (*c)[2]));
+    }
+  }
   if (!(photometry.noise_sigma >= 0 && photometry.noise_sigma <= 50)) {
     return InvalidInput(fmt::format("noise_sigma: expected 0..50 grey levels, found {}", photometry.noise_sigma));
   }

@@ -19,6 +19,17 @@ Result<Eigen::Vector3f> GetColour(const YamlField& f) {
   return Eigen::Vector3f(static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2]));
 }
 
+// A light's colour: per channel 0..2 (white = [1, 1, 1]).
+Result<Eigen::Vector3f> GetLightColour(const YamlField& f) {
+  OCCMAP_ASSIGN_OR_RETURN(std::vector<double> v, f.AsDoubles(3));
+  for (double c : v) {
+    if (!(c >= 0 && c <= 2)) {
+      return f.Error(fmt::format("expected light colour values in 0..2, found [{}, {}, {}]", v[0], v[1], v[2]));
+    }
+  }
+  return Eigen::Vector3f(static_cast<float>(v[0]), static_cast<float>(v[1]), static_cast<float>(v[2]));
+}
+
 Result<double> Positive(const YamlField& parent, std::string_view key, double default_value) {
   OCCMAP_ASSIGN_OR_RETURN(double v, parent.GetDouble(key, default_value));
   if (!(v > 0)) return parent.Find(key)->Error(fmt::format("expected a positive number, found {}", v));
@@ -297,9 +308,15 @@ Result<MovingObjectSpec> ParseObject(const YamlField& f, uint64_t seed, const Ei
 }
 
 Status ParseLighting(const YamlField& f, Lighting& l) {
-  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"ambient", "light"}));
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"ambient", "light", "ambient_colour", "direct_colour"}));
   OCCMAP_ASSIGN_OR_RETURN(l.ambient, f.GetDouble("ambient", l.ambient));
   if (l.ambient < 0 || l.ambient > 2) return f.Find("ambient")->Error(fmt::format("expected 0..2, found {}", l.ambient));
+  if (auto c = f.Find("ambient_colour")) {
+    OCCMAP_ASSIGN_OR_RETURN(l.ambient_colour, GetLightColour(*c));
+  }
+  if (auto c = f.Find("direct_colour")) {
+    OCCMAP_ASSIGN_OR_RETURN(l.direct_colour, GetLightColour(*c));
+  }
   if (auto light = f.Find("light")) {
     OCCMAP_ASSIGN_OR_RETURN(std::string type, light->GetString("type", "directional"));
     if (type == "directional") {
@@ -596,6 +613,10 @@ std::string SceneToYaml(const SceneSpec& spec) {
   }
   const Lighting& l = spec.photometry.lighting;
   out += fmt::format("lighting:\n  ambient: {}\n", Num(l.ambient));
+  // White lights are the default and are left out (scenes written before the colours existed
+  // read back the same).
+  if (l.ambient_colour != Eigen::Vector3f::Ones()) out += fmt::format("  ambient_colour: {}\n", Vec(l.ambient_colour));
+  if (l.direct_colour != Eigen::Vector3f::Ones()) out += fmt::format("  direct_colour: {}\n", Vec(l.direct_colour));
   if (l.kind == Lighting::Kind::kDirectional) {
     out += fmt::format("  light: {{type: directional, direction_to_light: {}, intensity: {}}}\n", Vec(l.direction_to_light),
                        Num(l.intensity));

@@ -43,6 +43,8 @@
 //         - {at_m: [4, 3], t_s: 9, gap: true}  # leave, come back here at 9 s
 //   lighting:                         # optional
 //     ambient: 0.5
+//     ambient_colour: [0.9, 0.95, 1.1]  # optional, per channel 0..2 (default white [1, 1, 1]):
+//     direct_colour: [1.05, 1, 0.9]     # the sky's and the light's colours
 //     light: {type: directional, direction_to_light: [0.3, 0.2, 1], intensity: 0.5}
 //     # or {type: point, position_m: [x, y, z], intensity: 0.6, falloff_per_m2: 0.02}
 //   photometry:                       # optional
