@@ -86,6 +86,58 @@ bool Shadowed(const ObjectInstance& obj, const Lighting& light, const Eigen::Vec
   return false;
 }
 
+// Whether a static object lies between the surface point p (outward normal n) and the light.
+bool StaticallyShadowed(const std::vector<Primitive>& casters, const Lighting& light, const Eigen::Vector3d& p,
+                        const Eigen::Vector3d& normal) {
+  Eigen::Vector3d to_light;
+  double intensity = 0, dist = 0;
+  light.DirectAt(p, &to_light, &intensity, &dist);
+  // From just off the surface: a solid's lit face must not shade itself through rounding.
+  const Eigen::Vector3d from = p + 1e-6 * normal;
+  for (const Primitive& c : casters) {
+    if (IntersectRay(c, from, to_light, dist)) return true;
+  }
+  return false;
+}
+
+// A box on the floor (x, y) containing every floor point whose way to the light the object's
+// bounding sphere can block; infinite when there is no such bound (a light below its top).
+struct ShadowBox {
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(-kInf), hi = Eigen::Vector2d::Constant(kInf);
+};
+
+ShadowBox ShadowBoxOf(const ObjectInstance& obj, const Lighting& light) {
+  ShadowBox box;
+  const Eigen::Vector3d& c = obj.sphere_centre_m;
+  const double r = obj.sphere_radius_m;
+  if (light.kind == Lighting::Kind::kDirectional) {
+    const Eigen::Vector3d& l = light.direction_to_light;
+    if (!(l.z() > 1e-9)) return box;
+    // The sphere's points c + r u project along -l to c + r u - ((c.z + r u.z) / l.z) l: within
+    // r (1 + |l_xy| / l.z) of the centre's projection.
+    const Eigen::Vector2d centre = c.head<2>() - (c.z() / l.z()) * l.head<2>();
+    const double half = r * (1 + l.head<2>().norm() / l.z()) + 1e-6;
+    box.lo = centre - Eigen::Vector2d::Constant(half);
+    box.hi = centre + Eigen::Vector2d::Constant(half);
+    return box;
+  }
+  // A point light above the sphere: the central projection of the sphere's bounding box onto
+  // the floor is the convex hull of its corners' projections.
+  const Eigen::Vector3d& q = light.position_m;
+  if (!(q.z() > c.z() + r + 1e-6)) return box;
+  box.lo = Eigen::Vector2d::Constant(kInf);
+  box.hi = Eigen::Vector2d::Constant(-kInf);
+  for (int k = 0; k < 8; ++k) {
+    const Eigen::Vector3d corner = c + r * Eigen::Vector3d(k & 1 ? 1 : -1, k & 2 ? 1 : -1, k & 4 ? 1 : -1);
+    const Eigen::Vector2d p = q.head<2>() + (corner - q).head<2>() * (q.z() / (q.z() - corner.z()));
+    box.lo = box.lo.cwiseMin(p);
+    box.hi = box.hi.cwiseMax(p);
+  }
+  box.lo -= Eigen::Vector2d::Constant(1e-6);
+  box.hi += Eigen::Vector2d::Constant(1e-6);
+  return box;
+}
+
 }  // namespace
 
 Eigen::Vector3f MissRadiance(const SceneSpec& spec, const Eigen::Vector3d& d) {
@@ -121,6 +173,7 @@ CameraRenderer::CameraRenderer(const Scene& scene, size_t camera_index, Context&
   if (shadows) direct_.assign(n, Eigen::Vector3f::Zero());
   floor_mask_ = Image<uint8_t>(size_.width, size_.height, 0);
   const std::vector<Primitive>& statics = scene_.static_primitives();
+  const std::vector<Primitive>& casters = scene_.shadow_casters();
   ParallelFor(ctx, 0, size_.height, [&](int64_t y0, int64_t y1, int) {
     for (int y = static_cast<int>(y0); y < y1; ++y) {
       for (int x = 0; x < size_.width; ++x) {
@@ -140,6 +193,11 @@ CameraRenderer::CameraRenderer(const Scene& scene, size_t camera_index, Context&
         static_surface_[i] = floor ? 1 : 2;
         Eigen::Vector3f direct;
         bg_[i] = Shade(hit.prim->material, p, hit.normal, spec.photometry.lighting, &direct);
+        if (shadows && direct != Eigen::Vector3f::Zero() &&
+            StaticallyShadowed(casters, spec.photometry.lighting, p, hit.normal)) {
+          bg_[i] -= direct;
+          direct.setZero();
+        }
         if (shadows) direct_[i] = direct;
         if (floor && InsideGrid(scene_.grid(), p)) floor_mask_(x, y) = 255;
       }
@@ -167,6 +225,19 @@ CameraRenderer::CameraRenderer(const Scene& scene, size_t camera_index, Context&
         }
       }
       cone.half_angle_rad = std::acos(std::clamp(min_cos, -1.0, 1.0)) + 1e-6;
+    }
+  }
+  if (shadows) {
+    tile_floor_.assign(tiles_.size(), TileFloor{});
+    for (int y = 0; y < size_.height; ++y) {
+      for (int x = 0; x < size_.width; ++x) {
+        const size_t i = Index(x, y);
+        if (static_surface_[i] != 1 || direct_[i] == Eigen::Vector3f::Zero()) continue;
+        const Eigen::Vector2d p = (origin_ + static_t_[i] * dir_[i]).head<2>();
+        TileFloor& t = tile_floor_[static_cast<size_t>((y / kTilePx) * tiles_x_ + x / kTilePx)];
+        t.lo = t.lo.cwiseMin(p);
+        t.hi = t.hi.cwiseMax(p);
+      }
     }
   }
   exposure_phase_rad_ = 2 * std::numbers::pi * UnitFromHash(Mix64(spec.seed ^ Mix64(0xe7 + camera_index)));
@@ -206,7 +277,8 @@ Image<Rgb8> CameraRenderer::Background(bool noise) const {
   return out;
 }
 
-void CameraRenderer::Render(const SceneState& state, Context& ctx, RenderedView* out, bool noise) const {
+void CameraRenderer::Render(const SceneState& state, Context& ctx, RenderedView* out, bool noise,
+                            bool shadow_mask) const {
   const SceneSpec& spec = scene_.spec();
   const PhotometrySpec& ph = spec.photometry;
   if (out->rgb.width() != size_.width || out->rgb.height() != size_.height) out->rgb = Image<Rgb8>(size_.width, size_.height);
@@ -218,13 +290,22 @@ void CameraRenderer::Render(const SceneState& state, Context& ctx, RenderedView*
   const uint64_t stream = NoiseStream(spec.seed, camera_index_, state.frame);
   const std::vector<ObjectInstance>& objects = state.objects;
   const bool shadows = ph.shadows && !objects.empty();
+  if (shadow_mask && (out->shadow.width() != size_.width || out->shadow.height() != size_.height)) {
+    out->shadow = Image<uint8_t>(size_.width, size_.height);
+  }
+  std::vector<ShadowBox> shadow_boxes;
+  if (shadows) {
+    shadow_boxes.reserve(objects.size());
+    for (const ObjectInstance& obj : objects) shadow_boxes.push_back(ShadowBoxOf(obj, ph.lighting));
+  }
 
   // Tile rows are dealt out in turn (task k takes rows k, k + T, ...): people stand in the lower
   // part of most views, and contiguous chunks would leave one thread with most of the work.
   const int num_tasks = std::max(1, std::min(ctx.num_threads(), tiles_y_));
   ParallelFor(ctx, 0, num_tasks, [&](int64_t k0, int64_t k1, int) {
-    std::vector<const ObjectInstance*> candidates;
+    std::vector<const ObjectInstance*> candidates, shadow_candidates;
     candidates.reserve(objects.size());
+    shadow_candidates.reserve(objects.size());
     for (int64_t k = k0; k < k1; ++k)
     for (int ty = static_cast<int>(k); ty < tiles_y_; ty += num_tasks) {
       for (int tx = 0; tx < tiles_x_; ++tx) {
@@ -243,11 +324,23 @@ void CameraRenderer::Render(const SceneState& state, Context& ctx, RenderedView*
             if (gamma <= cone.half_angle_rad + beta + 1e-9) candidates.push_back(&obj);
           }
         }
+        shadow_candidates.clear();
+        if (shadows) {
+          const TileFloor& floor = tile_floor_[static_cast<size_t>(ty * tiles_x_ + tx)];
+          for (size_t o = 0; o < objects.size(); ++o) {
+            const ShadowBox& b = shadow_boxes[o];
+            if (b.lo.x() <= floor.hi.x() && floor.lo.x() <= b.hi.x() && b.lo.y() <= floor.hi.y() &&
+                floor.lo.y() <= b.hi.y()) {
+              shadow_candidates.push_back(&objects[o]);
+            }
+          }
+        }
         const int x0 = tx * kTilePx, y0 = ty * kTilePx;
         const int x1 = std::min(size_.width, x0 + kTilePx), y1 = std::min(size_.height, y0 + kTilePx);
         for (int y = y0; y < y1; ++y) {
           Rgb8* rgb_row = out->rgb.row(y);
           uint16_t* id_row = out->ids.row(y);
+          uint8_t* shadow_row = shadow_mask ? out->shadow.row(y) : nullptr;
           for (int x = x0; x < x1; ++x) {
             const size_t i = Index(x, y);
             Eigen::Vector3f radiance = bg_[i];
@@ -273,15 +366,19 @@ void CameraRenderer::Render(const SceneState& state, Context& ctx, RenderedView*
                 radiance = Shade(part_hit->material, origin_ + t_best * d, normal, ph.lighting);
               }
             }
-            if (shadows && id == 0 && static_surface_[i] == 1) {
+            bool in_shadow = false;
+            if (!shadow_candidates.empty() && id == 0 && static_surface_[i] == 1 &&
+                direct_[i] != Eigen::Vector3f::Zero()) {
               const Eigen::Vector3d p = origin_ + static_t_[i] * dir_[i];
-              for (const ObjectInstance& obj : objects) {
-                if (Shadowed(obj, ph.lighting, p)) {
+              for (const ObjectInstance* obj : shadow_candidates) {
+                if (Shadowed(*obj, ph.lighting, p)) {
                   radiance -= direct_[i];
+                  in_shadow = true;
                   break;
                 }
               }
             }
+            if (shadow_row != nullptr) shadow_row[x] = in_shadow ? 255 : 0;
             const Eigen::Vector3f v = radiance * gain;
             float n[3] = {0, 0, 0};
             if (add_noise && has_ray_[i]) {

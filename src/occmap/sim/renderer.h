@@ -11,7 +11,13 @@
 // Output per frame: RGB (radiance x exposure x 255 + Gaussian noise, rounded and clamped) and
 // the id buffer: 0 where the pixel sees the static scene, else the id of the moving object it
 // sees. The perfect change mask of a camera is ids != 0. Cast shadows (option) darken floor
-// pixels but do not change ids.
+// pixels but do not change ids: a floor pixel whose ray towards the light meets a moving object
+// loses its direct light. On request the shadow mask marks those pixels (255: a moving object's
+// shadow darkens the static floor there and no moving object is seen; 0 elsewhere). With
+// shadows on, static objects shadow the static scene too, once at construction: such a point
+// keeps its ambient light only, and a moving object's shadow over it darkens nothing more (nor
+// is it in the shadow mask). Per frame, a tile's floor points are tested only against the
+// objects whose shadow's bounding box on the floor meets the tile's floor box.
 //
 // Radiance is shading (primitives.h Shade) of the albedo, 0..1 before exposure. Noise: one
 // 64-bit hash of (seed, camera, frame, pixel) gives three Gaussian samples (an inverse-CDF table
@@ -40,6 +46,9 @@ namespace occmap::sim {
 struct RenderedView {
   Image<Rgb8> rgb;
   Image<uint16_t> ids;  // 0 = static scene, else the moving object's id
+  // Only when Render is asked for it (else left as it is): 255 where a moving object's cast
+  // shadow darkens a static floor pixel that no moving object covers, else 0.
+  Image<uint8_t> shadow;
 };
 
 // The change mask of a view: 255 where ids != 0, else 0.
@@ -59,8 +68,10 @@ class CameraRenderer {
   // The empty scene (no moving objects), exposure gain 1; noise from the background stream
   // when the scene's photometry.background_noise is set and `noise` is true.
   Image<Rgb8> Background(bool noise = true) const;
-  // Renders the moving objects of `state` over the static scene.
-  void Render(const SceneState& state, Context& ctx, RenderedView* out, bool noise = true) const;
+  // Renders the moving objects of `state` over the static scene; fills out->shadow too when
+  // `shadow_mask` is set (all 0 when the scene has no shadows).
+  void Render(const SceneState& state, Context& ctx, RenderedView* out, bool noise = true,
+              bool shadow_mask = false) const;
 
   // Pre-noise radiance of the static scene at a pixel (tests).
   Eigen::Vector3f StaticRadiance(int x, int y) const { return bg_[Index(x, y)]; }
@@ -79,14 +90,20 @@ class CameraRenderer {
   std::vector<double> static_t_;      // +inf: nothing
   std::vector<uint8_t> static_surface_;  // 0 nothing (sky), 1 floor, 2 other static
   std::vector<Eigen::Vector3f> bg_;      // static radiance
-  std::vector<Eigen::Vector3f> direct_;  // its direct-light part (only with shadows)
+  std::vector<Eigen::Vector3f> direct_;  // its direct-light part (only with shadows; 0 where a static object shades it)
   Image<uint8_t> floor_mask_;
   struct TileCone {
     Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
     double half_angle_rad = -1;  // < 0: no rays in the tile
   };
+  // The bounding box of a tile's floor points that direct light reaches (only with shadows;
+  // lo > hi: none).
+  struct TileFloor {
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = Eigen::Vector2d::Constant(-1e300);
+  };
   int tiles_x_ = 0, tiles_y_ = 0;
   std::vector<TileCone> tiles_;
+  std::vector<TileFloor> tile_floor_;
   double exposure_phase_rad_ = 0;
 };
 

@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <optional>
 
+#include "occmap/sim/builtin_scenes.h"
 #include "occmap/sim/gt_rasters.h"
 #include "occmap/sim/sim_test_util.h"
 
@@ -182,6 +184,140 @@ TEST(Renderer, CastShadowsDarkenTheFloorButNotTheChangeMask) {
   const int x = static_cast<int>(std::lround(px->x())), y = static_cast<int>(std::lround(px->y()));
   ASSERT_EQ(a.ids(x, y), 0);
   EXPECT_LT(a.rgb(x, y).g + 20, b.rgb(x, y).g);
+}
+
+
+// The scene of CastShadowsDarkenTheFloorButNotTheChangeMask with a pillar: the light comes
+// from +x at 45 degrees, so the pillar's shadow falls towards -x.
+SceneSpec PillarSpec(bool shadows) {
+  SceneSpec spec = sim_testing::OneObjectSpec(ObjectClass::kBox, {3.2, 2.4});
+  StaticObjectSpec pillar;
+  pillar.name = "pillar";
+  pillar.shape = StaticObjectSpec::Shape::kCylinder;
+  pillar.centre_m = {2.0, 1.5};
+  pillar.size_m = {0.3, 0.3};
+  pillar.height_m = 2.0;
+  spec.statics.push_back(pillar);
+  spec.photometry.lighting.direction_to_light = Eigen::Vector3d(1, 0, 1).normalized();
+  spec.photometry.shadows = shadows;
+  return spec;
+}
+
+Eigen::Vector2i PixelOf(const Scene& scene, size_t camera, const Eigen::Vector3d& point) {
+  const auto px = scene.camera(camera).Project(point);
+  EXPECT_TRUE(px && scene.camera(camera).InImage(*px));
+  return {static_cast<int>(std::lround(px->x())), static_cast<int>(std::lround(px->y()))};
+}
+
+TEST(Renderer, StaticObjectsShadowTheFloorAwayFromTheLight) {
+  const Scene with = Scene::Create(PillarSpec(true)).value(), without = Scene::Create(PillarSpec(false)).value();
+  Context ctx(1);
+  const CameraRenderer a(with, 0, ctx), b(without, 0, ctx);
+  const Lighting& light = with.spec().photometry.lighting;
+  const double floor_albedo = 0.5, cosine = std::sqrt(0.5);
+  // 0.8 m behind the pillar (its shadow is 2 m long) and the same floor in the light.
+  const Eigen::Vector2i shade = PixelOf(with, 0, {2.0 - 0.15 - 0.8, 1.5, 0.0});
+  const Eigen::Vector2i lit = PixelOf(with, 0, {2.0 + 0.8, 1.5, 0.0});
+  EXPECT_NEAR(a.StaticRadiance(shade.x(), shade.y())[1], floor_albedo * light.ambient, 1e-5);
+  EXPECT_NEAR(a.StaticRadiance(lit.x(), lit.y())[1], floor_albedo * (light.ambient + light.intensity * cosine), 1e-5);
+  EXPECT_NEAR(b.StaticRadiance(shade.x(), shade.y())[1], floor_albedo * (light.ambient + light.intensity * cosine), 1e-5);
+  // The room's walls and ceiling shade nothing (they are not casters), and the pillar's lit
+  // face stays lit.
+  EXPECT_TRUE(a.StaticRadiance(lit.x(), lit.y()) == b.StaticRadiance(lit.x(), lit.y()));
+  const Eigen::Vector2i face = PixelOf(with, 1, {2.0 + 0.15 * std::cos(0.3), 1.5 - 0.15 * std::sin(0.3), 1.0});
+  EXPECT_TRUE(a.StaticRadiance(face.x(), face.y()) == b.StaticRadiance(face.x(), face.y()));
+  // A moving object's shadow over the pillar's shadow does not darken it again.
+  SceneSpec spec = PillarSpec(true);
+  spec.objects[0].path = {{0.0, {1.45, 1.5}, false}, {10.0, {1.45, 1.5}, false}};
+  spec.objects[0].appearance.height_m = 0.3;
+  const Scene box = Scene::Create(spec).value();
+  const CameraRenderer r(box, 0, ctx);
+  RenderedView view;
+  r.Render(box.StateAt(0), ctx, &view, /*noise=*/false, /*shadow_mask=*/true);
+  const Eigen::Vector2i behind = PixelOf(box, 0, {1.0, 1.5, 0.0});  // in both shadows
+  ASSERT_EQ(view.ids(behind.x(), behind.y()), 0);
+  EXPECT_EQ(view.shadow(behind.x(), behind.y()), 0);
+  EXPECT_EQ(view.rgb(behind.x(), behind.y()).g, static_cast<uint8_t>(std::lround(floor_albedo * light.ambient * 255)));
+}
+
+TEST(Renderer, ShadowMaskMarksTheFloorAMovingObjectDarkensAndNothingElse) {
+  SceneSpec spec = sim_testing::OneObjectSpec(ObjectClass::kBox);
+  spec.objects[0].appearance.width_m = spec.objects[0].appearance.depth_m = 0.4;
+  spec.objects[0].appearance.height_m = 0.5;
+  spec.photometry.lighting.direction_to_light = Eigen::Vector3d(1, 0.3, 1).normalized();
+  SceneSpec lit = spec;
+  spec.photometry.shadows = true;
+  const Scene with = Scene::Create(spec).value(), without = Scene::Create(lit).value();
+  Context ctx(2);
+  for (size_t c = 0; c < with.num_cameras(); ++c) {
+    RenderedView a, b;
+    CameraRenderer(with, c, ctx).Render(with.StateAt(0), ctx, &a, /*noise=*/false, /*shadow_mask=*/true);
+    CameraRenderer(without, c, ctx).Render(without.StateAt(0), ctx, &b, /*noise=*/false, /*shadow_mask=*/true);
+    ASSERT_EQ(a.shadow.width(), a.ids.width());
+    int64_t marked = 0;
+    for (int y = 0; y < a.ids.height(); ++y) {
+      for (int x = 0; x < a.ids.width(); ++x) {
+        EXPECT_EQ(b.shadow(x, y), 0);  // no shadows: an empty mask
+        if (a.ids(x, y) != 0) {
+          ASSERT_EQ(a.shadow(x, y), 0) << x << "," << y;
+          continue;
+        }
+        if (a.shadow(x, y) == 255) {
+          ++marked;
+          ASSERT_LT(a.rgb(x, y).g + 20, b.rgb(x, y).g) << x << "," << y;
+        } else {
+          ASSERT_EQ(a.shadow(x, y), 0);
+          ASSERT_EQ(a.rgb(x, y), b.rgb(x, y)) << x << "," << y;
+        }
+      }
+    }
+    EXPECT_GT(marked, 30) << "camera " << c;
+  }
+  // Without objects the mask is empty.
+  RenderedView empty;
+  SceneState none;
+  CameraRenderer(with, 0, ctx).Render(none, ctx, &empty, false, true);
+  for (int y = 0; y < empty.shadow.height(); ++y) {
+    for (int x = 0; x < empty.shadow.width(); ++x) ASSERT_EQ(empty.shadow(x, y), 0);
+  }
+}
+
+TEST(Renderer, ShadowCullingPerTileGivesTheSameImagesAsTestingEveryObject) {
+  // The lab with its point light and shadows, against TracePixelReference plus a plain shadow
+  // test of every object at every floor pixel.
+  BuiltinSceneOptions o;
+  o.image_scale = 0.25;
+  o.num_frames = 60;
+  o.shadows = true;
+  const Scene lab = Scene::Create(MakeLabSceneSpec(o)).value();
+  Context ctx(2);
+  for (size_t c = 0; c < lab.num_cameras(); ++c) {
+    const CameraRenderer r(lab, c, ctx);
+    const SceneState state = lab.StateAt(50);
+    RenderedView view;
+    r.Render(state, ctx, &view, false, true);
+    int64_t shadowed = 0;
+    for (int y = 0; y < view.ids.height(); ++y) {
+      for (int x = 0; x < view.ids.width(); ++x) {
+        const PixelTrace ref = TracePixelReference(lab, c, state, Eigen::Vector2d(x, y));
+        if (!ref.hit_anything || ref.id != 0 || ref.surface != Surface::kFloor) continue;
+        const std::optional<Ray> ray = lab.camera(c).BackProject(Eigen::Vector2d(x, y));
+        const Eigen::Vector3d p = ray->origin_in_world + ref.t * ray->direction_in_world;
+        Eigen::Vector3d to_light;
+        double intensity = 0, dist = 0;
+        lab.spec().photometry.lighting.DirectAt(p, &to_light, &intensity, &dist);
+        bool blocked = false;
+        for (const ObjectInstance& obj : state.objects) {
+          for (const Primitive& part : obj.parts) blocked |= IntersectRay(part, p, to_light, dist).has_value();
+        }
+        // In a static shadow (the static radiance lacks the direct light): nothing more to darken.
+        if ((r.StaticRadiance(x, y) - ref.radiance).norm() > 1e-4) blocked = false;
+        ASSERT_EQ(view.shadow(x, y) == 255, blocked) << "camera " << c << " pixel " << x << "," << y;
+        shadowed += blocked;
+      }
+    }
+    EXPECT_GT(shadowed, 0) << "camera " << c;
+  }
 }
 
 }  // namespace

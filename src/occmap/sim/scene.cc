@@ -392,6 +392,13 @@ std::vector<Primitive> StaticPrimitives(const SceneSpec& spec) {
     Material under = r.wall;
     prims.push_back(Primitive::HorizontalRect(x0 - kT, y0 - kT, x1 + kT, y1 + kT, -0.005, +1, under));
   }
+  const std::vector<Primitive> objects = StaticObjectPrimitives(spec);
+  prims.insert(prims.end(), objects.begin(), objects.end());
+  return prims;
+}
+
+std::vector<Primitive> StaticObjectPrimitives(const SceneSpec& spec) {
+  std::vector<Primitive> prims;
   for (size_t i = 0; i < spec.statics.size(); ++i) {
     const StaticObjectSpec& s = spec.statics[i];
     const double yaw = s.yaw_deg * kPi / 180;
@@ -427,6 +434,7 @@ Result<Scene> Scene::Create(SceneSpec spec) {
     scene.cameras_.push_back(std::shared_ptr<const CameraModel>(std::move(cam)));
   }
   scene.statics_ = StaticPrimitives(spec);
+  scene.shadow_casters_ = StaticObjectPrimitives(spec);
   for (const MovingObjectSpec& o : spec.objects) scene.paths_.emplace_back(o.path);
   scene.spec_ = std::make_shared<const SceneSpec>(std::move(spec));
   return scene;

@@ -129,7 +129,9 @@ struct PhotometrySpec {
   double noise_sigma = 2.0;            // Gaussian sensor noise, grey levels (0 = none)
   double exposure_drift = 0.0;         // relative amplitude of a slow gain drift (0 = off)
   double exposure_period_s = 30.0;     // its period (each camera has its own phase)
-  bool shadows = false;                // cast shadows of moving objects on the floor
+  // Cast shadows: moving objects' on the floor (per frame), and static objects' on the floor
+  // and on each other (cast once; the room's walls and ceiling cast none).
+  bool shadows = false;
   bool background_noise = true;        // backgrounds get noise too (their own noise stream)
 };
 
@@ -172,6 +174,10 @@ struct SceneState {
 
 // The primitives of a static object or of the room (floor pieces with surface kFloor).
 std::vector<Primitive> StaticPrimitives(const SceneSpec& spec);
+// The primitives of the static objects alone (no floor, walls or ceiling): what casts static
+// shadows (a room's walls and ceiling would shade the whole floor from a directional light,
+// which indoors stands for light through windows and lamps).
+std::vector<Primitive> StaticObjectPrimitives(const SceneSpec& spec);
 
 // Pose on a path at a time: position, heading, speed, walked distance, presence.
 struct PathSample {
@@ -202,6 +208,7 @@ class Scene {
   const CameraModel& camera(size_t i) const { return *cameras_[i]; }
   const std::string& camera_id(size_t i) const { return spec_->cameras[i].id; }
   const std::vector<Primitive>& static_primitives() const { return statics_; }
+  const std::vector<Primitive>& shadow_casters() const { return shadow_casters_; }  // StaticObjectPrimitives
   int64_t num_frames() const { return spec_->num_frames; }
   double TimeOf(int64_t frame) const { return static_cast<double>(frame) / spec_->fps; }
 
@@ -214,6 +221,7 @@ class Scene {
   std::shared_ptr<const SceneSpec> spec_;
   std::vector<std::shared_ptr<const CameraModel>> cameras_;
   std::vector<Primitive> statics_;
+  std::vector<Primitive> shadow_casters_;
   std::vector<PreparedPath> paths_;
 };
 
