@@ -87,6 +87,8 @@ nlohmann::json SceneJson(const Scene& scene, const DatasetOptions& options) {
       {"objects", objects},
       {"photometry",
        {{"ambient", ph.lighting.ambient},
+        {"ambient_colour", {ph.lighting.ambient_colour[0], ph.lighting.ambient_colour[1], ph.lighting.ambient_colour[2]}},
+        {"direct_colour", {ph.lighting.direct_colour[0], ph.lighting.direct_colour[1], ph.lighting.direct_colour[2]}},
         {"light", ph.lighting.kind == Lighting::Kind::kPoint ? "point" : "directional"},
         {"intensity", ph.lighting.intensity},
         {"noise_sigma", ph.noise_sigma},
@@ -95,15 +97,27 @@ nlohmann::json SceneJson(const Scene& scene, const DatasetOptions& options) {
         {"shadows", ph.shadows},
         {"background_noise", ph.background_noise}}},
       {"frames_format", options.frame_format == DatasetOptions::FrameFormat::kPng ? "png" : "video"},
+      {"site_backgrounds", options.site_backgrounds},
       {"conventions",
        {{"frame", "dataset frame index from 0; time_s = frame / fps"},
         {"gt/footprint", "one pixel per cell, +x right, +y up (row 0 = cell row cells_y - 1); 255 = an object touches "
                          "the floor (cell centre inside a footprint polygon), 0 = not"},
         {"gt/hull", "ideal plane hull with perfect change detection; 255 free, 0 occupied, 128 unseen; same layout"},
         {"gt/changes", "per camera, 255 where the pixel sees a moving object, 0 elsewhere"},
+        {"gt/shadows", "per camera (with shadows), 255 where a moving object's cast shadow darkens a static floor "
+                       "pixel that no moving object covers, 0 elsewhere"},
+        {"ground_truth", "the objects whose position is inside the grid"},
         {"masks", "255 = the pixel sees the monitored floor, 0 = walls, furniture, static occluders, nothing"},
         {"ids", "object ids of ground_truth.jsonl are the renderer's id-buffer values"}}},
   };
+}
+
+bool ShadowMasks(const Scene& scene, const DatasetOptions& options) {
+  return options.change_masks && scene.spec().photometry.shadows;
+}
+
+bool InsideGrid(const FloorGrid& g, double x, double y) {
+  return x >= g.origin_x_m && y >= g.origin_y_m && x < g.origin_x_m + g.size_x_m() && y < g.origin_y_m + g.size_y_m();
 }
 
 std::string ReadmeText(const Scene& scene, const DatasetOptions& options) {
@@ -116,25 +130,32 @@ std::string ReadmeText(const Scene& scene, const DatasetOptions& options) {
   return fmt::format(
       "Simulated dataset '{}' written by occmap's scene simulator (seed {}).\n\n{}\n\n"
       "{} frames at {} fps; grid {} x {} cells of {} m from ({}, {}) m; cameras: {}; {} moving objects.\n\n"
-      "Run it:  occmap run site.yaml\n\n"
+      "Run it:  occmap run site.yaml\n{}\n"
       "Files:\n"
       "  site.yaml                 the site (calibrations, masks, frames, backgrounds; relative paths)\n"
       "  calib/                    calibrations (OpenCV XML in metres, or Tsai YAML in mm)\n"
       "  frames/                   {}\n"
       "  backgrounds/<cam>.png     the empty scene\n"
       "  masks/<cam>.png           255 = monitored floor, 0 = walls, furniture, occluders\n"
-      "  ground_truth.jsonl        per frame: objects (id, class, x_m, y_m, footprint_m polygon)\n"
+      "  ground_truth.jsonl        per frame: the objects inside the grid (id, class, x_m, y_m, footprint_m polygon)\n"
       "  gt/footprint/%06d.png     255 = an object touches the floor in the cell\n"
       "  gt/hull/%06d.png          ideal plane hull: 255 free, 0 occupied, 128 unseen\n"
       "  gt/changes/<cam>/%06d.png 255 = the pixel sees a moving object\n"
+      "{}"
       "  scene.yaml                the scene itself: `occmap synth scene.yaml` renders this again\n"
       "  scene.json                the same facts for programs\n\n"
       "Rasters have one pixel per floor cell, +x to the right and +y up (image row 0 is the last cell row).\n"
       "Frame numbers count from 0; time_s = frame / fps.\n",
       spec.name, spec.seed, spec.description, spec.num_frames, spec.fps, spec.grid.cells_x, spec.grid.cells_y,
       spec.grid.cell_size_m, spec.grid.origin_x_m, spec.grid.origin_y_m, cams, spec.objects.size(),
+      options.site_backgrounds ? ""
+                               : "site.yaml gives no backgrounds: the run learns them from the frames (the empty "
+                                 "scene is in backgrounds/, for comparison).\n",
       options.frame_format == DatasetOptions::FrameFormat::kPng ? "<cam>/%06d.png RGB frames"
-                                                                 : "<cam>.mp4 videos (H.264 when available)");
+                                                                 : "<cam>.mp4 videos (H.264 when available)",
+      ShadowMasks(scene, options) ? "  gt/shadows/<cam>/%06d.png 255 = a moving object's cast shadow darkens the static "
+                                    "floor (no object seen there)\n"
+                                  : "");
 }
 
 }  // namespace
@@ -143,6 +164,10 @@ Status DatasetOptions::Validate() const {
   if (out_dir.empty()) return InvalidInput("output folder: expected a path, found an empty one");
   if (detection_threshold < 0 || detection_threshold > 254) {
     return InvalidInput(fmt::format("detection threshold: expected 0..254, found {}", detection_threshold));
+  }
+  if (!site_detection_yaml.empty() && !site_detection_yaml.starts_with("detection:")) {
+    return InvalidInput(fmt::format("site detection YAML: expected a section starting with 'detection:', found '{}'",
+                                    site_detection_yaml.substr(0, 40)));
   }
   return Status::Ok();
 }
@@ -162,6 +187,7 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
     if (progress) progress({stage, done, total});
   };
   for (const char* dir : {"calib", "frames", "backgrounds", "masks"}) OCCMAP_RETURN_IF_ERROR(EnsureDirectory(out / dir));
+  const bool shadow_masks = ShadowMasks(scene, options);
   if (options.gt_rasters) {
     OCCMAP_RETURN_IF_ERROR(EnsureDirectory(out / "gt" / "footprint"));
     OCCMAP_RETURN_IF_ERROR(EnsureDirectory(out / "gt" / "hull"));
@@ -183,6 +209,8 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
     OCCMAP_RETURN_IF_ERROR(WritePng(out / "backgrounds" / (id + ".png"), renderer.Background().view()));
     const fs::path changes_dir = out / "gt" / "changes" / id;
     if (options.change_masks) OCCMAP_RETURN_IF_ERROR(EnsureDirectory(changes_dir));
+    const fs::path shadows_dir = out / "gt" / "shadows" / id;
+    if (shadow_masks) OCCMAP_RETURN_IF_ERROR(EnsureDirectory(shadows_dir));
     const fs::path frames_dir = out / "frames" / id;
     std::unique_ptr<VideoWriter> writer;
     if (video) {
@@ -196,7 +224,9 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
     for (int64_t f0 = 0; f0 < n; f0 += batch) {
       const int count = static_cast<int>(std::min<int64_t>(batch, n - f0));
       t0 = Clock::now();
-      for (int b = 0; b < count; ++b) renderer.Render(scene.StateAt(f0 + b), ctx, &views[static_cast<size_t>(b)]);
+      for (int b = 0; b < count; ++b) {
+        renderer.Render(scene.StateAt(f0 + b), ctx, &views[static_cast<size_t>(b)], /*noise=*/true, shadow_masks);
+      }
       summary.render_seconds += Since(t0);
       t0 = Clock::now();
       if (writer) {
@@ -208,6 +238,7 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
           Status s;
           if (!video) s = WritePng(frames_dir / FrameName(f0 + b), v.rgb.view());
           if (s.ok() && options.change_masks) s = WritePng(changes_dir / FrameName(f0 + b), ChangeMask(v.ids).view());
+          if (s.ok() && shadow_masks) s = WritePng(shadows_dir / FrameName(f0 + b), v.shadow.view());
           statuses[static_cast<size_t>(b)] = s;
         }
       });
@@ -219,9 +250,9 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
     if (writer) OCCMAP_RETURN_IF_ERROR(writer->Close());
     masks.push_back(renderer.floor_mask());
     site_cameras += fmt::format(
-        "  - id: {}\n    calibration: {}\n    mask: masks/{}.png\n    source: {{{}}}\n    background: backgrounds/{}.png\n",
-        id, calib_entry, id, video ? fmt::format("video: frames/{}.mp4", id) : fmt::format("images: frames/{}/%06d.png", id),
-        id);
+        "  - id: {}\n    calibration: {}\n    mask: masks/{}.png\n    source: {{{}}}\n{}", id, calib_entry, id,
+        video ? fmt::format("video: frames/{}.mp4", id) : fmt::format("images: frames/{}/%06d.png", id),
+        options.site_backgrounds ? fmt::format("    background: backgrounds/{}.png\n", id) : "");
   }
 
   // Ground truth.
@@ -232,6 +263,9 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
   for (int64_t f = 0; f < n; ++f) {
     const SceneState state = scene.StateAt(f);
     gt.push_back(ToGroundTruth(state));
+    // Objects outside the monitored area (walking in from the street) are no one's to find.
+    std::erase_if(gt.back().objects,
+                  [&](const GroundTruthObject& o) { return !InsideGrid(scene.grid(), o.x_m, o.y_m); });
     if (options.gt_rasters) {
       const std::vector<uint8_t> feet = FootprintRaster(scene.grid(), state);
       const OccupancyMap ideal = hull.Compute(state, ctx);
@@ -249,12 +283,19 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
   OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(out / "scene.json", SceneJson(scene, options).dump(2) + "\n"));
   OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(out / "README.txt", ReadmeText(scene, options)));
   const FloorGrid& g = scene.grid();
+  std::string detection = options.site_detection_yaml;
+  if (detection.empty()) {
+    detection = fmt::format(
+        "# A pixel sees 2-5 cm of floor, more than a chair's leg: changes are widened by one pixel\n"
+        "# so that thin parts survive the AND (equation 5) on a fine grid.\n"
+        "detection:\n  threshold: {}\n  tolerance_px: 1\n",
+        options.detection_threshold);
+  } else if (!detection.ends_with('\n')) {
+    detection += '\n';
+  }
   const std::string site = fmt::format(
       "# Written by occmap's scene simulator: scene '{}' (see README.txt and scene.json).\n"
-      "version: 1\nname: \"{}\"\nfloor:\n  origin_m: [{}, {}]\n  cells: [{}, {}]\n  cell_size_m: {}\ncameras:\n{}"
-      "# A pixel sees 2-5 cm of floor, more than a chair's leg: changes are widened by one pixel\n"
-      "# so that thin parts survive the AND (equation 5) on a fine grid.\n"
-      "detection:\n  threshold: {}\n  tolerance_px: 1\n"
+      "version: 1\nname: \"{}\"\nfloor:\n  origin_m: [{}, {}]\n  cells: [{}, {}]\n  cell_size_m: {}\ncameras:\n{}{}"
       "# A rendered person touches the floor with two feet and a chair with four legs: fragments\n"
       "# closer than 0.4 m form one detection, and specks under 150 cm^2 are dropped. A detection\n"
       "# must also stand up: on one of the planes support_heights_m, at least min_support of its\n"
@@ -262,7 +303,7 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
       "blobs:\n  group_radius_m: 0.2\n  min_area_m2: 0.015\n  support_heights_m: [0.35, 0.7, 1.0, 1.3]\n"
       "  min_support: 0.3\n",
       scene.spec().name, scene.spec().name, g.origin_x_m, g.origin_y_m, g.cells_x, g.cells_y, g.cell_size_m,
-      site_cameras, options.detection_threshold);
+      site_cameras, detection);
   summary.site_file = out / "site.yaml";
   OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(summary.site_file, site));
   summary.write_seconds += Since(t0);
@@ -273,6 +314,7 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
     summary.outputs.push_back("gt/hull/");
   }
   if (options.change_masks) summary.outputs.push_back("gt/changes/");
+  if (shadow_masks) summary.outputs.push_back("gt/shadows/");
   summary.seconds = Since(t_start);
   report("done");
   return summary;

@@ -1,20 +1,27 @@
 // WriteDataset: renders a Scene into a dataset folder that `occmap run` reads as it is.
 //
 //   site.yaml                    the site (LoadSite): grid, cameras with relative paths to
-//                                their calibration, mask, frames and background; written last,
-//                                so a folder with a site.yaml is complete
+//                                their calibration, mask, frames and (unless
+//                                site_backgrounds is off) background; written last, so a
+//                                folder with a site.yaml is complete
 //   calib/intr_<cam>.xml, calib/extr_<cam>.xml   pinhole cameras (OpenCV FileStorage, metres)
 //   calib/tsai_<cam>.yaml        Tsai cameras (Willson's units, T in mm)
 //   frames/<cam>/%06d.png        RGB frames (or frames/<cam>.mp4, H.264 through io/VideoWriter)
-//   backgrounds/<cam>.png        the empty scene (its own noise stream, or none)
+//   backgrounds/<cam>.png        the empty scene (its own noise stream, or none); written even
+//                                when site.yaml does not name them (for evaluation)
 //   masks/<cam>.png              floor mask: 255 where the pixel sees the monitored floor, 0 where
 //                                it sees walls, furniture, static occluders or nothing
-//   ground_truth.jsonl           sim/ground_truth.h, one line per frame
+//   ground_truth.jsonl           sim/ground_truth.h, one line per frame: the objects whose
+//                                position is inside the monitored area (the grid)
 //   gt/footprint/%06d.png        per cell: 255 where an object touches the floor, else 0
 //   gt/hull/%06d.png             the ideal plane hull: 255 free, 0 occupied, 128 unseen
 //                                (both one pixel per cell, +x right, +y up: row 0 = cell row
 //                                cells_y - 1, as occmap's occupancy pictures)
 //   gt/changes/<cam>/%06d.png    perfect change masks: 255 where a moving object is seen
+//   gt/shadows/<cam>/%06d.png    with change masks and cast shadows on: 255 where a moving
+//                                object's shadow darkens a static floor pixel that no moving
+//                                object covers, else 0 (shadows are not objects: they are not
+//                                in gt/changes)
 //   scene.yaml                   the scene (sim/scene_yaml.h): renders the same dataset again
 //   scene.json, README.txt       what the scene is, sizes, conventions, file list
 // Frame numbers in file names and in ground_truth.jsonl are the dataset's own, from 0 (the
@@ -50,6 +57,12 @@ struct DatasetOptions {
   // background with the renderer's default noise (noise_sigma 2 each), and low enough for
   // clothes near the floor's colour (on lab seeds 1-5, T = 20 beats T = 30 on every seed).
   int detection_threshold = 20;
+  // Whether site.yaml gives each camera its background (backgrounds/<cam>.png). Off, the run
+  // learns the backgrounds from the frames, as on a real site; the files are written anyway.
+  bool site_backgrounds = true;
+  // When not empty, replaces site.yaml's detection section (from "detection:" on, YAML at the
+  // top level, e.g. "detection:\n  threshold: 25\n"); empty: threshold and tolerance_px 1.
+  std::string site_detection_yaml;
   Status Validate() const;
 };
 

@@ -6,6 +6,7 @@
 #include "occmap/sim/renderer.h"
 #include "occmap/sim/sim_test_util.h"
 #include "occmap/site/site.h"
+#include "occmap/util/file_util.h"
 #include "occmap/util/image_io.h"
 #include "occmap/util/testing.h"
 
@@ -115,6 +116,68 @@ TEST(DatasetWriter, RejectsAnEmptyOutputFolder) {
   Context ctx(1);
   EXPECT_EQ(WriteDataset(lab, DatasetOptions{}, ctx).status().message(),
             "output folder: expected a path, found an empty one");
+}
+
+
+TEST(DatasetWriter, ShadowMasksAndASiteWithoutBackgroundsOrWithItsOwnDetection) {
+  SceneSpec spec = sim_testing::OneObjectSpec(ObjectClass::kBox);
+  spec.objects[0].appearance.height_m = 0.5;
+  spec.photometry.lighting.direction_to_light = Eigen::Vector3d(1, 0.3, 1).normalized();
+  spec.photometry.shadows = true;
+  MovingObjectSpec outside = spec.objects[0];  // beyond the grid's east edge (x >= 4 m)
+  outside.id = 8;
+  outside.path = {{0.0, {4.25, 1.5}, false}, {10.0, {4.25, 1.5}, false}};
+  spec.objects.push_back(outside);
+  const Scene scene = Scene::Create(spec).value();
+  occmap::testing::TempDir dir;
+  Context ctx(2);
+  DatasetOptions options;
+  options.out_dir = dir / "one";
+  options.site_backgrounds = false;
+  options.site_detection_yaml = "detection:\n  threshold: 31\n  tolerance_px: 2";
+  auto summary = WriteDataset(scene, options, ctx);
+  ASSERT_TRUE(summary.ok()) << summary.status().message();
+  auto site = LoadSite(summary->site_file);
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  for (const SiteCamera& c : site->cameras) EXPECT_FALSE(c.background.has_value()) << c.id;
+  EXPECT_TRUE(std::filesystem::exists(options.out_dir / "backgrounds" / "top.png"));
+  auto text = ReadFileToString(summary->site_file);
+  ASSERT_TRUE(text.ok());
+  EXPECT_NE(text->find("\ndetection:\n  threshold: 31\n  tolerance_px: 2\n#"), std::string::npos) << *text;
+  EXPECT_EQ(text->find("threshold: 20"), std::string::npos);
+  // The shadow masks are the renderer's.
+  const CameraRenderer r(scene, 1, ctx);
+  RenderedView view;
+  r.Render(scene.StateAt(2), ctx, &view, /*noise=*/true, /*shadow_mask=*/true);
+  auto shadow = ReadGrayImage(options.out_dir / "gt" / "shadows" / "side" / "000002.png");
+  ASSERT_TRUE(shadow.ok()) << shadow.status().message();
+  EXPECT_TRUE(*shadow == view.shadow);
+  int64_t marked = 0;
+  for (int y = 0; y < shadow->height(); ++y) {
+    for (int x = 0; x < shadow->width(); ++x) marked += (*shadow)(x, y) == 255;
+  }
+  EXPECT_GT(marked, 30);
+  // Ground truth lists the object inside the area only.
+  auto gt = ReadGroundTruth(options.out_dir / "ground_truth.jsonl");
+  ASSERT_TRUE(gt.ok()) << gt.status().message();
+  ASSERT_EQ((*gt)[0].objects.size(), 1u);
+  EXPECT_EQ((*gt)[0].objects[0].id, 7);
+  // Without shadows, no shadow masks.
+  spec.photometry.shadows = false;
+  options.out_dir = dir / "no-shadows";
+  ASSERT_TRUE(WriteDataset(Scene::Create(spec).value(), options, ctx).ok());
+  EXPECT_FALSE(std::filesystem::exists(options.out_dir / "gt" / "shadows"));
+}
+
+TEST(DatasetWriter, RejectsADetectionSectionThatIsNotOne) {
+  const Scene lab = sim_testing::SmallLab(0.25, 1);
+  Context ctx(1);
+  occmap::testing::TempDir dir;
+  DatasetOptions options;
+  options.out_dir = dir / "x";
+  options.site_detection_yaml = "threshold: 3";
+  EXPECT_EQ(WriteDataset(lab, options, ctx).status().message(),
+            "site detection YAML: expected a section starting with 'detection:', found 'threshold: 3'");
 }
 
 }  // namespace
