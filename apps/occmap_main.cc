@@ -356,10 +356,11 @@ struct EvalCommand {
   bool json_to_stdout = false;
 };
 
-Status RunEval(const EvalCommand& cmd) {
+Status RunEval(const CommonOptions& common, const EvalCommand& cmd) {
   EvalOptions o;
   o.match_threshold_m = cmd.threshold_m;
-  OCCMAP_ASSIGN_OR_RETURN(EvaluationReport report, EvaluateRun(cmd.dataset_dir, cmd.run_dir, o));
+  Context ctx(common.threads);
+  OCCMAP_ASSIGN_OR_RETURN(EvaluationReport report, EvaluateRun(cmd.dataset_dir, cmd.run_dir, o, ctx));
   const std::string json_text = EvaluationReportJson(report).dump(2) + "\n";
   OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(fs::path(cmd.run_dir) / "evaluation.json", json_text));
   std::fputs(cmd.json_to_stdout ? json_text.c_str() : EvaluationReportText(report).c_str(), stdout);
@@ -476,7 +477,8 @@ int main(int argc, char** argv) {
   EvalCommand eval;
   CLI::App* eval_cmd = app.add_subcommand("eval", "score a run against a dataset's ground truth");
   eval_cmd->add_option("dataset", eval.dataset_dir, "dataset folder (ground_truth.jsonl, gt/)")->required();
-  eval_cmd->add_option("run", eval.run_dir, "run folder (detections.jsonl, tracks.jsonl, occupancy/)")->required();
+  eval_cmd->add_option("run", eval.run_dir, "run folder (detections.jsonl, tracks.jsonl, occupancy/, changes/)")
+      ->required();
   eval_cmd->add_option("--threshold-m", eval.threshold_m, "match distance")->capture_default_str();
   eval_cmd->add_flag("--json", eval.json_to_stdout, "print the report as JSON");
 
@@ -515,7 +517,7 @@ int main(int argc, char** argv) {
   if (check_cmd->parsed()) status = RunCheck(common, check_site);
   if (demo_cmd->parsed()) status = RunDemoCommand(common, demo_out, demo_frames);
   if (synth_cmd->parsed()) status = RunSynth(common, synth);
-  if (eval_cmd->parsed()) status = RunEval(eval);
+  if (eval_cmd->parsed()) status = RunEval(common, eval);
   if (bench_cmd->parsed()) status = RunBenchCommand(common, bench_opts);
   return status.ok() ? 0 : Fail(status);
 }

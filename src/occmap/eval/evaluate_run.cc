@@ -3,13 +3,13 @@
 #include <fmt/core.h>
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <optional>
 #include <set>
 #include <system_error>
 #include <utility>
 
+#include "occmap/eval/change_metrics.h"
 #include "occmap/eval/run_outputs.h"
 
 namespace occmap {
@@ -83,34 +83,15 @@ void WalkNotes(const char* file, const FrameWalk& walk, const EvalOptions& optio
   }
 }
 
-// The run's occupancy maps: (frame, file) for every NNNNNN.png (digits only) in dir, by frame.
-Result<std::vector<std::pair<int64_t, fs::path>>> ListFramePictures(const fs::path& dir) {
-  std::vector<std::pair<int64_t, fs::path>> files;
-  std::error_code ec;
-  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
-    const fs::path& p = it->path();
-    if (p.extension() != ".png" || !IsFile(p)) continue;
-    const std::string stem = p.stem().string();
-    int64_t frame = 0;
-    const auto [ptr, err] = std::from_chars(stem.data(), stem.data() + stem.size(), frame);
-    if (stem.empty() || err != std::errc() || ptr != stem.data() + stem.size() || frame < 0) continue;
-    files.emplace_back(frame, p);
-  }
-  if (ec) return InvalidInput(fmt::format("{}: cannot list the folder: {}", dir.string(), ec.message()));
-  std::sort(files.begin(), files.end());
-  for (size_t k = 1; k < files.size(); ++k) {
-    if (files[k].first == files[k - 1].first) {
-      return InvalidInput(fmt::format("{}: expected one map per frame, found {} and {} for frame {}", dir.string(),
-                                      files[k - 1].second.filename().string(), files[k].second.filename().string(),
-                                      files[k].first));
-    }
-  }
-  return files;
-}
-
 }  // namespace
 
 Result<EvaluationReport> EvaluateRun(const fs::path& dataset_dir, const fs::path& run_dir, const EvalOptions& options) {
+  Context serial(1);  // the calling thread only: no worker threads
+  return EvaluateRun(dataset_dir, run_dir, options, serial);
+}
+
+Result<EvaluationReport> EvaluateRun(const fs::path& dataset_dir, const fs::path& run_dir, const EvalOptions& options,
+                                     Context& ctx) {
   OCCMAP_RETURN_IF_ERROR(options.Validate());
   EvaluationReport report;
   report.dataset = dataset_dir.string();
@@ -170,7 +151,7 @@ Result<EvaluationReport> EvaluateRun(const fs::path& dataset_dir, const fs::path
 
   std::vector<std::pair<int64_t, fs::path>> maps;
   if (IsDirectory(occupancy_dir)) {
-    OCCMAP_ASSIGN_OR_RETURN(maps, ListFramePictures(occupancy_dir));
+    OCCMAP_ASSIGN_OR_RETURN(maps, ListFramePngs(occupancy_dir, "map"));
   }
   if (maps.empty()) {
     report.notes.push_back("no occupancy/NNNNNN.png in the run: occupancy not evaluated");
@@ -223,8 +204,19 @@ Result<EvaluationReport> EvaluateRun(const fs::path& dataset_dir, const fs::path
     }
   }
 
+  const fs::path changes_dir = run_dir / "changes";
+  if (IsDirectory(changes_dir)) {
+    anything = true;
+    if (!IsDirectory(dataset_dir / "gt" / "changes")) {
+      report.notes.push_back("no gt/changes folder in the dataset: change masks not evaluated");
+    } else {
+      OCCMAP_ASSIGN_OR_RETURN(report.changes, EvaluateChangeMasks(changes_dir, dataset_dir / "gt", ctx, report.notes));
+    }
+  }
+
   if (!anything) {
-    return NotFound(fmt::format("{}: nothing to evaluate: expected detections.jsonl, tracks.jsonl or occupancy/NNNNNN.png",
+    return NotFound(fmt::format("{}: nothing to evaluate: expected detections.jsonl, tracks.jsonl, occupancy/NNNNNN.png "
+                                "or changes/<camera>/NNNNNN.png",
                                 run_dir.string()));
   }
   return report;

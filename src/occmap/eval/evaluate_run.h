@@ -12,7 +12,10 @@
 //   detections.jsonl      -> detection metrics (CLEAR MOD)
 //   tracks.jsonl          -> tracking metrics (CLEAR MOT, IDF1)
 //   occupancy/NNNNNN.png  -> occupancy metrics against each reference folder present
-// At least one of the three must be there. Frames are matched by their "frame" number:
+//   changes/<camera>/NNNNNN.png -> change-mask metrics against the dataset's
+//                         gt/changes/<camera>/ (and gt/shadows/<camera>/ when there);
+//                         eval/change_metrics.h. Without changes/ the section is absent.
+// At least one of the four must be there. Frames are matched by their "frame" number:
 //   - a ground-truth frame with no line in detections.jsonl (tracks.jsonl) counts all its
 //     objects as misses, unless EvalOptions::skip_frames_missing_from_run (then it is left out);
 //   - a line of the run whose frame is not in the ground truth is not evaluated (WILDTRACK
@@ -32,9 +35,14 @@
 #include "occmap/eval/eval_options.h"
 #include "occmap/eval/report.h"
 #include "occmap/util/status.h"
+#include "occmap/util/thread_pool.h"
 
 namespace occmap {
 
+// Files (change masks) are read on ctx's threads; the overload without a context reads them on
+// the calling thread.
+Result<EvaluationReport> EvaluateRun(const std::filesystem::path& dataset_dir, const std::filesystem::path& run_dir,
+                                     const EvalOptions& options, Context& ctx);
 Result<EvaluationReport> EvaluateRun(const std::filesystem::path& dataset_dir, const std::filesystem::path& run_dir,
                                      const EvalOptions& options = {});
 

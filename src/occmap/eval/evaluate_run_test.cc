@@ -161,6 +161,105 @@ TEST_F(EvaluateRunTest, RunWithoutTracksOrOccupancyEvaluatesDetectionsOnly) {
   EXPECT_TRUE(j["occupancy"]["footprint"].is_null());
 }
 
+TEST_F(EvaluateRunTest, RunWithoutChangesFolderHasNoChangesSection) {
+  const Result<EvaluationReport> report = EvaluateRun(dataset_, run_);
+  ASSERT_TRUE(report.ok()) << report.status().message();
+  EXPECT_FALSE(report->changes.has_value());
+  EXPECT_FALSE(EvaluationReportJson(*report).contains("changes"));
+  EXPECT_EQ(EvaluationReportText(*report).find("\nchanges"), std::string::npos);
+}
+
+// Change masks of one camera, two frames: frame 0 TP 1, FP 1, FN 1, TN 1, one shadow pixel
+// the run calls changed; frame 1 (no shadow mask) TP 2, TN 2.
+//   precision 3/4, recall 3/4, F1 3/4, shadow_changed_fraction 1.
+void WriteChangeMasks(const fs::path& run, const fs::path& dataset) {
+  WriteRaster(run / "changes" / "C1" / "000000.png", {"##", ".."}, {.free = 0, .occupied = 255, .unseen = 128});
+  WriteRaster(run / "changes" / "C1" / "000001.png", {"##", ".."}, {.free = 0, .occupied = 255, .unseen = 128});
+  WriteRaster(dataset / "gt" / "changes" / "C1" / "000000.png", {"#.", "#."}, {.free = 0, .occupied = 255, .unseen = 128});
+  WriteRaster(dataset / "gt" / "changes" / "C1" / "000001.png", {"##", ".."}, {.free = 0, .occupied = 255, .unseen = 128});
+  WriteRaster(dataset / "gt" / "shadows" / "C1" / "000000.png", {".#", ".."}, {.free = 0, .occupied = 255, .unseen = 128});
+}
+
+TEST_F(EvaluateRunTest, ChangeMasksAreScoredPerCameraAndOverall) {
+  WriteChangeMasks(run_, dataset_);
+  Context ctx(2);
+  const Result<EvaluationReport> report = EvaluateRun(dataset_, run_, {}, ctx);
+  ASSERT_TRUE(report.ok()) << report.status().message();
+  ASSERT_TRUE(report->changes.has_value());
+  EXPECT_EQ(report->changes->overall.frames, 2);
+  EXPECT_DOUBLE_EQ(report->changes->overall.f1, 0.75);
+  EXPECT_DOUBLE_EQ(report->changes->overall.shadow_changed_fraction, 1.0);
+
+  const nlohmann::json j = EvaluationReportJson(*report);
+  ASSERT_TRUE(j.contains("changes"));
+  const nlohmann::json& c = j["changes"];
+  for (const char* key : {"precision", "recall", "f1", "shadow_changed_fraction", "frames", "cameras"}) {
+    EXPECT_TRUE(c.contains(key)) << key;
+  }
+  EXPECT_EQ(c["precision"], 0.75);
+  EXPECT_EQ(c["recall"], 0.75);
+  EXPECT_EQ(c["f1"], 0.75);
+  EXPECT_EQ(c["shadow_changed_fraction"], 1.0);
+  EXPECT_EQ(c["frames"], 2);
+  ASSERT_EQ(c["cameras"].size(), 1u);
+  const nlohmann::json& camera = c["cameras"][0];
+  EXPECT_EQ(camera["id"], "C1");
+  for (const char* key : {"precision", "recall", "f1", "shadow_changed_fraction"}) EXPECT_EQ(camera[key], c[key]) << key;
+  EXPECT_EQ(nlohmann::json::parse(j.dump()), j);
+
+  const std::string text = EvaluationReportText(*report);
+  EXPECT_NE(text.find("\nchanges (pixels of the run's change masks against gt/changes)\n"
+                      "  camera            frames   precision      recall          F1  shadow changed\n"
+                      "  all                    2      0.7500      0.7500      0.7500          1.0000\n"
+                      "  C1                     2      0.7500      0.7500      0.7500          1.0000\n"),
+            std::string::npos)
+      << text;
+}
+
+TEST_F(EvaluateRunTest, ChangeMasksWithoutShadowMasksHaveANullShadowFraction) {
+  WriteChangeMasks(run_, dataset_);
+  fs::remove_all(dataset_ / "gt" / "shadows");
+  const Result<EvaluationReport> report = EvaluateRun(dataset_, run_);
+  ASSERT_TRUE(report.ok()) << report.status().message();
+  const nlohmann::json j = EvaluationReportJson(*report);
+  EXPECT_TRUE(j["changes"]["shadow_changed_fraction"].is_null());
+  EXPECT_TRUE(j["changes"]["cameras"][0]["shadow_changed_fraction"].is_null());
+  EXPECT_NE(EvaluationReportText(*report).find("  all                    2      0.7500      0.7500      0.7500               -\n"),
+            std::string::npos);
+}
+
+TEST_F(EvaluateRunTest, ChangeMasksOfDifferentSizesAreAnError) {
+  WriteChangeMasks(run_, dataset_);
+  WriteRaster(dataset_ / "gt" / "changes" / "C1" / "000001.png", {"###"});
+  const Result<EvaluationReport> report = EvaluateRun(dataset_, run_);
+  ASSERT_FALSE(report.ok());
+  EXPECT_EQ(ExitCodeFor(report.status()), 2);
+  EXPECT_EQ(report.status().message(), (dataset_ / "gt" / "changes" / "C1" / "000001.png").string() +
+                                           ": expected 2x2 pixels like " +
+                                           (run_ / "changes" / "C1" / "000001.png").string() + ", found 3x1");
+}
+
+TEST_F(EvaluateRunTest, ChangeMasksWithoutGroundTruthMasksAreNotEvaluated) {
+  WriteChangeMasks(run_, dataset_);
+  fs::remove_all(dataset_ / "gt" / "changes");
+  const Result<EvaluationReport> report = EvaluateRun(dataset_, run_);
+  ASSERT_TRUE(report.ok()) << report.status().message();
+  EXPECT_FALSE(report->changes.has_value());
+  EXPECT_TRUE(HasNote(*report, "no gt/changes folder in the dataset: change masks not evaluated"));
+}
+
+TEST_F(EvaluateRunTest, RunWithOnlyChangeMasksIsEvaluated) {
+  fs::remove(run_ / "detections.jsonl");
+  fs::remove(run_ / "tracks.jsonl");
+  fs::remove_all(run_ / "occupancy");
+  WriteChangeMasks(run_, dataset_);
+  const Result<EvaluationReport> report = EvaluateRun(dataset_, run_);
+  ASSERT_TRUE(report.ok()) << report.status().message();
+  EXPECT_FALSE(report->detection.has_value());
+  ASSERT_TRUE(report->changes.has_value());
+  EXPECT_EQ(report->changes->overall.counts.tp, 3);
+}
+
 TEST_F(EvaluateRunTest, GroundTruthInTheGtFolderIsFoundToo) {
   fs::rename(dataset_ / "ground_truth.jsonl", dataset_ / "gt" / "ground_truth.jsonl");
   const Result<EvaluationReport> report = EvaluateRun(dataset_, run_);
@@ -202,7 +301,8 @@ TEST_F(EvaluateRunTest, RunFolderWithNothingToEvaluateIsNotFound) {
   ASSERT_FALSE(report.ok());
   EXPECT_EQ(report.status().code(), StatusCode::kNotFound);
   EXPECT_EQ(report.status().message(),
-            empty.string() + ": nothing to evaluate: expected detections.jsonl, tracks.jsonl or occupancy/NNNNNN.png");
+            empty.string() + ": nothing to evaluate: expected detections.jsonl, tracks.jsonl, occupancy/NNNNNN.png or "
+                             "changes/<camera>/NNNNNN.png");
 }
 
 TEST_F(EvaluateRunTest, DatasetWithoutGroundTruthIsNotFound) {

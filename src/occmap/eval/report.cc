@@ -80,6 +80,33 @@ json OccupancyJson(const std::optional<OccupancyMetrics>& o) {
           {"computed_frames_without_reference", m.computed_frames_without_reference}};
 }
 
+json ChangeCountsJson(const ChangeMetrics& m) {
+  return {{"frames", m.frames},
+          {"shadow_frames", m.shadow_frames},
+          {"tp", m.counts.tp},
+          {"fp", m.counts.fp},
+          {"fn", m.counts.fn},
+          {"tn", m.counts.tn},
+          {"shadow_pixels", m.counts.shadow_pixels},
+          {"shadow_changed", m.counts.shadow_changed},
+          {"precision", Ratio(m.precision)},
+          {"recall", Ratio(m.recall)},
+          {"f1", Ratio(m.f1)},
+          {"shadow_changed_fraction", Ratio(m.shadow_changed_fraction)}};
+}
+
+json ChangesJson(const ChangeEvaluation& e) {
+  json j = ChangeCountsJson(e.overall);
+  json cameras = json::array();
+  for (const CameraChangeMetrics& c : e.cameras) {
+    json camera = ChangeCountsJson(c.metrics);
+    camera["id"] = c.id;
+    cameras.push_back(std::move(camera));
+  }
+  j["cameras"] = std::move(cameras);
+  return j;
+}
+
 void OccupancyNotes(const char* name, const std::optional<OccupancyMetrics>& o, std::vector<std::string>& notes) {
   if (!o) return;
   if (o->tp + o->fp + o->fn == 0) {
@@ -138,11 +165,20 @@ std::vector<std::string> EvaluationNotes(const EvaluationReport& report) {
   }
   OccupancyNotes("footprint", report.footprint, notes);
   OccupancyNotes("hull", report.hull, notes);
+  if (const auto& c = report.changes) {
+    const ChangeCounts& n = c->overall.counts;
+    if (c->overall.frames == 0) notes.push_back("change metrics undefined: no frame has both a run mask and a gt/changes mask");
+    if (c->overall.frames > 0 && n.tp + n.fp == 0) notes.push_back("change precision undefined: the run's masks mark no pixel changed");
+    if (c->overall.frames > 0 && n.tp + n.fn == 0) notes.push_back("change recall undefined: the gt/changes masks mark no pixel changed");
+    if (c->overall.shadow_frames > 0 && n.shadow_pixels == 0) {
+      notes.push_back("shadow_changed_fraction undefined: the gt/shadows masks mark no pixel");
+    }
+  }
   return notes;
 }
 
 nlohmann::json EvaluationReportJson(const EvaluationReport& report) {
-  return {{"dataset", report.dataset},
+  json j = {{"dataset", report.dataset},
           {"run", report.run},
           {"match_threshold_m", report.match_threshold_m},
           {"gt_frames", report.gt_frames},
@@ -150,6 +186,8 @@ nlohmann::json EvaluationReportJson(const EvaluationReport& report) {
           {"tracking", report.tracking ? TrackingJson(*report.tracking) : json(nullptr)},
           {"occupancy", {{"footprint", OccupancyJson(report.footprint)}, {"hull", OccupancyJson(report.hull)}}},
           {"notes", EvaluationNotes(report)}};
+  if (report.changes) j["changes"] = ChangesJson(*report.changes);
+  return j;
 }
 
 std::string EvaluationReportText(const EvaluationReport& report) {
@@ -207,6 +245,18 @@ std::string EvaluationReportText(const EvaluationReport& report) {
     row("recall", [](const OccupancyMetrics& m) { return Real(m.recall); });
   } else {
     out += "  not evaluated\n";
+  }
+
+  if (const auto& c = report.changes) {
+    out += "\nchanges (pixels of the run's change masks against gt/changes)\n";
+    out += fmt::format("  {:<16}{:>8}{:>12}{:>12}{:>12}{:>16}\n", "camera", "frames", "precision", "recall", "F1",
+                       "shadow changed");
+    auto row = [&](const std::string& name, const ChangeMetrics& m) {
+      out += fmt::format("  {:<16}{:>8}{:>12}{:>12}{:>12}{:>16}\n", name, m.frames, Real(m.precision), Real(m.recall),
+                         Real(m.f1), m.shadow_frames > 0 ? Real(m.shadow_changed_fraction) : std::string("-"));
+    };
+    row("all", c->overall);
+    for (const CameraChangeMetrics& camera : c->cameras) row(camera.id, camera.metrics);
   }
 
   const std::vector<std::string> notes = EvaluationNotes(report);

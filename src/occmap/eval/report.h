@@ -1,5 +1,5 @@
 // EvaluationReport: every metric of one evaluation (detection, tracking, occupancy against the
-// footprint and the plane-hull rasters), with what was left out, rendered as JSON or as a
+// footprint and the plane-hull rasters, change masks), with what was left out, rendered as JSON or as a
 // fixed-width text table. A section is absent (std::nullopt; null in JSON, "not evaluated" in
 // text) when its input was not there. Undefined ratios (e.g. MODA with no ground truth) are NaN
 // in the structs, null in JSON, "n/a" in text, and a note says why.
@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "occmap/eval/change_metrics.h"
 #include "occmap/eval/detection_metrics.h"
 #include "occmap/eval/eval_options.h"
 #include "occmap/eval/occupancy_metrics.h"
@@ -32,6 +33,7 @@ struct EvaluationReport {
   std::optional<TrackingMetrics> tracking;
   std::optional<OccupancyMetrics> footprint;  // against the footprint rasters
   std::optional<OccupancyMetrics> hull;       // against the ideal plane-hull rasters
+  std::optional<ChangeEvaluation> changes;    // the run's change masks against the perfect ones
   std::vector<std::string> notes;             // what was left out, and why
 };
 
@@ -55,11 +57,17 @@ std::vector<std::string> EvaluationNotes(const EvaluationReport& report);
 //  "occupancy": {"footprint": {"frames", "cells_evaluated", "tp", "fp", "fn", "tn",
 //                "computed_unseen", "reference_unseen", "iou", "precision", "recall",
 //                "computed_frames_without_reference"}, "hull": {...}},
+//  "changes": {"frames", "shadow_frames", "tp", "fp", "fn", "tn", "shadow_pixels", "shadow_changed",
+//              "precision", "recall", "f1", "shadow_changed_fraction",
+//              "cameras": [{"id", "frames", "shadow_frames", "tp", "fp", "fn", "tn", "shadow_pixels",
+//                           "shadow_changed", "precision", "recall", "f1", "shadow_changed_fraction"}]},
 //  "notes": [...]}
-// Absent sections and undefined ratios are null; ratios are rounded to 1e-6.
+// Absent sections and undefined ratios are null, except "changes", which is left out when the
+// run has no change masks; ratios are rounded to 1e-6.
 nlohmann::json EvaluationReportJson(const EvaluationReport& report);
 
-// A readable fixed-width table, one section per metric family, then the notes; ends in '\n'.
+// A readable fixed-width table, one section per metric family (changes only when evaluated),
+// then the notes; ends in '\n'.
 std::string EvaluationReportText(const EvaluationReport& report);
 
 }  // namespace occmap

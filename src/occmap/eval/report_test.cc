@@ -118,5 +118,30 @@ TEST(EvaluationReportText, SaysNotEvaluatedForAbsentSectionsAndNaForUndefinedRat
   EXPECT_NE(text.find("  - MODA and recall undefined: no ground-truth objects in the evaluated frames\n"), std::string::npos);
 }
 
+TEST(EvaluationReportText, ChangesBlockGivesTheSumThenEachCameraAndNotesUndefinedRatios) {
+  EvaluationReport report;
+  ChangeEvaluation changes;
+  changes.cameras.push_back({"C1", MakeChangeMetrics(3, 3, ChangeCounts{.tp = 6, .fp = 2, .fn = 2, .tn = 90})});
+  changes.cameras.push_back({"C2", MakeChangeMetrics(3, 0, ChangeCounts{.tn = 100})});  // no change, no shadow
+  changes.overall = MakeChangeMetrics(3, 3, ChangeCounts{.tp = 6, .fp = 2, .fn = 2, .tn = 190});
+  report.changes = changes;
+  const std::string text = EvaluationReportText(report);
+  EXPECT_NE(text.find("\nchanges (pixels of the run's change masks against gt/changes)\n"
+                      "  camera            frames   precision      recall          F1  shadow changed\n"
+                      "  all                    3      0.7500      0.7500      0.7500             n/a\n"
+                      "  C1                     3      0.7500      0.7500      0.7500             n/a\n"
+                      "  C2                     3         n/a         n/a         n/a               -\n"),
+            std::string::npos)
+      << text;
+  // Shadow masks were read but mark no pixel: undefined, and a note says why.
+  EXPECT_NE(text.find("  - shadow_changed_fraction undefined: the gt/shadows masks mark no pixel\n"), std::string::npos)
+      << text;
+  const nlohmann::json j = EvaluationReportJson(report);
+  EXPECT_TRUE(j["changes"]["shadow_changed_fraction"].is_null());
+  EXPECT_TRUE(j["changes"]["cameras"][1]["precision"].is_null());
+  EXPECT_EQ(j["changes"]["cameras"][0]["tp"], 6);
+  EXPECT_EQ(j["changes"]["frames"], 3);
+}
+
 }  // namespace
 }  // namespace occmap

@@ -2,9 +2,12 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <system_error>
 
 #include "occmap/util/file_util.h"
 
@@ -171,6 +174,33 @@ Result<std::vector<DetectionFrame>> ReadDetections(const std::filesystem::path& 
 Result<std::vector<TrackFrame>> ReadTracks(const std::filesystem::path& path) {
   OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
   return ParseTracks(text, path.string());
+}
+
+Result<std::vector<std::pair<int64_t, std::filesystem::path>>> ListFramePngs(const std::filesystem::path& dir,
+                                                                              std::string_view what) {
+  namespace fs = std::filesystem;
+  std::vector<std::pair<int64_t, fs::path>> files;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const fs::path& p = it->path();
+    std::error_code file_ec;
+    if (p.extension() != ".png" || !fs::is_regular_file(p, file_ec)) continue;
+    const std::string stem = p.stem().string();
+    int64_t frame = 0;
+    const auto [ptr, err] = std::from_chars(stem.data(), stem.data() + stem.size(), frame);
+    if (stem.empty() || err != std::errc() || ptr != stem.data() + stem.size() || frame < 0) continue;
+    files.emplace_back(frame, p);
+  }
+  if (ec) return InvalidInput(fmt::format("{}: cannot list the folder: {}", dir.string(), ec.message()));
+  std::sort(files.begin(), files.end());
+  for (size_t k = 1; k < files.size(); ++k) {
+    if (files[k].first == files[k - 1].first) {
+      return InvalidInput(fmt::format("{}: expected one {} per frame, found {} and {} for frame {}", dir.string(), what,
+                                      files[k - 1].second.filename().string(), files[k].second.filename().string(),
+                                      files[k].first));
+    }
+  }
+  return files;
 }
 
 }  // namespace occmap

@@ -14,6 +14,9 @@
 // expected and what was found:
 //   run/detections.jsonl:3: blobs[1].x_m: expected a number, found "1.5"
 //
+// Numbered pictures (occupancy/NNNNNN.png, changes/<camera>/NNNNNN.png) are listed by
+// ListFramePngs: every *.png whose name is digits only is frame int(name).
+//
 //   OCCMAP_ASSIGN_OR_RETURN(std::vector<DetectionFrame> detections, ReadDetections(run / "detections.jsonl"));
 //   OCCMAP_ASSIGN_OR_RETURN(std::vector<TrackFrame> tracks, ReadTracks(run / "tracks.jsonl"));
 //   for (const TrackRecord& t : tracks[0].tracks) ... t.id, t.x_m ...
@@ -24,6 +27,7 @@
 #include <limits>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "occmap/util/status.h"
@@ -60,5 +64,11 @@ Result<std::vector<DetectionFrame>> ParseDetections(std::string_view text, std::
 Result<std::vector<DetectionFrame>> ReadDetections(const std::filesystem::path& path);
 Result<std::vector<TrackFrame>> ParseTracks(std::string_view text, std::string_view source_name);
 Result<std::vector<TrackFrame>> ReadTracks(const std::filesystem::path& path);
+
+// (frame, path) of every NNNNNN.png (digits only, any number of them) in dir, by frame; other
+// files are ignored. Two files of one frame (000012.png and 12.png) are an error that calls
+// them `what` ("map", "mask").
+Result<std::vector<std::pair<int64_t, std::filesystem::path>>> ListFramePngs(const std::filesystem::path& dir,
+                                                                              std::string_view what);
 
 }  // namespace occmap
