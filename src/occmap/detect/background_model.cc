@@ -91,6 +91,14 @@ Status ShadowOptions::Validate() const {
   if (chroma_tolerance < 0 || chroma_tolerance > 128) {
     return InvalidInput(fmt::format("backgrounds.shadows.chroma_tolerance: expected 0..128, found {}", chroma_tolerance));
   }
+  if (texture_radius_px < 0 || texture_radius_px > 8) {
+    return InvalidInput(fmt::format("backgrounds.shadows.texture_radius_px: expected 0..8, found {}", texture_radius_px));
+  }
+  if (!(min_texture_correlation >= -1 && min_texture_correlation <= 1)) {
+    return InvalidInput(fmt::format("backgrounds.shadows.min_texture_correlation: expected -1..1, found {}",
+                                    min_texture_correlation));
+  }
+  if (!(flat_std >= 0)) return InvalidInput(fmt::format("backgrounds.shadows.flat_std: expected >= 0, found {}", flat_std));
   return Status::Ok();
 }
 
@@ -435,6 +443,34 @@ uint8_t BackgroundModel::Classify(int y, int u, int v, int by, int bu, int bv, i
   return std::abs(static_cast<float>(u) - su) <= tol && std::abs(static_cast<float>(v) - sv) <= tol ? kShadow : kChanged;
 }
 
+bool BackgroundModel::TextureLikeBackground(ImageView<const uint8_t> frame_y, int x, int y) const {
+  const int r = options_.shadows.texture_radius_px;
+  if (r == 0) return true;
+  int64_t n = 0, si = 0, sb = 0, sii = 0, sbb = 0, sib = 0;
+  for (int yy = std::max(0, y - r); yy <= std::min(height_ - 1, y + r); ++yy) {
+    const uint8_t* fi = frame_y.row(yy);
+    const uint16_t* fb = by_.data() + static_cast<size_t>(yy) * width_;
+    for (int xx = std::max(0, x - r); xx <= std::min(width_ - 1, x + r); ++xx) {
+      const int64_t i = fi[xx], b = std::min(255, (fb[xx] + 128) >> 8);
+      ++n;
+      si += i;
+      sb += b;
+      sii += i * i;
+      sbb += b * b;
+      sib += i * b;
+    }
+  }
+  const double nn = static_cast<double>(n);
+  const double var_i = static_cast<double>(n * sii - si * si) / (nn * nn);
+  const double var_b = static_cast<double>(n * sbb - sb * sb) / (nn * nn);
+  const double flat = options_.shadows.flat_std;
+  // A flat floor says nothing (and a shadow's edge crossing the window is not flat either).
+  if (var_b < flat * flat) return true;
+  if (var_i <= 0) return false;
+  const double cov = static_cast<double>(n * sib - si * sb) / (nn * nn);
+  return cov / std::sqrt(var_i * var_b) >= options_.shadows.min_texture_correlation;
+}
+
 void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold, ImageView<uint8_t> changes) const {
   OCCMAP_CHECK(frame.y.width() == width_ && frame.y.height() == height_, "background model: frame size differs");
   OCCMAP_CHECK(!chroma_ || frame.has_chroma(), "background model: the frame has no chroma");
@@ -446,7 +482,9 @@ void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold
       const int bu = chroma_ ? std::min(255, (bu_[c] + 128) >> 8) : 128;
       const int bv = chroma_ ? std::min(255, (bv_[c] + 128) >> 8) : 128;
       const int u = chroma_ ? frame.u(x / 2, y / 2) : 128, v = chroma_ ? frame.v(x / 2, y / 2) : 128;
-      changes(x, y) = Classify(frame.y(x, y), u, v, by, bu, bv, threshold) == kChanged ? 1 : 0;
+      uint8_t cls = Classify(frame.y(x, y), u, v, by, bu, bv, threshold);
+      if (cls == kShadow && !TextureLikeBackground(frame.y, x, y)) cls = kChanged;
+      changes(x, y) = cls == kChanged ? 1 : 0;
     }
   }
 }
@@ -512,6 +550,7 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
             const float su = 128.0f + r * static_cast<float>(eu - 128), sv = 128.0f + r * static_cast<float>(ev - 128);
             if (std::abs(static_cast<float>(u) - su) <= tol && std::abs(static_cast<float>(v) - sv) <= tol) c = kShadow;
           }
+          if (c == kShadow && !TextureLikeBackground(frame.y, x, y)) c = kChanged;
         }
       }
       cls[x] = c;

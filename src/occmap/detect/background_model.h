@@ -27,11 +27,14 @@
 //        as background (a chair pushed and left);
 //      - protected by a person: never updated (a person standing still stays a person).
 //
-// The shadow test (Cucchiara et al. 2003, Horprasert et al. 1999, in Y'CbCr): a changed pixel
-// is a cast shadow when it is darker than the expected background by a ratio r in
-// [min_ratio, max_ratio] and its chroma is the background's scaled by r within
-// chroma_tolerance (a shadow darkens the floor but keeps its colour). Without chroma only the
-// ratio is tested, and dark clothing of the floor's hue passes for a shadow.
+// The shadow test (Cucchiara et al. 2003, Horprasert et al. 1999, in Y'CbCr; the texture test
+// as in Sanin et al. 2012): a changed pixel is a cast shadow when it is darker than the
+// expected background by a ratio r in [min_ratio, max_ratio], its chroma is the background's
+// scaled by r within chroma_tolerance (a shadow darkens the floor but keeps its colour), and
+// its neighbourhood keeps the background's texture (normalised cross-correlation of luma). It
+// fails where clothing has the floor's hue, is darker by a shadow's ratio and the floor has no
+// texture (grey trousers on a flat grey floor); without chroma only ratio and texture are
+// tested.
 //
 //   BackgroundModel model(options, shadows);
 //   model.Reset(learned);                                  // a YuvImage
@@ -77,6 +80,12 @@ struct ShadowOptions {
   double min_ratio = 0.25;     // a shadow keeps at least this share of the lit brightness
   double max_ratio = 0.90;     // and loses at least 1 - max_ratio of it
   int chroma_tolerance = 12;   // levels of Cb, Cr (after scaling by the ratio)
+  // Texture: over the (2 r + 1)^2 window around the pixel, a shadow's luma correlates with the
+  // background's (normalised cross-correlation >= min_texture_correlation). Where the
+  // background is flat (standard deviation under flat_std) texture cannot tell.
+  int texture_radius_px = 2;   // 0: no texture test
+  double min_texture_correlation = 0.5;
+  double flat_std = 3.0;       // grey levels
   Status Validate() const;
 };
 
@@ -173,6 +182,8 @@ class BackgroundModel {
  private:
   enum Class : uint8_t { kBackground = 0, kChanged = 1, kShadow = 2 };
   uint8_t Classify(int y, int u, int v, int by, int bu, int bv, int threshold) const;
+  // The texture part of the shadow test at (x, y).
+  bool TextureLikeBackground(ImageView<const uint8_t> frame_y, int x, int y) const;
 
   BackgroundOptions options_;
   double fps_;

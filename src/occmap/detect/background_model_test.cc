@@ -167,6 +167,34 @@ TEST(BackgroundModel, ShadowsAreNotChangesButObjectsOfTheSameBrightnessAre) {
   EXPECT_EQ(changes(2, 2), 1);
 }
 
+TEST(BackgroundModel, AShadowKeepsTheFloorsTextureAndFlatClothesDoNot) {
+  const YuvImage b = TexturedBackground(64, 64, 21);  // tiles and grain
+  BackgroundModel model(BackgroundOptions{}, 10);
+  model.Reset(b);
+  YuvImage f = Seen(b, 1.0, 0, 22, 0.5);
+  // Left: a cast shadow (the floor at half its brightness, chroma scaled). Right: flat
+  // trousers of the floor's hue and the shadow's brightness.
+  for (int y = 0; y < 64; ++y) {
+    for (int x = 0; x < 32; ++x) f.y(x, y) = static_cast<uint8_t>(b.y(x, y) / 2);
+    for (int x = 32; x < 64; ++x) f.y(x, y) = static_cast<uint8_t>(b.y(24, 24) / 2);
+  }
+  for (int y = 0; y < 32; ++y) {
+    for (int x = 0; x < 32; ++x) {
+      f.u(x, y) = static_cast<uint8_t>(128 + (b.u(x, y) - 128) / 2);
+      f.v(x, y) = static_cast<uint8_t>(128 + (b.v(x, y) - 128) / 2);
+    }
+  }
+  Image<uint8_t> changes(64, 64);
+  model.DetectChanges(f.view(), 20, changes.view());
+  int shadow_changed = 0, trousers_changed = 0;
+  for (int y = 4; y < 60; ++y) {
+    for (int x = 4; x < 28; ++x) shadow_changed += changes(x, y);
+    for (int x = 36; x < 60; ++x) trousers_changed += changes(x, y);
+  }
+  EXPECT_LT(shadow_changed, 56 * 24 / 20);   // under 5 %
+  EXPECT_GT(trousers_changed, 56 * 24 / 2);  // most of the trousers (their dark tiles may pass)
+}
+
 TEST(BackgroundModel, DetectChangesEqualsItsReference) {
   for (bool chroma : {true, false}) {
     for (uint32_t seed = 0; seed < 4; ++seed) {

@@ -63,11 +63,16 @@ Result<std::unique_ptr<FrameSource>> OpenFrameSource(const FrameSourceSpec& spec
     return InvalidInput(fmt::format("{} source: expected a location (path, pattern or URL), found an empty string",
                                     ToString(spec.kind)));
   }
+  if (!std::isfinite(spec.fps) || spec.fps < 0) {
+    return InvalidInput(fmt::format("{} source: fps: expected a finite value >= 0, found {}", ToString(spec.kind), spec.fps));
+  }
+  FrameSourceOptions with_fps = options;
+  if (spec.fps > 0) with_fps.image_fps = spec.fps;
   switch (spec.kind) {
     case FrameSourceSpec::Kind::kImages:
-      return OpenImageSequence(spec.location, /*masks=*/false, options);
+      return OpenImageSequence(spec.location, /*masks=*/false, with_fps);
     case FrameSourceSpec::Kind::kMasks:
-      return OpenImageSequence(spec.location, /*masks=*/true, options);
+      return OpenImageSequence(spec.location, /*masks=*/true, with_fps);
     case FrameSourceSpec::Kind::kVideo:
       return OpenVideoSource(spec.location, /*stream=*/false, options);
     case FrameSourceSpec::Kind::kStream:

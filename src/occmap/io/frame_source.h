@@ -64,6 +64,9 @@ struct FrameSourceSpec {
   enum class Kind { kNone, kImages, kVideo, kStream, kMasks };
   Kind kind = Kind::kNone;
   std::string location;  // path, printf-style pattern, folder, or URL / device
+  // Image sequences and masks: their frame rate (> 0 gives timestamps index / fps, overriding
+  // FrameSourceOptions::image_fps); 0: none. Video and streams keep their own.
+  double fps = 0;
 };
 
 const char* ToString(FrameSourceSpec::Kind kind);

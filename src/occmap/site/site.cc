@@ -210,10 +210,19 @@ Result<Image<uint8_t>> ParseMask(const YamlField& field, const PathContext& ctx,
 }
 
 Result<FrameSourceSpec> ParseSource(const YamlField& field, const PathContext& ctx) {
-  OCCMAP_RETURN_IF_ERROR(field.CheckKeys({"images", "video", "stream", "masks"}));
-  if (field.size() != 1) return field.Error("expected exactly one of images, video, stream or masks");
+  OCCMAP_RETURN_IF_ERROR(field.CheckKeys({"images", "video", "stream", "masks", "fps"}));
+  const size_t kinds = field.Has("images") + field.Has("video") + field.Has("stream") + field.Has("masks");
+  if (kinds != 1) return field.Error("expected exactly one of images, video, stream or masks");
   FrameSourceSpec spec;
-  const std::string key = field.node().begin()->first.as<std::string>();
+  std::string key;
+  for (const char* k : {"images", "video", "stream", "masks"}) {
+    if (field.Has(k)) key = k;
+  }
+  OCCMAP_ASSIGN_OR_RETURN(spec.fps, field.GetDouble("fps", 0.0));
+  if (!(spec.fps >= 0)) return field.Find("fps")->Error(fmt::format("expected frames per second >= 0, found {}", spec.fps));
+  if (spec.fps > 0 && key != "images" && key != "masks") {
+    return field.Find("fps")->Error(fmt::format("fps is for images and masks ({} has its own timestamps)", key));
+  }
   OCCMAP_ASSIGN_OR_RETURN(std::string value, field.GetString(key));
   if (value.empty()) return field.Error(fmt::format("{}: expected a location, found an empty text", key));
   if (key == "stream") {
@@ -304,12 +313,18 @@ Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
   OCCMAP_ASSIGN_OR_RETURN(int64_t tc, f.GetInt("chroma_threshold", b.chroma_threshold));
   b.chroma_threshold = static_cast<int>(std::clamp<int64_t>(tc, -1, 1000));
   if (auto s = f.Find("shadows")) {
-    OCCMAP_RETURN_IF_ERROR(s->CheckKeys({"enabled", "min_ratio", "max_ratio", "chroma_tolerance"}));
+    OCCMAP_RETURN_IF_ERROR(s->CheckKeys({"enabled", "min_ratio", "max_ratio", "chroma_tolerance", "texture_radius_px",
+                                         "min_texture_correlation", "flat_std"}));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.enabled, s->GetBool("enabled", b.shadows.enabled));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.min_ratio, s->GetDouble("min_ratio", b.shadows.min_ratio));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.max_ratio, s->GetDouble("max_ratio", b.shadows.max_ratio));
     OCCMAP_ASSIGN_OR_RETURN(int64_t tol, s->GetInt("chroma_tolerance", b.shadows.chroma_tolerance));
     b.shadows.chroma_tolerance = static_cast<int>(std::clamp<int64_t>(tol, -1, 1000));
+    OCCMAP_ASSIGN_OR_RETURN(int64_t radius_px, s->GetInt("texture_radius_px", b.shadows.texture_radius_px));
+    b.shadows.texture_radius_px = static_cast<int>(std::clamp<int64_t>(radius_px, -1, 1000));
+    OCCMAP_ASSIGN_OR_RETURN(b.shadows.min_texture_correlation,
+                            s->GetDouble("min_texture_correlation", b.shadows.min_texture_correlation));
+    OCCMAP_ASSIGN_OR_RETURN(b.shadows.flat_std, s->GetDouble("flat_std", b.shadows.flat_std));
   }
   // Validate() names the field ("backgrounds.shadows.min_ratio: ..."): the message goes to its line.
   if (Status v = b.Validate(); !v.ok()) {

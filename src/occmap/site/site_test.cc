@@ -226,6 +226,8 @@ INSTANTIATE_TEST_SUITE_P(
                 "  support_slack_m: 0.04\nbackgrounds:\n  shadows: {min_ratio: 0.5, max_ratio: 0.4}\n", ":37: backgrounds.shadows: expected 0 < min_ratio < max_ratio < 1, found min_ratio 0.5 and max_ratio 0.4"},
         BadSite{"shadow_key", "  support_slack_m: 0.04\n",
                 "  support_slack_m: 0.04\nbackgrounds:\n  shadows: {min_ration: 0.5}\n", ":37: backgrounds.shadows: unknown field 'min_ration' (did you mean 'min_ratio'?)"},
+        BadSite{"source_fps", "mask: mask.png", "mask: mask.png\n    source: {video: v.mp4, fps: 5}",
+                ":15: cameras[0].source.fps: fps is for images and masks (video has its own timestamps)"},
         BadSite{"support_height", "support_heights_m: [0.35, 1.0]", "support_heights_m: [0.35, -1]",
                 ":33: blobs.support_heights_m: expected heights in (0, 10) m, found -1"},
         BadSite{"support_heights_not_a_list", "support_heights_m: [0.35, 1.0]", "support_heights_m: high",
