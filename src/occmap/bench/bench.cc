@@ -15,6 +15,8 @@
 #include <opencv2/imgproc.hpp>
 #include <yaml-cpp/yaml.h>
 
+#include "occmap/detect/background_model.h"
+#include "occmap/detect/change_detection.h"
 #include "occmap/geometry/rotation.h"
 #include "occmap/fusion/fast_fusion.h"
 #include "occmap/io/frame_source.h"
@@ -291,6 +293,58 @@ Result<WorkloadResult> RunWorkload(Workload& w, const BenchOptions& options, Con
   result.streaming_all_pps = random_rates.streaming_all_pps;
   result.primary_failure_fraction = random_rates.primary_failure_fraction;
   result.primary_tested_fraction = random_rates.primary_tested_fraction;
+  // The change test alone, one thread: the paper's |I - B| > T against the adaptive model's
+  // (transfer, chroma, shadows) and its update, on the same frames with random chroma.
+  {
+    std::vector<Image<uint8_t>> changes;
+    std::vector<std::vector<YuvImage>> yuv_frames(w.cameras.size());
+    std::vector<BackgroundModel> models;
+    std::vector<Image<uint8_t>> free_protection;
+    BackgroundOptions adaptive;
+    adaptive.adaptive = true;
+    for (size_t n = 0; n < w.cameras.size(); ++n) {
+      const Image<uint8_t>& b = backgrounds[n];
+      changes.emplace_back(b.width(), b.height());
+      free_protection.emplace_back(b.width(), b.height(), BackgroundModel::kFree);
+      YuvImage yb;
+      yb.y = b;
+      yb.u = Image<uint8_t>(ChromaPlaneSize(b.width()), ChromaPlaneSize(b.height()));
+      yb.v = yb.u;
+      for (int y = 0; y < yb.u.height(); ++y) {
+        for (int x = 0; x < yb.u.width(); ++x) {
+          yb.u(x, y) = static_cast<uint8_t>(96 + rng() % 64);
+          yb.v(x, y) = static_cast<uint8_t>(96 + rng() % 64);
+        }
+      }
+      for (int f = 0; f < options.frames; ++f) {
+        YuvImage yf;
+        yf.y = per_camera[n][static_cast<size_t>(f)];
+        yf.u = yb.u;
+        yf.v = yb.v;
+        yuv_frames[n].push_back(std::move(yf));
+      }
+      models.emplace_back(adaptive, 10.0);
+      models.back().Reset(yb);
+    }
+    result.plain_change_1_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
+                                  for (size_t n = 0; n < w.cameras.size(); ++n) {
+                                    DetectChangesGray(per_camera[n][static_cast<size_t>(f)].view(), backgrounds[n].view(),
+                                                      options.threshold, changes[n].view());
+                                  }
+                                });
+    result.adaptive_change_1_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
+                                     for (size_t n = 0; n < w.cameras.size(); ++n) {
+                                       models[n].DetectChanges(yuv_frames[n][static_cast<size_t>(f)].view(),
+                                                               options.threshold, changes[n].view());
+                                     }
+                                   });
+    result.adaptive_update_1_pps = pixels / MedianSecondsPerFrame(options.repetitions, options.frames, [&](int f) {
+                                     for (size_t n = 0; n < w.cameras.size(); ++n) {
+                                       models[n].Update(yuv_frames[n][static_cast<size_t>(f)].view(),
+                                                        free_protection[n].view(), f);
+                                     }
+                                   });
+  }
   // Worst case: every pixel changed (|I - B| = 128 > T), as many distinct frames.
   std::vector<std::vector<Image<uint8_t>>> changed(static_cast<size_t>(options.frames));
   std::vector<std::vector<ImageView<const uint8_t>>> changed_views(static_cast<size_t>(options.frames));
@@ -576,6 +630,12 @@ std::string BenchTable(const BenchResults& all) {
     row(fmt::format("(e) row streaming {} threads", r.threads).c_str(), r.streaming_all_pps);
     row("(f) all changed, 1 thread", r.worst_1_pps);
     row(fmt::format("(f) all changed, {} threads", r.threads).c_str(), r.worst_all_pps);
+    row("(g) change test alone, plain", r.plain_change_1_pps);
+    row("(h) adaptive test (shadows)", r.adaptive_change_1_pps);
+    row("(i) adaptive update", r.adaptive_update_1_pps);
+    s += fmt::format("  the adaptive model (transfer, chroma, shadow test) costs {:.2f}x the plain change test; its update "
+                     "{:.2f}x (1 thread, no fusion)\n",
+                     Ratio(r.plain_change_1_pps, r.adaptive_change_1_pps), Ratio(r.plain_change_1_pps, r.adaptive_update_1_pps));
     s += fmt::format("  FastFusion ({}): speedup vs OpenCV {:.2f}x, vs paper loop {:.2f}x, {} threads vs 1 {:.2f}x; "
                      "first pass reads {:.1f} MB per frame (row streaming {:.1f} MB)\n",
                      "cell probes, occmap run's path", Ratio(r.fast_all_pps, r.opencv_pps),
@@ -699,6 +759,10 @@ nlohmann::json BenchJson(const BenchResults& all) {
     j["fast_1_thread_pixels_per_second"] = r.fast_1_pps;
     j["fast_all_threads_pixels_per_second"] = r.fast_all_pps;
     j["fast_all_threads_vs_1_thread"] = Ratio(r.fast_all_pps, r.fast_1_pps);
+    j["change_tests"] = {{"plain_pixels_per_second", r.plain_change_1_pps},
+                         {"adaptive_pixels_per_second", r.adaptive_change_1_pps},
+                         {"adaptive_update_pixels_per_second", r.adaptive_update_1_pps},
+                         {"adaptive_cost_vs_plain", Ratio(r.plain_change_1_pps, r.adaptive_change_1_pps)}};
     j["row_streaming_1_thread_pixels_per_second"] = r.streaming_1_pps;
     j["row_streaming_all_threads_pixels_per_second"] = r.streaming_all_pps;
     j["all_changed_1_thread_pixels_per_second"] = r.worst_1_pps;

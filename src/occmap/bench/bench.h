@@ -11,7 +11,9 @@
 //   (e) streaming: FastFusion's row-streaming method (every pixel, the previous default) on one
 //                  and all threads, at the same frames;
 //   (f) worst:     FastFusion::Fuse on one and all threads with EVERY pixel changed (frame =
-//                  background XOR 0x80): the cell probes fail and hand over to row streaming.
+//                  background XOR 0x80): the cell probes fail and hand over to row streaming;
+//   (g)-(i)        the change test alone on one thread: plain, the adaptive model's (shadows),
+//                  and the adaptive model's update.
 // Figures: camera pixels per second (all cameras' pixels / median time per frame over the
 // repetitions) and ratios; table build time and table bytes.
 //
@@ -126,6 +128,10 @@ struct WorkloadResult {
   int64_t fast_bytes_read_per_frame = 0;
   double primary_failure_fraction = 0;  // failed primary probes / primary probes, (c)'s frames
   double primary_tested_fraction = 0;   // of the primary probes, those tested, (c)'s frames
+  // (g)-(i) the change test alone on one thread, without the fusion: the paper's plain test
+  // (DetectChangesGray), the adaptive model's (BackgroundModel::DetectChanges: transfer, chroma
+  // and shadow test) and its update (every pixel free), on the same frames (random chroma).
+  double plain_change_1_pps = 0, adaptive_change_1_pps = 0, adaptive_update_1_pps = 0;
   RenderedResult rendered;              // wildtrack only
 };
 

@@ -14,12 +14,14 @@
 #include <set>
 
 #include "occmap/detect/background.h"
+#include "occmap/detect/background_model.h"
 #include "occmap/detect/change_detection.h"
 #include "occmap/fusion/fast_fusion.h"
 #include "occmap/fusion/fusion.h"
 #include "occmap/fusion/morphology.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/io/video_writer.h"
+#include "occmap/pipeline/background_maintenance.h"
 #include "occmap/pipeline/object_detector.h"
 #include "occmap/pipeline/mosaic.h"
 #include "occmap/pipeline/stage_queue.h"
@@ -54,6 +56,8 @@ struct CameraState {
   bool active = true;    // its stream has not ended or failed
   Image<uint8_t> raw_changes;
   std::vector<uint8_t> dilate_scratch;
+  // The adaptive model (site.backgrounds.adaptive): learned or given, kept up to date.
+  std::unique_ptr<BackgroundModel> model;
   CameraRunInfo info;
 };
 
@@ -77,6 +81,114 @@ Status CheckFrameSize(const CameraState& c, const Frame& f) {
                                     c.source->Describe(), f.gray.width(), f.gray.height(), want.width,
                                     want.height));
   }
+  return Status::Ok();
+}
+
+YuvView FrameYuv(const Frame& f) {
+  if (f.u.empty()) return {f.gray.view(), {}, {}};
+  return {f.gray.view(), f.u.view(), f.v.view()};
+}
+
+// A background of the adaptive model as a picture: RGB from luma and chroma, or grey.
+Status WriteYuvPng(const fs::path& path, const YuvImage& yuv) {
+  if (!yuv.has_chroma()) return WritePng(path, yuv.y.view());
+  return WritePng(path, RgbFromYuv(yuv.view()).view());
+}
+
+// The adaptive model's background of a camera: given (a picture), reused from the cache, or
+// learned from the busy video (site.backgrounds: K frames over learn_s seconds).
+Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bool chroma,
+                                 const FrameSourceOptions& src_opts, CameraState& c) {
+  const SiteCamera& cam = *c.cam;
+  const BackgroundOptions& bo = site.backgrounds;
+  const ImageSize size = cam.camera->image_size();
+  YuvImage background;
+  auto check_size = [&](int w, int h, const fs::path& path) -> Status {
+    if (w == size.width && h == size.height) return Status::Ok();
+    return InvalidInput(fmt::format("camera {}: background '{}' is {}x{}, expected the image size {}x{}", cam.id,
+                                    path.string(), w, h, size.width, size.height));
+  };
+  double fps = 10;
+  if (cam.background) {
+    if (chroma) {
+      auto rgb = ReadRgbImage(*cam.background);
+      if (!rgb.ok()) return rgb.status().WithContext(fmt::format("camera {}: background", cam.id));
+      OCCMAP_RETURN_IF_ERROR(check_size(rgb->width(), rgb->height(), *cam.background));
+      background = YuvFromRgb(rgb->view());
+    } else {
+      auto gray = ReadGrayImage(*cam.background);
+      if (!gray.ok()) return gray.status().WithContext(fmt::format("camera {}: background", cam.id));
+      OCCMAP_RETURN_IF_ERROR(check_size(gray->width(), gray->height(), *cam.background));
+      background.y = std::move(gray).value();
+    }
+    c.info.background = fmt::format("given: {}", cam.background->string());
+    if (auto f = c.source->fps()) fps = *f;
+  } else {
+    Hasher h;
+    h.Add("adaptive-background-v1");
+    h.Add(site.name);
+    h.Add(cam.id);
+    h.Add(cam.source.location);
+    h.Add(ToString(bo.learning));
+    h.AddPod(bo.learn_s);
+    h.AddPod(bo.learn_samples);
+    h.AddPod(bo.mode_radius);
+    h.AddPod(options.start_frame);
+    h.AddPod(chroma);
+    h.AddPod(size.width);
+    h.AddPod(size.height);
+    std::error_code ec;
+    if (const auto mtime = fs::last_write_time(cam.source.location, ec); !ec) h.AddPod(mtime.time_since_epoch().count());
+    const fs::path cached = options.cache_dir.empty() ? fs::path()
+                                                      : options.cache_dir / "backgrounds" /
+                                                            fmt::format("{}-{}-{:016x}", site.name, cam.id, h.Digest());
+    auto plane_path = [&](const char* plane) { return fs::path(cached.string() + "-" + plane + ".png"); };
+    bool reused = false;
+    if (!cached.empty() && fs::exists(plane_path("y"), ec)) {
+      auto y = ReadGrayImage(plane_path("y"));
+      auto u = chroma ? ReadGrayImage(plane_path("u")) : Result<Image<uint8_t>>(Image<uint8_t>());
+      auto v = chroma ? ReadGrayImage(plane_path("v")) : Result<Image<uint8_t>>(Image<uint8_t>());
+      if (y.ok() && u.ok() && v.ok() && y->width() == size.width && y->height() == size.height) {
+        background.y = std::move(y).value();
+        background.u = std::move(u).value();
+        background.v = std::move(v).value();
+        reused = true;
+        c.info.background = fmt::format("reused: {}", plane_path("y").string());
+      }
+    }
+    OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> src, OpenFrameSource(cam.source, src_opts));
+    if (auto f = src->fps()) fps = *f;
+    if (!reused) {
+      OCCMAP_RETURN_IF_ERROR(src->SkipTo(options.start_frame));
+      const int64_t window = std::max<int64_t>(1, std::llround(bo.learn_s * fps));
+      const int64_t step = std::max<int64_t>(1, window / bo.learn_samples);
+      BackgroundLearner learner(size.width, size.height, chroma, bo.learn_samples);
+      Frame f;
+      for (int64_t read = 0; read < window && learner.count() < bo.learn_samples; ++read) {
+        OCCMAP_ASSIGN_OR_RETURN(bool got, src->Read(f));
+        if (!got) break;
+        if (read % step != 0) continue;
+        OCCMAP_RETURN_IF_ERROR(CheckFrameSize(c, f).WithContext(fmt::format("camera {}", cam.id)));
+        learner.Add(FrameYuv(f));
+      }
+      if (learner.count() == 0) {
+        return InvalidInput(fmt::format("camera {}: {} has no frames to learn a background from", cam.id, src->Describe()));
+      }
+      background = learner.Learn(bo.learning, bo.mode_radius);
+      c.info.background = fmt::format("learned: {} of {} frames over {:.1f} s", ToString(bo.learning), learner.count(),
+                                      static_cast<double>(std::min(window, learner.count() * step)) / fps);
+      if (!cached.empty()) {
+        OCCMAP_RETURN_IF_ERROR(EnsureDirectory(cached.parent_path()));
+        if (chroma) {
+          OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("u"), background.u.view()));
+          OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("v"), background.v.view()));
+        }
+        OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("y"), background.y.view()));  // last: marks the set complete
+      }
+    }
+  }
+  c.model = std::make_unique<BackgroundModel>(bo, fps);
+  c.model->Reset(background);
   return Status::Ok();
 }
 
@@ -220,6 +332,7 @@ struct FrameSet {
   bool changes_ready = false;    // `changes` holds this instant's changes (not so when fully fused)
   ChangeBits change_bits;        // FastFusion::FuseTolerant's changes after the tolerance, as bits
   bool bits_ready = false;       // `change_bits` holds this instant's changes
+  std::vector<Image<uint8_t>> change_pictures;  // --change-pngs: per camera, 255 changed (before the tolerance)
 };
 
 // What the writer stage writes for one frame, in frame order.
@@ -228,6 +341,7 @@ struct FrameOutput {
   std::string detections_line, tracks_line, mot_rows, event_lines;
   Image<uint8_t> occupancy;  // the map's grey picture, when occupancy.mp4 or the PNGs are on
   Image<Rgb8> mosaic;        // when mosaic.mp4 is on
+  std::vector<Image<uint8_t>> changes;  // --change-pngs, per camera (empty: inactive)
 };
 // Frames whose outputs may wait for the writer (each up to a mosaic picture, ~3 MB).
 constexpr size_t kOutputQueue = 4;
@@ -258,12 +372,17 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   OCCMAP_RETURN_IF_ERROR(site.fusion.Validate(static_cast<int>(site.cameras.size())));
   const auto t_start = Clock::now();
   RunSummary summary;
-  const bool colour = site.detection.colour;
+  OCCMAP_RETURN_IF_ERROR(site.backgrounds.Validate());
+  const bool adaptive = site.backgrounds.adaptive;
+  // The adaptive model reads colour as the decoder's chroma planes; the paper's test as RGB.
+  const bool colour = site.detection.colour && !adaptive;
+  const bool chroma = site.detection.colour && adaptive;
 
   // Sources and backgrounds.
   std::vector<CameraState> cams(site.cameras.size());
   FrameSourceOptions src_opts;
   src_opts.colour = colour;
+  src_opts.chroma = chroma;
   // The cameras decode side by side (the reader stage below): each decoder gets its share of the
   // threads, at least one. A background estimated from one camera's frames uses them all.
   src_opts.decoder_threads = DecoderThreadsPerCamera(ctx.num_threads(), static_cast<int>(site.cameras.size()));
@@ -281,7 +400,11 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     if (!src.ok()) return src.status().WithContext(fmt::format("camera {}", c.cam->id));
     c.source = std::move(src).value();
     c.info.source = c.source->Describe();
-    OCCMAP_RETURN_IF_ERROR(PrepareBackground(site, options, colour, background_opts, c));
+    if (adaptive && !c.is_mask) {
+      OCCMAP_RETURN_IF_ERROR(PrepareAdaptiveBackground(site, options, chroma, background_opts, c));
+    } else {
+      OCCMAP_RETURN_IF_ERROR(PrepareBackground(site, options, colour, background_opts, c));
+    }
     if (options.start_frame > 0) {
       OCCMAP_RETURN_IF_ERROR(c.source->SkipTo(options.start_frame).WithContext(fmt::format("camera {}", c.cam->id)));
     }
@@ -307,7 +430,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   // AND on grey frames, no mask sources, no mosaic video (the mosaic picture of the best frame
   // gets its changes computed when it is drawn); without tolerance (Fuse) or with a small one
   // folded in (FuseTolerant: the changes exist only as bits, which the elevated check reads).
-  const bool fusable = paper_and && !colour && !any_mask_source && !options.mosaic_video;
+  const bool fusable = paper_and && !colour && !adaptive && !any_mask_source && !options.mosaic_video &&
+                       !options.change_pngs;
   const bool fully_fused = fusable && site.detection.tolerance_px == 0;
   const bool tolerant_fused = fusable && site.detection.tolerance_px >= 1 &&
                               site.detection.tolerance_px <= FastFusion::kMaxFusedTolerancePx;
@@ -320,10 +444,17 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   for (const auto& c : cams) {
     if (c.is_mask) continue;
     const fs::path p = out / "backgrounds" / (c.cam->id + ".png");
-    OCCMAP_RETURN_IF_ERROR(colour ? WritePng(p, c.background_rgb.view()) : WritePng(p, c.background_gray.view()));
+    if (c.model) {
+      OCCMAP_RETURN_IF_ERROR(WriteYuvPng(p, c.model->Current()));
+    } else {
+      OCCMAP_RETURN_IF_ERROR(colour ? WritePng(p, c.background_rgb.view()) : WritePng(p, c.background_gray.view()));
+    }
     summary.outputs.push_back(p.string());
   }
   if (options.occupancy_pngs) OCCMAP_RETURN_IF_ERROR(EnsureDirectory(out / "occupancy"));
+  if (options.change_pngs) {
+    for (const auto& c : cams) OCCMAP_RETURN_IF_ERROR(EnsureDirectory(out / "changes" / c.cam->id));
+  }
   OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<AtomicFileWriter> detections, AtomicFileWriter::Open(out / "detections.jsonl"));
   const double fps = cams[0].source->fps().value_or(10.0);
   const int map_scale = std::max(1, 400 / std::max(site.grid.cells_x, site.grid.cells_y));
@@ -527,6 +658,10 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       OCCMAP_RETURN_IF_ERROR(WritePng(out / "occupancy" / fmt::format("{:06d}.png", o.frame), o.occupancy.view()));
     }
     if (mosaic_video) OCCMAP_RETURN_IF_ERROR(mosaic_video->Write(o.mosaic.view()));
+    for (size_t n = 0; n < o.changes.size(); ++n) {
+      if (o.changes[n].empty()) continue;
+      OCCMAP_RETURN_IF_ERROR(WritePng(out / "changes" / cams[n].cam->id / fmt::format("{:06d}.png", o.frame), o.changes[n].view()));
+    }
     write_s += Since(t0);
     return Status::Ok();
   });
@@ -539,7 +674,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                              size.width);
     const int r = site.detection.tolerance_px;
     const Frame& frame = set.frames[n];
-    if (r > 0 && r <= 4 && !c.is_mask && !colour) {  // small tolerances on grey: one pass, no raw image
+    if (r > 0 && r <= 4 && !c.is_mask && !colour && !c.model && !options.change_pngs) {
+      // small tolerances on grey: one pass, no raw image
       DetectChangesGrayDilated(frame.gray.view(), c.background_gray.view(), site.detection.threshold, r, slice,
                                scratch);
       return;
@@ -548,6 +684,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     ImageView<uint8_t> target = r > 0 ? raw.view() : slice;
     if (c.is_mask) {
       MaskToChanges(frame.gray.view(), target);
+    } else if (c.model) {
+      c.model->DetectChanges(FrameYuv(frame), site.detection.threshold, target);
     } else if (colour) {
       DetectChangesRgb(frame.rgb.view(), c.background_rgb.view(), site.detection.threshold, target);
     } else {
@@ -694,6 +832,12 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         output.detections_line = line.dump() + "\n";
         summary.blob_counts.push_back(blobs.size());
         if (occupancy_video || options.occupancy_pngs) output.occupancy = map.ToGrayImage();
+        if (options.change_pngs) {
+          output.changes.resize(cams.size());
+          for (size_t n = 0; n < cams.size(); ++n) {
+            if (active[n]) output.changes[n] = set.change_pictures[n];
+          }
+        }
         const bool first = mosaic_video ? best_mosaic.empty() : !best_frame.kept;
         const bool best = first || blobs.size() > best_blobs;
         if (mosaic_video) {
@@ -757,6 +901,16 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
 
   // 2.-3. Change detection and fusion, on this thread.
   std::optional<Clock::time_point> t_first_set;
+  std::optional<BackgroundProtection> protection;
+  std::vector<ImageView<const uint8_t>> protection_changes(cams.size());
+  int64_t last_frame_index = options.start_frame;
+  if (adaptive) {
+    std::vector<const CameraModel*> models;
+    for (const auto& c : cams) models.push_back(c.cam->camera.get());
+    ProtectionOptions po;
+    po.person_height_m = site.backgrounds.person_height_m;
+    protection.emplace(std::move(models), site.plane_height_m, po);
+  }
   while (std::optional<int> slot = filled_slots.Pop()) {
     if (!t_first_set) t_first_set = Clock::now();
     FrameSet& set = slots[*slot];
@@ -781,6 +935,26 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         }
       });
       set.changes_ready = true;
+      if (options.change_pngs) {
+        set.change_pictures.resize(cams.size());
+        for (size_t n = 0; n < cams.size(); ++n) {
+          if (!active[n]) continue;
+          const ImageSize size = cams[n].cam->camera->image_size();
+          // Before the tolerance: the raw image when there is one, else the change buffer.
+          const bool raw = site.detection.tolerance_px > 0;
+          const ImageView<const uint8_t> src =
+              raw ? cams[n].raw_changes.view()
+                  : ImageView<const uint8_t>(set.changes.data() + lut.pixel_offset(static_cast<int>(n)), size.width,
+                                             size.height, size.width);
+          Image<uint8_t>& pic = set.change_pictures[n];
+          if (pic.width() != size.width || pic.height() != size.height) pic = Image<uint8_t>(size.width, size.height);
+          for (int y = 0; y < size.height; ++y) {
+            const uint8_t* a = src.row(y);
+            uint8_t* b = pic.row(y);
+            for (int x = 0; x < size.width; ++x) b[x] = a[x] != 0 ? 255 : 0;
+          }
+        }
+      }
     }
     summary.detect_s += Since(t0);
     t0 = Clock::now();
@@ -802,6 +976,26 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       fusion.Fuse(set.changes, active, site.fusion, set.map);
     }
     summary.fuse_s += Since(t0);
+    // The adaptive backgrounds follow the frame where the map says nothing stands.
+    if (adaptive) {
+      t0 = Clock::now();
+      for (size_t n = 0; n < cams.size(); ++n) {
+        const ImageSize size = cams[n].cam->camera->image_size();
+        protection_changes[n] = active[n] ? ImageView<const uint8_t>(set.changes.data() + lut.pixel_offset(static_cast<int>(n)),
+                                                                     size.width, size.height, size.width)
+                                          : ImageView<const uint8_t>();
+      }
+      protection->Compute(set.map, protection_changes);
+      ParallelFor(ctx, 0, static_cast<int64_t>(cams.size()), [&](int64_t b, int64_t e, int) {
+        for (int64_t n = b; n < e; ++n) {
+          if (active[n] && cams[n].model) {
+            cams[n].model->Update(FrameYuv(set.frames[n]), protection->image(static_cast<size_t>(n)).view(), set.frame_index);
+          }
+        }
+      });
+      last_frame_index = set.frame_index;
+      summary.background_s += Since(t0);
+    }
     post.Push(*slot);  // when it has failed, the slot goes straight back to the reader
   }
   reader.join();  // it has closed filled_slots: the sources, flags and infos are ours again
@@ -871,6 +1065,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                        {"frames_per_second", summary.steady_fps}};
   j["stage_seconds"] = {{"decode", summary.decode_s}, {"detect", summary.detect_s}, {"fuse", summary.fuse_s},
                         {"blobs", summary.blobs_s}, {"track", summary.track_s}, {"output", summary.output_s},
+                        {"background", summary.background_s},
                         {"tables", summary.lut_seconds}};
   if (options.track) {
     j["tracking"] = {{"algorithm", std::string(ToString(site.tracking.algorithm))},
@@ -879,6 +1074,15 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                      {"zone_events", summary.zone_events}};
   }
   j["stop_reason"] = summary.stop_reason;
+  if (adaptive) {
+    const BackgroundOptions& bo = site.backgrounds;
+    j["backgrounds"] = {{"adaptive", true}, {"learning", ToString(bo.learning)}, {"learn_s", bo.learn_s},
+                        {"learn_samples", bo.learn_samples}, {"adapt_s", bo.adapt_s}, {"relight_s", bo.relight_s},
+                        {"absorb_s", bo.absorb_s}, {"person_height_m", bo.person_height_m},
+                        {"chroma", chroma}, {"chroma_threshold", bo.chroma_threshold},
+                        {"shadows", {{"enabled", bo.shadows.enabled}, {"min_ratio", bo.shadows.min_ratio},
+                                     {"max_ratio", bo.shadows.max_ratio}, {"chroma_tolerance", bo.shadows.chroma_tolerance}}}};
+  }
   j["settings"] = {{"threshold", site.detection.threshold},
                    {"colour", site.detection.colour},
                    {"tolerance_px", site.detection.tolerance_px},
@@ -895,8 +1099,18 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                              {"cell_size_m", site.grid.cell_size_m}}}};
   j["tables"] = {{"cache", summary.lut_cache}, {"seconds", summary.lut_seconds}};
   json cj = json::array();
-  for (const auto& c : summary.cameras) {
+  for (size_t n = 0; n < summary.cameras.size(); ++n) {
+    const CameraRunInfo& c = summary.cameras[n];
     json e = {{"id", c.id}, {"source", c.source}, {"background", c.background}};
+    if (const BackgroundModel* m = cams[n].model.get(); m != nullptr) {
+      const BackgroundStats& st = m->stats();
+      e["background_model"] = {
+          {"updated_fraction", st.pixels > 0 ? static_cast<double>(st.pixels_updated) / static_cast<double>(st.pixels) : 0.0},
+          {"mean_age_s", m->MeanAgeS(last_frame_index)},
+          {"absorbed_pixel_events", st.pixels_absorbed},
+          {"last_frame", {{"gain", st.transfer.gain}, {"offset", st.transfer.offset},
+                          {"changed_fraction", st.changed_fraction}, {"shadow_fraction", st.shadow_fraction}}}};
+    }
     if (c.ended_at_frame) e["ended_at_frame"] = *c.ended_at_frame;
     if (!c.end_reason.empty()) e["end_reason"] = c.end_reason;
     cj.push_back(e);

@@ -20,7 +20,8 @@
 //   mosaic.mp4, mosaic.png   camera tiles with the change overlay beside the map with the
 //                      cameras and blobs (like the paper's figures 6 and 8); the PNG is the
 //                      frame with the most blobs
-//   backgrounds/<camera>.png  the background each camera used
+//   backgrounds/<camera>.png  the background each camera used (adaptive: as learned or given)
+//   changes/<camera>/NNNNNN.png  with change_pngs: changed pixels 255, before the tolerance
 //
 //   RunOptions options;  options.out_dir = "out";
 //   OCCMAP_ASSIGN_OR_RETURN(RunSummary summary, RunSite(site, options, ctx, on_progress));
@@ -55,6 +56,7 @@ struct RunOptions {
   OnCameraFailure on_camera_failure = OnCameraFailure::kStop;
   bool occupancy_video = true;
   bool occupancy_pngs = false;
+  bool change_pngs = false;  // changes/<camera>/NNNNNN.png: each camera's changed pixels (255), before the tolerance
   bool mosaic_video = true;
   int background_frames = 25;  // K of the median background, when a camera has none
   int background_step = 4;     // take every n-th frame for the median
@@ -100,6 +102,7 @@ struct RunSummary {
   // they do not add up to `seconds`). decode: the reader; detect and fuse: the fusion stage;
   // blobs, track: the post stage; output: formatting (post) and writing (writer).
   double decode_s = 0, detect_s = 0, fuse_s = 0, blobs_s = 0, track_s = 0, output_s = 0;
+  double background_s = 0;  // the adaptive backgrounds' update (the fusion stage)
   int max_queued_outputs = 0;  // the most frames whose outputs waited for the writer at once
   std::string stop_reason;  // "end of streams", "frame limit", "camera C2 ended", ...
   std::vector<CameraRunInfo> cameras;

@@ -1,0 +1,108 @@
+#include "occmap/pipeline/background_maintenance.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "occmap/detect/background_model.h"
+#include "occmap/util/status.h"
+
+namespace occmap {
+namespace {
+
+constexpr int kRingPoints = 12;  // points per circle of the projected box
+constexpr int kVoteWindowPx = 2;
+
+bool ChangedNear(ImageView<const uint8_t> changes, int cx, int cy) {
+  for (int y = std::max(0, cy - kVoteWindowPx); y <= std::min(changes.height() - 1, cy + kVoteWindowPx); ++y) {
+    const uint8_t* row = changes.row(y);
+    for (int x = std::max(0, cx - kVoteWindowPx); x <= std::min(changes.width() - 1, cx + kVoteWindowPx); ++x) {
+      if (row[x] != 0) return true;
+    }
+  }
+  return false;
+}
+
+bool Inside(const Eigen::Vector2d& px, ImageSize size) {
+  return px.x() >= -0.5 && px.y() >= -0.5 && px.x() < size.width - 0.5 && px.y() < size.height - 0.5;
+}
+
+}  // namespace
+
+BackgroundProtection::BackgroundProtection(std::vector<const CameraModel*> cameras, double plane_height_m,
+                                           ProtectionOptions options)
+    : cameras_(std::move(cameras)), plane_height_m_(plane_height_m), options_(options) {
+  for (const CameraModel* c : cameras_) {
+    const ImageSize s = c->image_size();
+    images_.emplace_back(s.width, s.height, BackgroundModel::kFree);
+  }
+}
+
+void BackgroundProtection::Compute(const OccupancyMap& map, const std::vector<ImageView<const uint8_t>>& changes) {
+  OCCMAP_CHECK(changes.size() == cameras_.size(), "protection: one change mask per camera");
+  for (Image<uint8_t>& im : images_) {
+    for (int y = 0; y < im.height(); ++y) std::fill(im.row(y), im.row(y) + im.width(), BackgroundModel::kFree);
+  }
+  objects_ = persons_ = 0;
+  const FloorGrid& g = map.grid();
+  const std::vector<Blob>& blobs = finder_.Find(map, {.min_area_m2 = options_.min_area_m2});
+  for (const Blob& b : blobs) {
+    ++objects_;
+    const double x0 = g.origin_x_m + b.min_i * g.cell_size_m - options_.margin_m;
+    const double x1 = g.origin_x_m + (b.max_i + 1) * g.cell_size_m + options_.margin_m;
+    const double y0 = g.origin_y_m + b.min_j * g.cell_size_m - options_.margin_m;
+    const double y1 = g.origin_y_m + (b.max_j + 1) * g.cell_size_m + options_.margin_m;
+    const double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1);
+    const double radius = 0.5 * std::hypot(x1 - x0, y1 - y0);
+    // Person: change at person height above the centroid, in most cameras that see it.
+    int seen = 0, changed = 0;
+    for (size_t n = 0; n < cameras_.size(); ++n) {
+      if (changes[n].empty()) continue;
+      const ImageSize size = cameras_[n]->image_size();
+      const auto foot = cameras_[n]->Project({b.x_m, b.y_m, plane_height_m_});
+      const auto top = cameras_[n]->Project({b.x_m, b.y_m, plane_height_m_ + options_.person_height_m});
+      if (!foot || !top || !Inside(*foot, size) || !Inside(*top, size)) continue;
+      ++seen;
+      changed += ChangedNear(changes[n], static_cast<int>(std::lround(top->x())), static_cast<int>(std::lround(top->y())));
+    }
+    const bool person = seen > 0 && 2 * changed >= seen + (seen > 1 ? 1 : 0);
+    persons_ += person;
+    const uint8_t value = person ? BackgroundModel::kPerson : BackgroundModel::kObject;
+    // The box's projection: its bounding rectangle in each camera.
+    for (size_t n = 0; n < cameras_.size(); ++n) {
+      const ImageSize size = cameras_[n]->image_size();
+      double u0 = 1e18, v0 = 1e18, u1 = -1e18, v1 = -1e18;
+      bool all = true;
+      for (int k = 0; k < kRingPoints && all; ++k) {
+        const double a = 2 * std::numbers::pi * k / kRingPoints;
+        for (double z : {0.0, options_.height_m}) {
+          const auto px = cameras_[n]->Project({cx + radius * std::cos(a), cy + radius * std::sin(a), plane_height_m_ + z});
+          if (!px) {
+            all = false;  // the box reaches behind the camera: protect its whole image
+            break;
+          }
+          u0 = std::min(u0, px->x());
+          u1 = std::max(u1, px->x());
+          v0 = std::min(v0, px->y());
+          v1 = std::max(v1, px->y());
+        }
+      }
+      if (!all) {
+        u0 = v0 = 0;
+        u1 = size.width;
+        v1 = size.height;
+      }
+      const int c0 = std::clamp(static_cast<int>(std::floor(u0)), 0, size.width);
+      const int c1 = std::clamp(static_cast<int>(std::ceil(u1)) + 1, 0, size.width);
+      const int r0 = std::clamp(static_cast<int>(std::floor(v0)), 0, size.height);
+      const int r1 = std::clamp(static_cast<int>(std::ceil(v1)) + 1, 0, size.height);
+      Image<uint8_t>& im = images_[n];
+      for (int y = r0; y < r1; ++y) {
+        uint8_t* row = im.row(y);
+        for (int x = c0; x < c1; ++x) row[x] = std::max(row[x], value);
+      }
+    }
+  }
+}
+
+}  // namespace occmap

@@ -1,0 +1,161 @@
+#include "occmap/pipeline/background_maintenance.h"
+
+#include <fmt/core.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "occmap/detect/background_model.h"
+#include "occmap/eval/run_outputs.h"
+#include "occmap/pipeline/run.h"
+#include "occmap/sim/builtin_scenes.h"
+#include "occmap/sim/dataset_writer.h"
+#include "occmap/site/site.h"
+#include "occmap/util/file_util.h"
+#include "occmap/util/image_io.h"
+#include "occmap/util/testing.h"
+
+namespace occmap {
+namespace {
+namespace fs = std::filesystem;
+
+constexpr double kFps = 5;
+constexpr int64_t kFrames = 310;          // 62 s
+constexpr int64_t kLightsOnFrame = 200;   // every pixel + 40 from here on
+const Eigen::Vector2d kPerson(3.0, 3.0);  // stands still the whole time
+const Eigen::Vector2d kBoxStart(6.5, 4.5), kBoxEnd(6.5, 2.0);  // pushed at 4-8 s, then left
+
+// The lab at half size with no one but a person standing still for 62 s and a box pushed and
+// left; from frame kLightsOnFrame every pixel of every camera is 40 levels brighter.
+class StillScene : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new testing::TempDir();
+    sim::BuiltinSceneOptions o;
+    o.image_scale = 0.5;
+    sim::SceneSpec spec = sim::MakeLabSceneSpec(o);
+    spec.fps = kFps;
+    spec.num_frames = kFrames;
+    spec.objects.clear();
+    const Eigen::Vector3f carpet(0.35f, 0.35f, 0.4f);
+    sim::MovingObjectSpec person;
+    person.id = 1;
+    person.object_class = sim::ObjectClass::kPerson;
+    person.appearance = sim::RandomAppearance(sim::ObjectClass::kPerson, 3, 1, carpet, 0.0);
+    person.path = {{0.0, kPerson, false}, {70.0, kPerson, false}};
+    sim::MovingObjectSpec box;
+    box.id = 2;
+    box.object_class = sim::ObjectClass::kBox;
+    box.appearance = sim::RandomAppearance(sim::ObjectClass::kBox, 3, 2, carpet, 0.0);
+    box.appearance.height_m = 0.6;
+    box.appearance.width_m = 0.5;
+    box.appearance.depth_m = 0.4;
+    box.appearance.top = {0.8f, 0.6f, 0.2f};
+    box.path = {{0.0, kBoxStart, false}, {4.0, kBoxStart, false}, {8.0, kBoxEnd, false}, {70.0, kBoxEnd, false}};
+    spec.objects = {person, box};
+    auto scene = sim::Scene::Create(spec);
+    ASSERT_TRUE(scene.ok()) << scene.status().message();
+    sim::DatasetOptions d;
+    d.out_dir = dir_->path() / "data";
+    d.gt_rasters = false;
+    d.change_masks = false;
+    Context ctx(2);
+    auto written = sim::WriteDataset(*scene, d, ctx);
+    ASSERT_TRUE(written.ok()) << written.status().message();
+    site_file_ = new fs::path(written->site_file);
+    // Lights on.
+    for (const auto& cam : spec.cameras) {
+      for (int64_t f = kLightsOnFrame; f < kFrames; ++f) {
+        const fs::path p = d.out_dir / "frames" / cam.id / fmt::format("{:06d}.png", f);
+        auto rgb = ReadRgbImage(p);
+        ASSERT_TRUE(rgb.ok()) << rgb.status().message();
+        for (int y = 0; y < rgb->height(); ++y) {
+          for (int x = 0; x < rgb->width(); ++x) {
+            Rgb8& px = (*rgb)(x, y);
+            px = {static_cast<uint8_t>(std::min(255, px.r + 40)), static_cast<uint8_t>(std::min(255, px.g + 40)),
+                  static_cast<uint8_t>(std::min(255, px.b + 40))};
+          }
+        }
+        ASSERT_TRUE(WritePng(p, rgb->view()).ok());
+      }
+    }
+  }
+  static void TearDownTestSuite() {
+    delete site_file_;
+    delete dir_;
+  }
+
+  // Runs the site with the adaptive model; the detections per frame.
+  std::vector<DetectionFrame> Run(double absorb_s, const std::string& name, nlohmann::json* summary = nullptr) {
+    auto site = LoadSite(*site_file_);
+    EXPECT_TRUE(site.ok()) << site.status().message();
+    for (SiteCamera& c : site->cameras) c.source.fps = kFps;
+    site->detection.colour = true;
+    site->backgrounds.adaptive = true;
+    site->backgrounds.absorb_s = absorb_s;
+    RunOptions r;
+    r.out_dir = dir_->path() / name;
+    r.occupancy_video = false;
+    r.mosaic_video = false;
+    r.track = false;
+    Context ctx(2);
+    auto run = RunSite(*site, r, ctx);
+    EXPECT_TRUE(run.ok()) << run.status().message();
+    if (summary != nullptr) *summary = nlohmann::json::parse(ReadFileToString(r.out_dir / "summary.json").value());
+    auto frames = ReadDetections(r.out_dir / "detections.jsonl");
+    EXPECT_TRUE(frames.ok());
+    return frames.ok() ? *frames : std::vector<DetectionFrame>{};
+  }
+
+  static bool Near(const DetectionFrame& f, const Eigen::Vector2d& at, double r_m) {
+    for (const DetectedBlob& b : f.blobs) {
+      if (std::hypot(b.x_m - at.x(), b.y_m - at.y()) <= r_m) return true;
+    }
+    return false;
+  }
+
+  static testing::TempDir* dir_;
+  static fs::path* site_file_;
+};
+testing::TempDir* StillScene::dir_ = nullptr;
+fs::path* StillScene::site_file_ = nullptr;
+
+TEST_F(StillScene, KeepsThePersonAbsorbsTheBoxAndFollowsTheLights) {
+  nlohmann::json summary;
+  const std::vector<DetectionFrame> frames = Run(/*absorb_s=*/10, "adaptive", &summary);
+  ASSERT_EQ(frames.size(), static_cast<size_t>(kFrames));
+  const int64_t box_still = static_cast<int64_t>(8 * kFps);
+  const int64_t absorbed_by = box_still + static_cast<int64_t>((10 + 2) * kFps);  // absorb_s + 2 s
+  const int64_t recovered_by = kLightsOnFrame + static_cast<int64_t>(3 * kFps);
+  for (const DetectionFrame& f : frames) {
+    // The person standing still for 62 s is never taken into the background.
+    EXPECT_TRUE(Near(f, kPerson, 0.5)) << "frame " << f.frame << ": the person is missing";
+    if (f.frame >= absorbed_by) {
+      EXPECT_FALSE(Near(f, kBoxEnd, 0.6)) << "frame " << f.frame << ": the box left still is not absorbed";
+    }
+    // Before the lights and from 3 s after them, the person is all there is.
+    if ((f.frame >= absorbed_by && f.frame < kLightsOnFrame) || f.frame >= recovered_by) {
+      EXPECT_EQ(f.blobs.size(), 1u) << "frame " << f.frame;
+    }
+  }
+  // The box was seen while it moved.
+  EXPECT_TRUE(Near(frames[static_cast<size_t>(box_still)], kBoxEnd, 0.6));
+  // summary.json tells how much of each background was updated and how old it is.
+  for (const auto& cam : summary["cameras"]) {
+    ASSERT_TRUE(cam.contains("background_model")) << cam.dump();
+    EXPECT_GT(cam["background_model"]["updated_fraction"].get<double>(), 0.5);
+    EXPECT_GE(cam["background_model"]["mean_age_s"].get<double>(), 0.0);
+    EXPECT_NEAR(cam["background_model"]["last_frame"]["offset"].get<double>(), 40, 8);
+  }
+}
+
+TEST_F(StillScene, WithoutAbsorptionTheBoxStays) {
+  const std::vector<DetectionFrame> frames = Run(/*absorb_s=*/1000, "no-absorb");
+  ASSERT_EQ(frames.size(), static_cast<size_t>(kFrames));
+  EXPECT_TRUE(Near(frames[150], kBoxEnd, 0.6));
+  EXPECT_TRUE(Near(frames.back(), kBoxEnd, 0.6));
+}
+
+}  // namespace
+}  // namespace occmap
