@@ -297,11 +297,15 @@ struct SynthCommand {
   double scale = 1.0;
   bool video = false;
   bool shadows = false;
-  double exposure_drift = 0;
+  double exposure_drift = -1;
   double noise_sigma = -1;
   bool original_intrinsics = false;
   int64_t first_frame = 0;
   bool no_change_masks = false;
+  int people = -1;
+  double duration_s = -1;
+  double sun_elevation_deg = -1;
+  bool site_backgrounds = false;
 };
 
 Status RunSynth(const CommonOptions& common, const SynthCommand& cmd) {
@@ -312,6 +316,9 @@ Status RunSynth(const CommonOptions& common, const SynthCommand& cmd) {
   o.noise_sigma = cmd.noise_sigma;
   o.shadows = cmd.shadows;
   o.exposure_drift = cmd.exposure_drift;
+  o.people = cmd.people;
+  o.duration_s = cmd.duration_s;
+  o.sun_elevation_deg = cmd.sun_elevation_deg;
   OCCMAP_RETURN_IF_ERROR(o.Validate());
   sim::SceneSpec spec;
   if (cmd.scene == "wildtrack") {
@@ -332,6 +339,9 @@ Status RunSynth(const CommonOptions& common, const SynthCommand& cmd) {
   d.out_dir = cmd.out_dir;
   d.frame_format = cmd.video ? sim::DatasetOptions::FrameFormat::kVideo : sim::DatasetOptions::FrameFormat::kPng;
   d.change_masks = !cmd.no_change_masks;
+  // The plaza is run as on a real site: the backgrounds are learnt from the busy frames unless
+  // --site-backgrounds hands over the empty scene.
+  d.site_backgrounds = cmd.site_backgrounds || scene.spec().name != "plaza";
   Context ctx(common.threads);
   ProgressBar bar;
   auto summary = sim::WriteDataset(scene, d, ctx, [&](const sim::DatasetProgress& p) {
@@ -460,21 +470,28 @@ int main(int argc, char** argv) {
 
   SynthCommand synth;
   CLI::App* synth_cmd = app.add_subcommand("synth", "render a scene with exact ground truth into a dataset folder");
-  synth_cmd->add_option("--scene", synth.scene, "lab, clemson, wildtrack, or a scene YAML file")->capture_default_str();
+  synth_cmd->add_option("--scene", synth.scene, "lab, clemson, wildtrack, plaza, or a scene YAML file")->capture_default_str();
   synth_cmd->add_option("--out", synth.out_dir, "dataset folder")->capture_default_str();
   synth_cmd->add_option("--frames", synth.frames, "frames to render (default: the scene's length)");
   synth_cmd->add_option("--seed", synth.seed, "random seed (clothing, noise)")->capture_default_str();
   synth_cmd->add_option("--scale", synth.scale, "image size as a fraction of the cameras' native size")
       ->capture_default_str();
   synth_cmd->add_flag("--video", synth.video, "write H.264 videos instead of PNG frames");
-  synth_cmd->add_flag("--shadows", synth.shadows, "cast shadows on the floor");
-  synth_cmd->add_option("--exposure-drift", synth.exposure_drift, "slow exposure drift, relative amplitude");
+  synth_cmd->add_flag("--shadows", synth.shadows, "cast shadows on the floor (plaza: always)");
+  synth_cmd->add_option("--exposure-drift", synth.exposure_drift,
+                        "slow exposure drift, relative amplitude (default: the scene's, plaza 0.1, else 0)");
   synth_cmd->add_option("--noise", synth.noise_sigma, "sensor noise sigma in grey levels (default 2)");
   synth_cmd->add_flag("--original-intrinsics", synth.original_intrinsics, "wildtrack: distorted raw-frame intrinsics");
   synth_cmd->add_option("--first-frame", synth.first_frame, "wildtrack: first 10 fps frame of the dataset");
   synth_cmd->add_flag("--no-change-masks", synth.no_change_masks, "do not write the perfect change masks");
 
   EvalCommand eval;
+  synth_cmd->add_option("--people", synth.people, "plaza: people in the area at a time, 1..40 (default 16)");
+  synth_cmd->add_option("--duration-s", synth.duration_s, "plaza: length of the scene in seconds (default 60)");
+  synth_cmd->add_option("--sun-elevation-deg", synth.sun_elevation_deg,
+                        "plaza: the sun's elevation, 5..90 degrees (default 25)");
+  synth_cmd->add_flag("--site-backgrounds", synth.site_backgrounds,
+                      "plaza: give the empty-scene backgrounds in site.yaml (by default the run learns them)");
   CLI::App* eval_cmd = app.add_subcommand("eval", "score a run against a dataset's ground truth");
   eval_cmd->add_option("dataset", eval.dataset_dir, "dataset folder (ground_truth.jsonl, gt/)")->required();
   eval_cmd->add_option("run", eval.run_dir, "run folder (detections.jsonl, tracks.jsonl, occupancy/, changes/)")

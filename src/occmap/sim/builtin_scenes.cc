@@ -87,21 +87,53 @@ Status BuiltinSceneOptions::Validate() const {
   if (!(noise_sigma == -1 || (noise_sigma >= 0 && noise_sigma <= 50))) {
     return InvalidInput(fmt::format("noise sigma: expected 0..50 grey levels, found {}", noise_sigma));
   }
-  if (!(exposure_drift >= 0 && exposure_drift <= 0.5)) {
-    return InvalidInput(fmt::format("exposure drift: expected 0..0.5, found {}", exposure_drift));
+  if (!(exposure_drift == -1 || (exposure_drift >= 0 && exposure_drift <= 0.5))) {
+    return InvalidInput(fmt::format("exposure drift: expected 0..0.5 (or -1 for the scene's default), found {}", exposure_drift));
+  }
+  if (!(people == -1 || (people >= 1 && people <= 40))) {
+    return InvalidInput(fmt::format("people: expected 1..40 people at a time (or -1 for the scene's default), found {}", people));
+  }
+  if (!(duration_s == -1 || (duration_s >= 1 && duration_s <= 3600))) {
+    return InvalidInput(fmt::format("duration: expected 1..3600 s (or -1 for the scene's default), found {}", duration_s));
+  }
+  if (!(sun_elevation_deg == -1 || (sun_elevation_deg >= 5 && sun_elevation_deg <= 90))) {
+    return InvalidInput(
+        fmt::format("sun elevation: expected 5..90 degrees (or -1 for the scene's default), found {}", sun_elevation_deg));
   }
   return Status::Ok();
 }
+
+namespace {
+
+// The plaza's own options, refused by the other scenes (rather than silently ignored).
+Status CheckNoPlazaOptions(const BuiltinSceneOptions& options, std::string_view scene) {
+  if (options.people != -1) {
+    return InvalidInput(fmt::format("people: only the plaza scene takes a people count, found {} for scene '{}'",
+                                    options.people, scene));
+  }
+  if (options.duration_s != -1) {
+    return InvalidInput(fmt::format("duration: only the plaza scene takes a duration (use frames), found {} s for "
+                                    "scene '{}'", options.duration_s, scene));
+  }
+  if (options.sun_elevation_deg != -1) {
+    return InvalidInput(fmt::format("sun elevation: only the plaza scene has a sun, found {} degrees for scene '{}'",
+                                    options.sun_elevation_deg, scene));
+  }
+  return Status::Ok();
+}
+
+}  // namespace
 
 Status WildtrackSceneOptions::Validate() const {
   if (first_frame < 0) return InvalidInput(fmt::format("first frame: expected >= 0, found {}", first_frame));
   return Status::Ok();
 }
 
-std::vector<std::string> BuiltinSceneNames() { return {"lab", "clemson", "wildtrack"}; }
+std::vector<std::string> BuiltinSceneNames() { return {"lab", "clemson", "wildtrack", "plaza"}; }
 
 Status ApplyBuiltinOptions(const BuiltinSceneOptions& options, SceneSpec& spec) {
   OCCMAP_RETURN_IF_ERROR(options.Validate());
+  OCCMAP_RETURN_IF_ERROR(CheckNoPlazaOptions(options, spec.name));
   if (options.image_scale != 1.0) {
     for (CameraSpec& c : spec.cameras) {
       const ImageSize old_size = c.image_size();
@@ -120,8 +152,8 @@ Status ApplyBuiltinOptions(const BuiltinSceneOptions& options, SceneSpec& spec) 
   }
   if (options.num_frames > 0) spec.num_frames = options.num_frames;
   if (options.noise_sigma >= 0) spec.photometry.noise_sigma = options.noise_sigma;
-  spec.photometry.shadows = options.shadows;
-  spec.photometry.exposure_drift = options.exposure_drift;
+  spec.photometry.shadows = spec.photometry.shadows || options.shadows;
+  if (options.exposure_drift >= 0) spec.photometry.exposure_drift = options.exposure_drift;
   return spec.Validate();
 }
 
@@ -250,10 +282,14 @@ SceneSpec MakeClemsonSceneSpec(const BuiltinSceneOptions& options) {
 
 Result<SceneSpec> MakeBuiltinSceneSpec(std::string_view name, const BuiltinSceneOptions& options) {
   OCCMAP_RETURN_IF_ERROR(options.Validate());
-  if (name == "lab") return MakeLabSceneSpec(options);
-  if (name == "clemson") return MakeClemsonSceneSpec(options);
+  if (name == "plaza") return MakePlazaSceneSpec(options);
   if (name == "wildtrack") return MakeWildtrackSceneSpec(options, WildtrackSceneOptions{});
-  return InvalidInput(fmt::format("scene: expected lab, clemson or wildtrack, found '{}'", name));
+  if (name != "lab" && name != "clemson") {
+    return InvalidInput(fmt::format("scene: expected lab, clemson, wildtrack or plaza, found '{}'", name));
+  }
+  OCCMAP_RETURN_IF_ERROR(CheckNoPlazaOptions(options, name));
+  if (name == "lab") return MakeLabSceneSpec(options);
+  return MakeClemsonSceneSpec(options);
 }
 
 Eigen::Vector2d WildtrackPositionM(int64_t position_id) {

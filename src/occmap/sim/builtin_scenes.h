@@ -11,6 +11,14 @@
 //   wildtrack  WILDTRACK's seven real calibrations and annotated trajectories (people
 //              interpolated linearly between the annotations, 0.5 s apart, absent where not
 //              annotated) on a paved square, 10 fps; object id = personID + 1.
+//   plaza      a sunny paved square outdoors, 20 x 14 m monitored (cells of 5 cm): six
+//              1280x720 pinhole cameras on poles at 2.6-3.5 m around it looking across (mild
+//              barrel distortion), pillars, planters, a kiosk and benches inside; a low sun
+//              (25 degrees by default) casting long dark shadows, bluish sky light in them,
+//              exposure drift; `people` people at a time (default 16), drawn from the seed:
+//              some cross the square (entering and leaving beyond its edges), some meet in
+//              groups of 2-3 and talk for 10-40 s, some stand alone for 20-50 s, then leave;
+//              one object id per visit. Default 60 s at 10 fps (plaza_scene.cc).
 //
 //   sim::BuiltinSceneOptions opt;  opt.seed = 7;
 //   OCCMAP_ASSIGN_OR_RETURN(sim::SceneSpec spec, sim::MakeBuiltinSceneSpec("lab", opt));
@@ -34,8 +42,12 @@ struct BuiltinSceneOptions {
   double image_scale = 1.0;
   int64_t num_frames = -1;      // -1: the scene's default length
   double noise_sigma = -1;      // -1: the scene's default (2 grey levels)
-  bool shadows = false;
-  double exposure_drift = 0.0;  // relative amplitude; 0 = off
+  bool shadows = false;          // true: cast shadows on (a scene may have them on already: plaza)
+  double exposure_drift = -1;    // relative amplitude 0..0.5 (0 = off); -1: the scene's (plaza 0.1, else 0)
+  // Plaza only (-1: its default; the other scenes reject any other value):
+  int people = -1;                // people in the area at a time, 1..40 (default 16)
+  double duration_s = -1;         // length of the scene, 1..3600 s (default 60; sets the frames)
+  double sun_elevation_deg = -1;  // the sun above the horizon, 5..90 degrees (default 25)
   Status Validate() const;
 };
 
@@ -47,12 +59,14 @@ struct WildtrackSceneOptions {
   Status Validate() const;
 };
 
-// "lab", "clemson" (wildtrack needs files: MakeWildtrackSceneSpec).
+// "lab", "clemson", "wildtrack", "plaza" (wildtrack needs files: MakeWildtrackSceneSpec).
 std::vector<std::string> BuiltinSceneNames();
 Result<SceneSpec> MakeBuiltinSceneSpec(std::string_view name, const BuiltinSceneOptions& options);
 
+// These three CHECK that `options` is valid for them (MakeBuiltinSceneSpec returns the error).
 SceneSpec MakeLabSceneSpec(const BuiltinSceneOptions& options);
 SceneSpec MakeClemsonSceneSpec(const BuiltinSceneOptions& options);
+SceneSpec MakePlazaSceneSpec(const BuiltinSceneOptions& options);
 // num_frames -1 means up to the last annotated frame (1995 for the full dataset).
 Result<SceneSpec> MakeWildtrackSceneSpec(const BuiltinSceneOptions& options, const WildtrackSceneOptions& wildtrack);
 
@@ -71,7 +85,9 @@ Result<std::vector<WildtrackAnnotation>> ReadWildtrackAnnotations(const std::fil
 // X = -300 + 2.5 (id % 480), Y = -900 + 2.5 (id / 480) centimetres, in metres.
 Eigen::Vector2d WildtrackPositionM(int64_t position_id);
 
-// Applies options common to all scenes (scale, frames, noise, shadows, drift) to a spec.
+// Applies options common to all scenes (scale, frames, noise, shadows, drift) to a spec; the
+// plaza's own options (people, duration, sun) must be -1 (an error naming the option if not).
+// Shadows given by the spec stay on; exposure drift -1 keeps the spec's.
 Status ApplyBuiltinOptions(const BuiltinSceneOptions& options, SceneSpec& spec);
 
 }  // namespace occmap::sim
