@@ -17,7 +17,9 @@
 // shadows on, static objects shadow the static scene too, once at construction: such a point
 // keeps its ambient light only, and a moving object's shadow over it darkens nothing more (nor
 // is it in the shadow mask). Per frame, a tile's floor points are tested only against the
-// objects whose shadow's bounding box on the floor meets the tile's floor box.
+// objects whose shadow region on the floor (under a directional light the exact shadow of the
+// object's bounding cylinder, a stadium; under a point light a box) meets the tile's floor box,
+// and a point only against those whose region holds it.
 //
 // Radiance is shading (primitives.h Shade) of the albedo, 0..1 before exposure. Noise: one
 // 64-bit hash of (seed, camera, frame, pixel) gives three Gaussian samples (an inverse-CDF table

@@ -282,41 +282,44 @@ TEST(Renderer, ShadowMaskMarksTheFloorAMovingObjectDarkensAndNothingElse) {
   }
 }
 
-TEST(Renderer, ShadowCullingPerTileGivesTheSameImagesAsTestingEveryObject) {
-  // The lab with its point light and shadows, against TracePixelReference plus a plain shadow
-  // test of every object at every floor pixel.
+TEST(Renderer, ShadowCullingGivesTheSameShadowsAsTestingEveryObject) {
+  // The lab (a point light) and clemson (a directional one) with shadows, against
+  // TracePixelReference plus a plain shadow test of every part at every floor pixel.
   BuiltinSceneOptions o;
   o.image_scale = 0.25;
   o.num_frames = 60;
   o.shadows = true;
-  const Scene lab = Scene::Create(MakeLabSceneSpec(o)).value();
-  Context ctx(2);
-  for (size_t c = 0; c < lab.num_cameras(); ++c) {
-    const CameraRenderer r(lab, c, ctx);
-    const SceneState state = lab.StateAt(50);
-    RenderedView view;
-    r.Render(state, ctx, &view, false, true);
-    int64_t shadowed = 0;
-    for (int y = 0; y < view.ids.height(); ++y) {
-      for (int x = 0; x < view.ids.width(); ++x) {
-        const PixelTrace ref = TracePixelReference(lab, c, state, Eigen::Vector2d(x, y));
-        if (!ref.hit_anything || ref.id != 0 || ref.surface != Surface::kFloor) continue;
-        const std::optional<Ray> ray = lab.camera(c).BackProject(Eigen::Vector2d(x, y));
-        const Eigen::Vector3d p = ray->origin_in_world + ref.t * ray->direction_in_world;
-        Eigen::Vector3d to_light;
-        double intensity = 0, dist = 0;
-        lab.spec().photometry.lighting.DirectAt(p, &to_light, &intensity, &dist);
-        bool blocked = false;
-        for (const ObjectInstance& obj : state.objects) {
-          for (const Primitive& part : obj.parts) blocked |= IntersectRay(part, p, to_light, dist).has_value();
+  for (const Scene& lab :
+       {Scene::Create(MakeLabSceneSpec(o)).value(), Scene::Create(MakeClemsonSceneSpec(o)).value()}) {
+    Context ctx(2);
+    for (size_t c = 0; c < lab.num_cameras(); ++c) {
+      const CameraRenderer r(lab, c, ctx);
+      const SceneState state = lab.StateAt(50);
+      RenderedView view;
+      r.Render(state, ctx, &view, false, true);
+      int64_t shadowed = 0;
+      for (int y = 0; y < view.ids.height(); ++y) {
+        for (int x = 0; x < view.ids.width(); ++x) {
+          const PixelTrace ref = TracePixelReference(lab, c, state, Eigen::Vector2d(x, y));
+          if (!ref.hit_anything || ref.id != 0 || ref.surface != Surface::kFloor) continue;
+          const std::optional<Ray> ray = lab.camera(c).BackProject(Eigen::Vector2d(x, y));
+          const Eigen::Vector3d p = ray->origin_in_world + ref.t * ray->direction_in_world;
+          Eigen::Vector3d to_light;
+          double intensity = 0, dist = 0;
+          lab.spec().photometry.lighting.DirectAt(p, &to_light, &intensity, &dist);
+          bool blocked = false;
+          for (const ObjectInstance& obj : state.objects) {
+            for (const Primitive& part : obj.parts) blocked |= IntersectRay(part, p, to_light, dist).has_value();
+          }
+          // In a static shadow (the static radiance lacks the direct light): nothing more to darken.
+          if ((r.StaticRadiance(x, y) - ref.radiance).norm() > 1e-4) blocked = false;
+          ASSERT_EQ(view.shadow(x, y) == 255, blocked)
+              << lab.spec().name << " camera " << c << " pixel " << x << "," << y;
+          shadowed += blocked;
         }
-        // In a static shadow (the static radiance lacks the direct light): nothing more to darken.
-        if ((r.StaticRadiance(x, y) - ref.radiance).norm() > 1e-4) blocked = false;
-        ASSERT_EQ(view.shadow(x, y) == 255, blocked) << "camera " << c << " pixel " << x << "," << y;
-        shadowed += blocked;
       }
+      EXPECT_GT(shadowed, 0) << lab.spec().name << " camera " << c;
     }
-    EXPECT_GT(shadowed, 0) << "camera " << c;
   }
 }
 
