@@ -108,15 +108,15 @@ namespace {
 // The plaza's own options, refused by the other scenes (rather than silently ignored).
 Status CheckNoPlazaOptions(const BuiltinSceneOptions& options, std::string_view scene) {
   if (options.people != -1) {
-    return InvalidInput(fmt::format("people: only the plaza scene takes a people count, found {} for scene '{}'",
+    return InvalidInput(fmt::format("people: only the built-in plaza scene takes a people count, found {} for scene '{}'",
                                     options.people, scene));
   }
   if (options.duration_s != -1) {
-    return InvalidInput(fmt::format("duration: only the plaza scene takes a duration (use frames), found {} s for "
+    return InvalidInput(fmt::format("duration: only the built-in plaza scene takes a duration (use frames), found {} s for "
                                     "scene '{}'", options.duration_s, scene));
   }
   if (options.sun_elevation_deg != -1) {
-    return InvalidInput(fmt::format("sun elevation: only the plaza scene has a sun, found {} degrees for scene '{}'",
+    return InvalidInput(fmt::format("sun elevation: only the built-in plaza scene has a sun, found {} degrees for scene '{}'",
                                     options.sun_elevation_deg, scene));
   }
   return Status::Ok();
@@ -354,6 +354,7 @@ Result<std::vector<WildtrackAnnotation>> ReadWildtrackAnnotations(const fs::path
 
 Result<SceneSpec> MakeWildtrackSceneSpec(const BuiltinSceneOptions& options, const WildtrackSceneOptions& wt) {
   OCCMAP_RETURN_IF_ERROR(options.Validate());
+  OCCMAP_RETURN_IF_ERROR(CheckNoPlazaOptions(options, "wildtrack"));
   OCCMAP_RETURN_IF_ERROR(wt.Validate());
   SceneSpec spec;
   spec.name = "wildtrack";

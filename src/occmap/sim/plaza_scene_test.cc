@@ -219,16 +219,22 @@ TEST(PlazaScene, OtherScenesRefuseThePlazasOptions) {
   BuiltinSceneOptions o;
   o.people = 5;
   EXPECT_EQ(MakeBuiltinSceneSpec("lab", o).status().message(),
-            "people: only the plaza scene takes a people count, found 5 for scene 'lab'");
+            "people: only the built-in plaza scene takes a people count, found 5 for scene 'lab'");
   o = {};
   o.duration_s = 20;
   EXPECT_EQ(MakeBuiltinSceneSpec("clemson", o).status().message(),
-            "duration: only the plaza scene takes a duration (use frames), found 20 s for scene 'clemson'");
+            "duration: only the built-in plaza scene takes a duration (use frames), found 20 s for scene 'clemson'");
+  o = {};
+  o.people = 3;
+  WildtrackSceneOptions wildtrack;
+  wildtrack.dataset_dir = "/nonexistent";  // refused before any file is read
+  EXPECT_EQ(MakeWildtrackSceneSpec(o, wildtrack).status().message(),
+            "people: only the built-in plaza scene takes a people count, found 3 for scene 'wildtrack'");
   o = {};
   o.sun_elevation_deg = 30;
   SceneSpec lab = MakeLabSceneSpec({});
   EXPECT_EQ(ApplyBuiltinOptions(o, lab).message(),
-            "sun elevation: only the plaza scene has a sun, found 30 degrees for scene 'lab'");
+            "sun elevation: only the built-in plaza scene has a sun, found 30 degrees for scene 'lab'");
 }
 
 TEST(PlazaScene, ApplyingOptionsKeepsTheScenesShadowsAndDriftUnlessGiven) {
