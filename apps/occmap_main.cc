@@ -484,14 +484,14 @@ int main(int argc, char** argv) {
   synth_cmd->add_flag("--original-intrinsics", synth.original_intrinsics, "wildtrack: distorted raw-frame intrinsics");
   synth_cmd->add_option("--first-frame", synth.first_frame, "wildtrack: first 10 fps frame of the dataset");
   synth_cmd->add_flag("--no-change-masks", synth.no_change_masks, "do not write the perfect change masks");
-
-  EvalCommand eval;
   synth_cmd->add_option("--people", synth.people, "plaza: people in the area at a time, 1..40 (default 16)");
   synth_cmd->add_option("--duration-s", synth.duration_s, "plaza: length of the scene in seconds (default 60)");
   synth_cmd->add_option("--sun-elevation-deg", synth.sun_elevation_deg,
                         "plaza: the sun's elevation, 5..90 degrees (default 25)");
   synth_cmd->add_flag("--site-backgrounds", synth.site_backgrounds,
                       "plaza: give the empty-scene backgrounds in site.yaml (by default the run learns them)");
+
+  EvalCommand eval;
   CLI::App* eval_cmd = app.add_subcommand("eval", "score a run against a dataset's ground truth");
   eval_cmd->add_option("dataset", eval.dataset_dir, "dataset folder (ground_truth.jsonl, gt/)")->required();
   eval_cmd->add_option("run", eval.run_dir, "run folder (detections.jsonl, tracks.jsonl, occupancy/, changes/)")
