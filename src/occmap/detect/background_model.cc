@@ -19,6 +19,24 @@ constexpr double kFitOutlierLevels = 12;
 uint8_t Clamp8(double v) { return static_cast<uint8_t>(std::clamp(std::lround(v), 0L, 255L)); }
 int ClampInt(double v, int lo, int hi) { return static_cast<int>(std::clamp(std::lround(v), static_cast<long>(lo), static_cast<long>(hi))); }
 
+// Whether a pixel's colour is its expected background's dimmed alike in R, G and B: the ratios
+// of the three channels (from full-range Y'CbCr) differ by at most max_spread. Channels under 8
+// levels in the background count as 8 (their ratio is noise).
+bool SameColourDimmed(int y, int u, int v, int ey, int eu, int ev, double max_spread) {
+  const float cb = static_cast<float>(u - 128), cr = static_cast<float>(v - 128);
+  const float ecb = static_cast<float>(eu - 128), ecr = static_cast<float>(ev - 128);
+  const float fy = static_cast<float>(y), by = static_cast<float>(ey);
+  const float f[3] = {fy + 1.402f * cr, fy - 0.344136f * cb - 0.714136f * cr, fy + 1.772f * cb};
+  const float b[3] = {by + 1.402f * ecr, by - 0.344136f * ecb - 0.714136f * ecr, by + 1.772f * ecb};
+  float lo = 1e9f, hi = -1e9f;
+  for (int c = 0; c < 3; ++c) {
+    const float r = std::max(0.0f, f[c]) / std::max(8.0f, b[c]);
+    lo = std::min(lo, r);
+    hi = std::max(hi, r);
+  }
+  return hi - lo <= static_cast<float>(max_spread);
+}
+
 // Weighted least squares of y = a x + b; false when the xs do not spread.
 bool FitLine(const std::vector<std::array<double, 3>>& points, double* a, double* b) {
   double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
@@ -88,8 +106,8 @@ Status ShadowOptions::Validate() const {
     return InvalidInput(fmt::format("backgrounds.shadows: expected 0 < min_ratio < max_ratio < 1, found min_ratio {} and max_ratio {}",
                                     min_ratio, max_ratio));
   }
-  if (chroma_tolerance < 0 || chroma_tolerance > 128) {
-    return InvalidInput(fmt::format("backgrounds.shadows.chroma_tolerance: expected 0..128, found {}", chroma_tolerance));
+  if (!(max_channel_spread >= 0 && max_channel_spread <= 1)) {
+    return InvalidInput(fmt::format("backgrounds.shadows.max_channel_spread: expected 0..1, found {}", max_channel_spread));
   }
   if (texture_radius_px < 0 || texture_radius_px > 8) {
     return InvalidInput(fmt::format("backgrounds.shadows.texture_radius_px: expected 0..8, found {}", texture_radius_px));
@@ -109,6 +127,9 @@ Status BackgroundOptions::Validate() const {
   }
   if (mode_radius < 1 || mode_radius > 64) {
     return InvalidInput(fmt::format("backgrounds.mode_radius: expected 1..64 grey levels, found {}", mode_radius));
+  }
+  if (!(alternative_min_share >= 0 && alternative_min_share <= 1)) {
+    return InvalidInput(fmt::format("backgrounds.alternative_min_share: expected 0..1, found {}", alternative_min_share));
   }
   if (!(adapt_s > 0)) return InvalidInput(fmt::format("backgrounds.adapt_s: expected > 0, found {}", adapt_s));
   if (!(relight_s > 0)) return InvalidInput(fmt::format("backgrounds.relight_s: expected > 0, found {}", relight_s));
@@ -218,7 +239,7 @@ void BackgroundLearner::Add(const YuvView& frame) {
   ++count_;
 }
 
-YuvImage BackgroundLearner::Learn(BackgroundLearning method, int mode_radius) const {
+YuvImage BackgroundLearner::Learn(BackgroundLearning method, int mode_radius, Alternative* alternative) const {
   OCCMAP_CHECK(count_ > 0, "background learner: no frames");
   const size_t k = static_cast<size_t>(count_);
   const size_t np = static_cast<size_t>(width_) * height_, nc = static_cast<size_t>(cw_) * ch_;
@@ -252,6 +273,15 @@ YuvImage BackgroundLearner::Learn(BackgroundLearning method, int mode_radius) co
   if (chroma_) {
     out.u = Image<uint8_t>(cw_, ch_);
     out.v = Image<uint8_t>(cw_, ch_);
+  }
+  if (alternative != nullptr) {
+    alternative->levels = YuvImage{};
+    alternative->levels.y = Image<uint8_t>(width_, height_, 0);
+    if (chroma_) {
+      alternative->levels.u = Image<uint8_t>(cw_, ch_, 128);
+      alternative->levels.v = Image<uint8_t>(cw_, ch_, 128);
+    }
+    alternative->support = Image<uint8_t>(width_, height_, 0);
   }
   switch (method) {
     case BackgroundLearning::kMedian: {
@@ -288,6 +318,40 @@ YuvImage BackgroundLearner::Learn(BackgroundLearning method, int mode_radius) co
           int sum = 0;
           for (size_t q = best_i; q < best_i + best_n; ++q) sum += packed[q] >> 8;
           out.y(x, y) = Clamp8(static_cast<double>(sum) / static_cast<double>(best_n));
+          if (alternative != nullptr) {
+            // The densest run among the samples more than 2 * mode_radius from the first run's
+            // mean: before it (indices < best_i) or after it (> best_i + best_n - 1).
+            const int mean = out.y(x, y);
+            size_t alt_i = 0, alt_n = 0;
+            for (size_t j = 0, i2 = 0; j < k; ++j) {
+              if (std::abs((packed[j] >> 8) - mean) <= 2 * mode_radius) {
+                i2 = j + 1;
+                continue;
+              }
+              while ((packed[j] >> 8) - (packed[i2] >> 8) > 2 * mode_radius) ++i2;
+              if (j - i2 + 1 > alt_n) {
+                alt_n = j - i2 + 1;
+                alt_i = i2;
+              }
+            }
+            if (alt_n > 0) {
+              int alt_sum = 0;
+              for (size_t q = alt_i; q < alt_i + alt_n; ++q) alt_sum += packed[q] >> 8;
+              alternative->levels.y(x, y) = Clamp8(static_cast<double>(alt_sum) / static_cast<double>(alt_n));
+              alternative->support(x, y) = static_cast<uint8_t>(alt_n);
+              if (chroma_ && x % 2 == 0 && y % 2 == 0) {
+                const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+                int su = 0, sv = 0;
+                for (size_t q = alt_i; q < alt_i + alt_n; ++q) {
+                  const size_t f = packed[q] & 0xff;
+                  su += nu[f * nc + c];
+                  sv += nv[f * nc + c];
+                }
+                alternative->levels.u(x / 2, y / 2) = Clamp8(static_cast<double>(su) / static_cast<double>(alt_n));
+                alternative->levels.v(x / 2, y / 2) = Clamp8(static_cast<double>(sv) / static_cast<double>(alt_n));
+              }
+            }
+          }
           if (chroma_ && x % 2 == 0 && y % 2 == 0) {
             const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
             int su = 0, sv = 0;
@@ -388,12 +452,55 @@ void BackgroundModel::Reset(const YuvImage& background) {
   }
   class_.assign(np, kBackground);
   prev_y_.assign(np, 0);
+  alt_y_.assign(np, 0);
+  alt_valid_.assign(np, 0);
+  alt_frames_.assign(np, 0);
   steady_frames_.assign(np, 0);
   set_frame_.assign(np, -1);
   stats_ = BackgroundStats{};
   first_frame_ = -1;
   stats_.pixels = static_cast<int64_t>(np);
   transfer_ = PhotometricTransfer{};
+}
+
+void BackgroundModel::SetAlternative(const BackgroundLearner::Alternative& alternative, int min_support) {
+  OCCMAP_CHECK(alternative.levels.y.width() == width_ && alternative.levels.y.height() == height_ &&
+                   alternative.support.width() == width_ && alternative.support.height() == height_,
+               "background model: alternative of another size");
+  for (int y = 0; y < height_; ++y) {
+    for (int x = 0; x < width_; ++x) {
+      const size_t i = static_cast<size_t>(y) * width_ + x;
+      alt_y_[i] = alternative.levels.y(x, y);
+      alt_valid_[i] = alternative.support(x, y) >= min_support && min_support > 0 ? 1 : 0;
+    }
+  }
+  alt_u_.assign(static_cast<size_t>(cw_) * ch_, 128);
+  alt_v_.assign(alt_u_.size(), 128);
+  if (chroma_ && alternative.levels.has_chroma()) {
+    for (int y = 0; y < ch_; ++y) {
+      for (int x = 0; x < cw_; ++x) {
+        alt_u_[static_cast<size_t>(y) * cw_ + x] = alternative.levels.u(x, y);
+        alt_v_[static_cast<size_t>(y) * cw_ + x] = alternative.levels.v(x, y);
+      }
+    }
+  }
+}
+
+void BackgroundModel::SwapWithAlternative(int x, int y) {
+  const size_t i = static_cast<size_t>(y) * width_ + x;
+  if (!alt_valid_[i]) return;
+  const uint8_t old = static_cast<uint8_t>(std::min(255, (by_[i] + 128) >> 8));
+  by_[i] = static_cast<uint16_t>(alt_y_[i] << 8);
+  alt_y_[i] = old;
+  if (chroma_ && x % 2 == 0 && y % 2 == 0) {
+    const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+    const uint8_t old_u = static_cast<uint8_t>(std::min(255, (bu_[c] + 128) >> 8));
+    const uint8_t old_v = static_cast<uint8_t>(std::min(255, (bv_[c] + 128) >> 8));
+    bu_[c] = static_cast<uint16_t>(alt_u_[c] << 8);
+    bv_[c] = static_cast<uint16_t>(alt_v_[c] << 8);
+    alt_u_[c] = old_u;
+    alt_v_[c] = old_v;
+  }
 }
 
 YuvImage BackgroundModel::Current() const {
@@ -437,10 +544,7 @@ uint8_t BackgroundModel::Classify(int y, int u, int v, int by, int bu, int bv, i
     return kChanged;
   }
   if (!chroma_) return kShadow;
-  const float r = static_cast<float>(y) / static_cast<float>(expected);
-  const float su = 128.0f + r * static_cast<float>(eu - 128), sv = 128.0f + r * static_cast<float>(ev - 128);
-  const float tol = static_cast<float>(s.chroma_tolerance);
-  return std::abs(static_cast<float>(u) - su) <= tol && std::abs(static_cast<float>(v) - sv) <= tol ? kShadow : kChanged;
+  return SameColourDimmed(y, u, v, expected, eu, ev, s.max_channel_spread) ? kShadow : kChanged;
 }
 
 bool BackgroundModel::TextureLikeBackground(ImageView<const uint8_t> frame_y, int x, int y) const {
@@ -502,6 +606,7 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
     for (int x = 0; x < width_; ++x) dst[x] = static_cast<uint8_t>(std::min(255, (src[x] + 128) >> 8));
   }
   transfer_ = EstimateTransfer(bg8_.view(), frame.y);
+  threshold_ = threshold;
   const ShadowOptions& s = options_.shadows;
   for (int level = 0; level < 256; ++level) {
     const int expected = ClampInt(transfer_.Apply(level), 0, 255);
@@ -515,7 +620,6 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
     }
   }
   const int tc = chroma_ ? options_.chroma_threshold : 0;
-  const float tol = static_cast<float>(s.chroma_tolerance);
   int64_t changed = 0, shadow = 0;
   for (int y = 0; y < height_; ++y) {
     const uint8_t* fy = frame.y.row(y);
@@ -546,9 +650,7 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
           if (!chroma_) {
             c = kShadow;
           } else {
-            const float r = static_cast<float>(fy[x]) / static_cast<float>(expected);
-            const float su = 128.0f + r * static_cast<float>(eu - 128), sv = 128.0f + r * static_cast<float>(ev - 128);
-            if (std::abs(static_cast<float>(u) - su) <= tol && std::abs(static_cast<float>(v) - sv) <= tol) c = kShadow;
+            if (SameColourDimmed(fy[x], u, v, expected, eu, ev, s.max_channel_spread)) c = kShadow;
           }
           if (c == kShadow && !TextureLikeBackground(frame.y, x, y)) c = kChanged;
         }
@@ -595,12 +697,33 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
       const int level = fy[x];
       const int prev = prev_y_[i];
       prev_y_[i] = static_cast<uint8_t>(level);
+      const bool chroma_here = chroma_row && x % 2 == 0;
+      const size_t c = chroma_here ? static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2) : 0;
+      if (cls == kChanged && alt_valid_[i]) {
+        // Back to the alternative (the floor a learned-in person stood on): swap them.
+        if (std::abs(level - pred_[alt_y_[i]]) <= threshold_) {
+          if (++alt_frames_[i] >= relight) {
+            const uint8_t old = static_cast<uint8_t>(std::min(255, (by_[i] + 128) >> 8));
+            by_[i] = static_cast<uint16_t>(inv_y[static_cast<size_t>(level)]);
+            if (chroma_here) {
+              bu_[c] = static_cast<uint16_t>(inv_c[fu[x >> 1]]);
+              bv_[c] = static_cast<uint16_t>(inv_c[fv[x >> 1]]);
+            }
+            alt_y_[i] = old;
+            alt_frames_[i] = 0;
+            steady_frames_[i] = 0;
+            set_frame_[i] = f;
+            ++absorbed;
+            continue;
+          }
+        } else {
+          alt_frames_[i] = 0;
+        }
+      }
       if (prot[x] == kPerson || cls == kShadow) {
         steady_frames_[i] = 0;
         continue;
       }
-      const bool chroma_here = chroma_row && x % 2 == 0;
-      const size_t c = chroma_here ? static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2) : 0;
       if (cls == kBackground) {
         steady_frames_[i] = 0;
         if (prot[x] != kFree) continue;

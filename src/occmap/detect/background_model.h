@@ -30,11 +30,13 @@
 // The shadow test (Cucchiara et al. 2003, Horprasert et al. 1999, in Y'CbCr; the texture test
 // as in Sanin et al. 2012): a changed pixel is a cast shadow when it is darker than the
 // expected background by a ratio r in [min_ratio, max_ratio], its chroma is the background's
-// scaled by r within chroma_tolerance (a shadow darkens the floor but keeps its colour), and
-// its neighbourhood keeps the background's texture (normalised cross-correlation of luma). It
-// fails where clothing has the floor's hue, is darker by a shadow's ratio and the floor has no
-// texture (grey trousers on a flat grey floor); without chroma only ratio and texture are
-// tested.
+// its R, G and B are each dimmed by about the same ratio (within max_channel_spread: a shadow
+// darkens the floor but keeps its colour), and, optionally, its neighbourhood keeps the
+// background's texture (normalised cross-correlation of luma; off by default: in deep
+// outdoor shadows the floor's texture drowns in noise and compression, and the test then
+// rejects shadows and people alike). It fails where clothing is of the floor's hue and darker
+// by a shadow's ratio (grey trousers on grey paving); without chroma only the ratio (and
+// texture) is tested.
 //
 //   BackgroundModel model(options, shadows);
 //   model.Reset(learned);                                  // a YuvImage
@@ -42,6 +44,7 @@
 //   model.Update(frame, protection.view(), frame_index);   // after the fusion
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -77,13 +80,15 @@ Result<BackgroundLearning> ParseBackgroundLearning(std::string_view name);  // m
 
 struct ShadowOptions {
   bool enabled = true;
-  double min_ratio = 0.25;     // a shadow keeps at least this share of the lit brightness
-  double max_ratio = 0.90;     // and loses at least 1 - max_ratio of it
-  int chroma_tolerance = 12;   // levels of Cb, Cr (after scaling by the ratio)
+  double min_ratio = 0.2;      // a shadow keeps at least this share of the lit brightness
+  double max_ratio = 0.6;      // and loses at least 1 - max_ratio of it
+  // The frame/background brightness ratios of R, G and B differ by at most this (a shadow
+  // dims every channel alike; a sky-lit shadow a little less in blue).
+  double max_channel_spread = 0.1;
   // Texture: over the (2 r + 1)^2 window around the pixel, a shadow's luma correlates with the
   // background's (normalised cross-correlation >= min_texture_correlation). Where the
   // background is flat (standard deviation under flat_std) texture cannot tell.
-  int texture_radius_px = 2;   // 0: no texture test
+  int texture_radius_px = 0;   // 0: no texture test
   double min_texture_correlation = 0.5;
   double flat_std = 3.0;       // grey levels
   Status Validate() const;
@@ -98,6 +103,9 @@ struct BackgroundOptions {
   double learn_s = 60;         // the window read at start-up
   int learn_samples = 60;      // frames sampled evenly over it (at most 255)
   int mode_radius = 6;         // kMode: half-width of a cluster, grey levels (after normalising)
+  // kMode: a pixel's second cluster with at least this share of the samples is kept as its
+  // alternative background (BackgroundModel::SetAlternative); 0: none.
+  double alternative_min_share = 0.1;
   // Maintenance.
   double adapt_s = 30;         // time constant of unprotected, unchanged pixels
   double relight_s = 2;        // unexplained steady changes become background after this
@@ -130,8 +138,16 @@ class BackgroundLearner {
   // Same size as given to the constructor (a CHECK); chroma when constructed with it.
   void Add(const YuvView& frame);
   int count() const { return count_; }
-  // Needs at least one frame (a CHECK). mode_radius is used by kMode.
-  YuvImage Learn(BackgroundLearning method, int mode_radius = 6) const;
+  // Needs at least one frame (a CHECK). mode_radius is used by kMode. With kMode and
+  // `alternative`, also each pixel's second densest cluster of samples (outside the first
+  // cluster's levels) and in alternative->support its number of samples (0: none): what the
+  // pixel showed for a while when it did not show its background, such as the floor beside a
+  // person who stood most of the window (see BackgroundModel::SetAlternative).
+  struct Alternative {
+    YuvImage levels;
+    Image<uint8_t> support;
+  };
+  YuvImage Learn(BackgroundLearning method, int mode_radius = 6, Alternative* alternative = nullptr) const;
 
  private:
   int width_, height_, cw_, ch_;
@@ -159,6 +175,21 @@ class BackgroundModel {
   BackgroundModel(const BackgroundOptions& options, double fps);
   // Starts from a background (chroma optional; the frames must then have it too).
   void Reset(const YuvImage& background);
+  // The learner's second clusters (after Reset). A changed pixel that shows its alternative
+  // steadily for relight_s swaps it with its background, whatever the map says there: a person
+  // who stood through the learning window and then left is background again (otherwise their
+  // ghost would stand as a person for ever). It fails when the same person comes back to stand
+  // at the same place; alternatives with fewer than min_support samples are ignored.
+  void SetAlternative(const BackgroundLearner::Alternative& alternative, int min_support);
+  // Pixel (x, y)'s background luma (8-bit), and its alternative's or -1 when it has none.
+  int BackgroundLevel(int x, int y) const { return std::min(255, (by_[Index(x, y)] + 128) >> 8); }
+  int AlternativeLevel(int x, int y) const { return alt_valid_[Index(x, y)] ? alt_y_[Index(x, y)] : -1; }
+  // Exchanges (x, y)'s background and alternative (its chroma block's too when (x, y) is the
+  // block's top-left pixel). No-op without an alternative.
+  void SwapWithAlternative(int x, int y);
+
+  int width() const { return width_; }
+  int height() const { return height_; }
   bool empty() const { return width_ == 0; }
 
   // The background now, 8-bit (for pictures and saving).
@@ -181,6 +212,8 @@ class BackgroundModel {
 
  private:
   enum Class : uint8_t { kBackground = 0, kChanged = 1, kShadow = 2 };
+  size_t Index(int x, int y) const { return static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x); }
+
   uint8_t Classify(int y, int u, int v, int by, int bu, int bv, int threshold) const;
   // The texture part of the shadow test at (x, y).
   bool TextureLikeBackground(ImageView<const uint8_t> frame_y, int x, int y) const;
@@ -193,10 +226,15 @@ class BackgroundModel {
   std::vector<uint8_t> class_;           // Class per luma pixel, last frame
   std::vector<uint8_t> prev_y_;          // last frame's luma (steadiness)
   std::vector<uint16_t> steady_frames_;  // frames changed and steady in a row
+  std::vector<uint8_t> alt_y_;            // the alternative background's luma, 0 when none
+  std::vector<uint8_t> alt_valid_;
+  std::vector<uint8_t> alt_u_, alt_v_;     // its chroma
+  std::vector<uint16_t> alt_frames_;      // frames changed and showing the alternative in a row
   std::vector<int32_t> set_frame_;       // frame of the last set (-1: learning)
   int64_t first_frame_ = -1;             // of the first Update since Reset
   Image<uint8_t> bg8_;                   // the luma background in 8 bits, for the transfer
   PhotometricTransfer transfer_;
+  int threshold_ = 0;  // of the last DetectChanges
   BackgroundStats stats_;
   // Tables of the last frame's transfer, per background level.
   int pred_[256];          // expected frame luma

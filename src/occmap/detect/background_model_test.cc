@@ -113,6 +113,46 @@ TEST(BackgroundLearner, ModeFindsTheFloorWhenPassersByCoverItMoreThanHalfTheTime
   EXPECT_NEAR(mode.v(4, 4), truth.v(4, 4), 2);
 }
 
+TEST(BackgroundLearner, ModeKeepsTheSecondClusterAsTheAlternative) {
+  const int w = 32, h = 16;
+  const YuvImage truth = TexturedBackground(w, h, 8);
+  BackgroundLearner learner(w, h, true, 30);
+  for (int k = 0; k < 30; ++k) {
+    YuvImage f = Seen(truth, 1.0, 0, 300 + k, 0.5);
+    // A person stands on the left half for 24 of the 30 samples.
+    if (k >= 6) Paint(f, 0, 0, w / 2, h, 250, 80, 180);
+    learner.Add(f.view());
+  }
+  BackgroundLearner::Alternative alternative;
+  const YuvImage mode = learner.Learn(BackgroundLearning::kMode, 6, &alternative);
+  EXPECT_EQ(mode.y(3, 3), 250);                                 // the person won the window
+  EXPECT_NEAR(alternative.levels.y(3, 3), truth.y(3, 3), 2);    // the floor is the alternative
+  EXPECT_EQ(alternative.support(3, 3), 6);
+  EXPECT_NEAR(alternative.levels.u(1, 1), truth.u(1, 1), 2);
+  EXPECT_EQ(alternative.support(24, 3), 0);                     // the floor alone: no alternative
+
+  // In the model: showing the alternative steadily for relight_s swaps it in, even where the
+  // map protects a person (the ghost of a learned-in person who left).
+  BackgroundOptions o;
+  o.relight_s = 1;
+  BackgroundModel model(o, 10);
+  model.Reset(mode);
+  model.SetAlternative(alternative, 3);
+  EXPECT_EQ(model.AlternativeLevel(3, 3), alternative.levels.y(3, 3));
+  EXPECT_EQ(model.AlternativeLevel(24, 3), -1);
+  const YuvImage floor = Seen(truth, 1.0, 0, 400, 0.5);
+  Image<uint8_t> changes(w, h), person(w, h, BackgroundModel::kPerson);
+  int cleared_at = -1;
+  for (int k = 0; k < 30 && cleared_at < 0; ++k) {
+    model.DetectChanges(floor.view(), 20, changes.view());
+    if (changes(3, 3) == 0) cleared_at = k;
+    model.Update(floor.view(), person.view(), k);
+  }
+  EXPECT_GE(cleared_at, 10);
+  EXPECT_LE(cleared_at, 11);
+  EXPECT_EQ(model.AlternativeLevel(3, 3), 250);  // the person is the alternative now
+}
+
 TEST(BackgroundLearner, NormalisesExposureDriftBetweenSamples) {
   const int w = 96, h = 64;
   const YuvImage truth = TexturedBackground(w, h, 7);
@@ -169,7 +209,9 @@ TEST(BackgroundModel, ShadowsAreNotChangesButObjectsOfTheSameBrightnessAre) {
 
 TEST(BackgroundModel, AShadowKeepsTheFloorsTextureAndFlatClothesDoNot) {
   const YuvImage b = TexturedBackground(64, 64, 21);  // tiles and grain
-  BackgroundModel model(BackgroundOptions{}, 10);
+  BackgroundOptions with_texture;
+  with_texture.shadows.texture_radius_px = 2;
+  BackgroundModel model(with_texture, 10);
   model.Reset(b);
   YuvImage f = Seen(b, 1.0, 0, 22, 0.5);
   // Left: a cast shadow (the floor at half its brightness, chroma scaled). Right: flat
@@ -322,7 +364,7 @@ TEST(BackgroundOptions, ValidateNamesTheField) {
   o = {};
   o.shadows.min_ratio = 0.95;
   EXPECT_EQ(o.Validate().message(),
-            "backgrounds.shadows: expected 0 < min_ratio < max_ratio < 1, found min_ratio 0.95 and max_ratio 0.9");
+            "backgrounds.shadows: expected 0 < min_ratio < max_ratio < 1, found min_ratio 0.95 and max_ratio 0.6");
   o = {};
   o.absorb_s = 0;
   EXPECT_EQ(o.Validate().message(), "backgrounds.absorb_s: expected > 0, found 0");

@@ -29,6 +29,91 @@ bool Inside(const Eigen::Vector2d& px, ImageSize size) {
 
 }  // namespace
 
+ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vector<BackgroundModel*>& models,
+                                          int threshold) {
+  OCCMAP_CHECK(static_cast<int>(models.size()) == lut.num_cameras(), "consensus: one model (or null) per camera");
+  const size_t cams = models.size();
+  const size_t cells = static_cast<size_t>(lut.grid().num_cells());
+  const uint32_t sentinel = lut.sentinel();
+  // Mean background luma per (cell, camera).
+  std::vector<float> sum(cells * cams, 0.0f);
+  std::vector<uint16_t> count(cells * cams, 0);
+  for (size_t n = 0; n < cams; ++n) {
+    const BackgroundModel* m = models[n];
+    if (m == nullptr || m->empty()) continue;
+    const std::span<const uint32_t> l1 = lut.l1(static_cast<int>(n));
+    const int w = m->width();
+    for (size_t p = 0; p < l1.size(); ++p) {
+      if (l1[p] == sentinel) continue;
+      const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
+      const size_t k = static_cast<size_t>(l1[p]) * cams + n;
+      if (count[k] == 65535) continue;
+      sum[k] += static_cast<float>(m->BackgroundLevel(x, y));
+      ++count[k];
+    }
+  }
+  auto mean = [&](const std::vector<float>& s, size_t cell, size_t n) {
+    const size_t k = cell * cams + n;
+    return count[k] ? s[k] / count[k] : -1.0f;
+  };
+  // Each camera's exposure relative to the camera that sees the most cells.
+  std::vector<int64_t> seen(cams, 0);
+  for (size_t c = 0; c < cells; ++c) {
+    for (size_t n = 0; n < cams; ++n) seen[n] += count[c * cams + n] > 0;
+  }
+  const size_t ref = static_cast<size_t>(std::max_element(seen.begin(), seen.end()) - seen.begin());
+  std::vector<float> gain(cams, 1.0f);
+  for (size_t n = 0; n < cams; ++n) {
+    std::vector<float> ratios;
+    for (size_t c = 0; c < cells; ++c) {
+      const float a = mean(sum, c, n), b = mean(sum, c, ref);
+      if (a > 8 && b > 8) ratios.push_back(a / b);
+    }
+    if (ratios.size() < 100) continue;
+    std::nth_element(ratios.begin(), ratios.begin() + static_cast<ptrdiff_t>(ratios.size() / 2), ratios.end());
+    gain[n] = ratios[ratios.size() / 2];
+  }
+  // The consensus per cell, in the reference camera's exposure (-1: fewer than three views).
+  std::vector<float> consensus(cells, -1.0f);
+  std::vector<float> values;
+  auto median = [&](std::vector<float>& v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<ptrdiff_t>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  for (size_t c = 0; c < cells; ++c) {
+    values.clear();
+    for (size_t n = 0; n < cams; ++n) {
+      if (count[c * cams + n]) values.push_back(mean(sum, c, n) / gain[n]);
+    }
+    if (values.size() < 3) continue;
+    consensus[c] = median(values);
+  }
+  // A pixel far from its cell's consensus takes its alternative when that is close. (Taking
+  // the consensus itself where there is no alternative was measured worse on the plaza: the
+  // cell's mean has none of the pixel's texture.)
+  ConsensusResult result;
+  for (size_t n = 0; n < cams; ++n) {
+    BackgroundModel* m = models[n];
+    if (m == nullptr || m->empty()) continue;
+    const std::span<const uint32_t> l1 = lut.l1(static_cast<int>(n));
+    const int w = m->width();
+    for (size_t p = 0; p < l1.size(); ++p) {
+      if (l1[p] == sentinel || consensus[l1[p]] < 0) continue;
+      const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
+      ++result.pixels_checked;
+      const float expected = consensus[l1[p]] * gain[n];
+      const float d_bg = std::abs(static_cast<float>(m->BackgroundLevel(x, y)) - expected);
+      if (d_bg <= static_cast<float>(threshold)) continue;
+      const int alt = m->AlternativeLevel(x, y);
+      if (alt >= 0 && std::abs(static_cast<float>(alt) - expected) <= static_cast<float>(threshold)) {
+        m->SwapWithAlternative(x, y);
+        ++result.pixels_swapped;
+      }
+    }
+  }
+  return result;
+}
+
 BackgroundProtection::BackgroundProtection(std::vector<const CameraModel*> cameras, double plane_height_m,
                                            ProtectionOptions options)
     : cameras_(std::move(cameras)), plane_height_m_(plane_height_m), options_(options) {

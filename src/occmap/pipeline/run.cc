@@ -103,6 +103,7 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
   const BackgroundOptions& bo = site.backgrounds;
   const ImageSize size = cam.camera->image_size();
   YuvImage background;
+  std::optional<BackgroundLearner::Alternative> alternative;
   auto check_size = [&](int w, int h, const fs::path& path) -> Status {
     if (w == size.width && h == size.height) return Status::Ok();
     return InvalidInput(fmt::format("camera {}: background '{}' is {}x{}, expected the image size {}x{}", cam.id,
@@ -125,7 +126,7 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
     if (auto f = c.source->fps()) fps = *f;
   } else {
     Hasher h;
-    h.Add("adaptive-background-v1");
+    h.Add("adaptive-background-v2");
     h.Add(site.name);
     h.Add(cam.id);
     h.Add(cam.source.location);
@@ -148,10 +149,18 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
       auto y = ReadGrayImage(plane_path("y"));
       auto u = chroma ? ReadGrayImage(plane_path("u")) : Result<Image<uint8_t>>(Image<uint8_t>());
       auto v = chroma ? ReadGrayImage(plane_path("v")) : Result<Image<uint8_t>>(Image<uint8_t>());
+      auto alt_y = ReadGrayImage(plane_path("alt-y"));
+      auto alt_n = ReadGrayImage(plane_path("alt-n"));
       if (y.ok() && u.ok() && v.ok() && y->width() == size.width && y->height() == size.height) {
         background.y = std::move(y).value();
         background.u = std::move(u).value();
         background.v = std::move(v).value();
+        if (alt_y.ok() && alt_n.ok() && alt_y->width() == size.width && alt_n->width() == size.width &&
+            alt_y->height() == size.height && alt_n->height() == size.height) {
+          alternative.emplace();
+          alternative->levels.y = std::move(alt_y).value();
+          alternative->support = std::move(alt_n).value();
+        }
         reused = true;
         c.info.background = fmt::format("reused: {}", plane_path("y").string());
       }
@@ -174,7 +183,8 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
       if (learner.count() == 0) {
         return InvalidInput(fmt::format("camera {}: {} has no frames to learn a background from", cam.id, src->Describe()));
       }
-      background = learner.Learn(bo.learning, bo.mode_radius);
+      if (bo.learning == BackgroundLearning::kMode) alternative.emplace();
+      background = learner.Learn(bo.learning, bo.mode_radius, alternative ? &*alternative : nullptr);
       c.info.background = fmt::format("learned: {} of {} frames over {:.1f} s", ToString(bo.learning), learner.count(),
                                       static_cast<double>(std::min(window, learner.count() * step)) / fps);
       if (!cached.empty()) {
@@ -183,12 +193,19 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
           OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("u"), background.u.view()));
           OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("v"), background.v.view()));
         }
+        if (alternative) {
+          OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("alt-y"), alternative->levels.y.view()));
+          OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("alt-n"), alternative->support.view()));
+        }
         OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("y"), background.y.view()));  // last: marks the set complete
       }
     }
   }
   c.model = std::make_unique<BackgroundModel>(bo, fps);
   c.model->Reset(background);
+  if (alternative) {
+    c.model->SetAlternative(*alternative, static_cast<int>(std::ceil(bo.alternative_min_share * bo.learn_samples)));
+  }
   return Status::Ok();
 }
 
@@ -418,6 +435,21 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   summary.lut_cache = ToString(cached.outcome);
   summary.lut_seconds = Since(t_lut);
   const GroundLut& lut = cached.lut;
+  // Learned backgrounds: each pixel's two candidates checked against the other cameras' view
+  // of its floor cell.
+  if (adaptive) {
+    std::vector<BackgroundModel*> models;
+    bool any_alternative = false;
+    for (auto& c : cams) {
+      models.push_back(c.model.get());
+      any_alternative |= c.info.background.starts_with("learned") || c.info.background.starts_with("reused");
+    }
+    if (any_alternative) {
+      const ConsensusResult r = ResolveLearnedBackgrounds(lut, models, site.detection.threshold);
+      summary.consensus_pixels_checked = r.pixels_checked;
+      summary.consensus_pixels_swapped = r.pixels_swapped;
+    }
+  }
   Fusion fusion(lut);
   const bool paper_and = site.fusion.method == FusionMethod::kImageBased && site.fusion.max_free_views == 0;
   // The paper's AND with every camera active takes the fast path (its tables are built only
@@ -1081,7 +1113,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                         {"absorb_s", bo.absorb_s}, {"person_height_m", bo.person_height_m},
                         {"chroma", chroma}, {"chroma_threshold", bo.chroma_threshold},
                         {"shadows", {{"enabled", bo.shadows.enabled}, {"min_ratio", bo.shadows.min_ratio},
-                                     {"max_ratio", bo.shadows.max_ratio}, {"chroma_tolerance", bo.shadows.chroma_tolerance}}}};
+                                     {"max_ratio", bo.shadows.max_ratio}, {"max_channel_spread", bo.shadows.max_channel_spread},
+                                     {"texture_radius_px", bo.shadows.texture_radius_px}}}};
   }
   j["settings"] = {{"threshold", site.detection.threshold},
                    {"colour", site.detection.colour},
@@ -1098,6 +1131,10 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                              {"cells", {site.grid.cells_x, site.grid.cells_y}},
                              {"cell_size_m", site.grid.cell_size_m}}}};
   j["tables"] = {{"cache", summary.lut_cache}, {"seconds", summary.lut_seconds}};
+  if (adaptive) {
+    j["backgrounds"]["consensus"] = {{"pixels_checked", summary.consensus_pixels_checked},
+                                     {"pixels_swapped", summary.consensus_pixels_swapped}};
+  }
   json cj = json::array();
   for (size_t n = 0; n < summary.cameras.size(); ++n) {
     const CameraRunInfo& c = summary.cameras[n];

@@ -294,7 +294,7 @@ Status ParseDetection(const YamlField& f, ChangeDetectionOptions& d) {
 // The `backgrounds:` section (detect/background_model.h); each value checked by Validate(),
 // the message placed at the section.
 Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
-  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"adaptive", "learning", "learn_s", "learn_samples", "mode_radius", "adapt_s",
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"adaptive", "learning", "learn_s", "learn_samples", "mode_radius", "alternative_min_share", "adapt_s",
                                       "relight_s", "absorb_s", "person_height_m", "chroma_threshold", "shadows"}));
   OCCMAP_ASSIGN_OR_RETURN(b.adaptive, f.GetBool("adaptive", b.adaptive));
   OCCMAP_ASSIGN_OR_RETURN(std::string learning, f.GetString("learning", ToString(b.learning)));
@@ -306,6 +306,7 @@ Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
   b.learn_samples = static_cast<int>(std::clamp<int64_t>(samples, -1, 1000));
   OCCMAP_ASSIGN_OR_RETURN(int64_t radius, f.GetInt("mode_radius", b.mode_radius));
   b.mode_radius = static_cast<int>(std::clamp<int64_t>(radius, -1, 1000));
+  OCCMAP_ASSIGN_OR_RETURN(b.alternative_min_share, f.GetDouble("alternative_min_share", b.alternative_min_share));
   OCCMAP_ASSIGN_OR_RETURN(b.adapt_s, f.GetDouble("adapt_s", b.adapt_s));
   OCCMAP_ASSIGN_OR_RETURN(b.relight_s, f.GetDouble("relight_s", b.relight_s));
   OCCMAP_ASSIGN_OR_RETURN(b.absorb_s, f.GetDouble("absorb_s", b.absorb_s));
@@ -313,13 +314,12 @@ Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
   OCCMAP_ASSIGN_OR_RETURN(int64_t tc, f.GetInt("chroma_threshold", b.chroma_threshold));
   b.chroma_threshold = static_cast<int>(std::clamp<int64_t>(tc, -1, 1000));
   if (auto s = f.Find("shadows")) {
-    OCCMAP_RETURN_IF_ERROR(s->CheckKeys({"enabled", "min_ratio", "max_ratio", "chroma_tolerance", "texture_radius_px",
+    OCCMAP_RETURN_IF_ERROR(s->CheckKeys({"enabled", "min_ratio", "max_ratio", "max_channel_spread", "texture_radius_px",
                                          "min_texture_correlation", "flat_std"}));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.enabled, s->GetBool("enabled", b.shadows.enabled));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.min_ratio, s->GetDouble("min_ratio", b.shadows.min_ratio));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.max_ratio, s->GetDouble("max_ratio", b.shadows.max_ratio));
-    OCCMAP_ASSIGN_OR_RETURN(int64_t tol, s->GetInt("chroma_tolerance", b.shadows.chroma_tolerance));
-    b.shadows.chroma_tolerance = static_cast<int>(std::clamp<int64_t>(tol, -1, 1000));
+    OCCMAP_ASSIGN_OR_RETURN(b.shadows.max_channel_spread, s->GetDouble("max_channel_spread", b.shadows.max_channel_spread));
     OCCMAP_ASSIGN_OR_RETURN(int64_t radius_px, s->GetInt("texture_radius_px", b.shadows.texture_radius_px));
     b.shadows.texture_radius_px = static_cast<int>(std::clamp<int64_t>(radius_px, -1, 1000));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.min_texture_correlation,
