@@ -457,6 +457,8 @@ int main(int argc, char** argv) {
   run_cmd->add_flag("--continue-without-camera", run.continue_without_camera,
                     "when a camera's stream ends or fails, go on without it (its cells become unseen)");
   run_cmd->add_flag("--occupancy-pngs", run.options.occupancy_pngs, "also write occupancy/NNNNNN.png per frame");
+  run_cmd->add_flag("--change-pngs", run.options.change_pngs,
+                    "also write changes/<camera>/NNNNNN.png per frame (changed pixels, before the tolerance)");
   run_cmd->add_flag("--no-video", run.no_video, "do not write occupancy.mp4 and mosaic.mp4");
   run_cmd->add_option("--background-frames", run.options.background_frames,
                       "K: frames in the median background of a camera without one")->capture_default_str();
