@@ -19,22 +19,24 @@ constexpr double kFitOutlierLevels = 12;
 uint8_t Clamp8(double v) { return static_cast<uint8_t>(std::clamp(std::lround(v), 0L, 255L)); }
 int ClampInt(double v, int lo, int hi) { return static_cast<int>(std::clamp(std::lround(v), static_cast<long>(lo), static_cast<long>(hi))); }
 
-// Whether a pixel's colour is its expected background's dimmed alike in R, G and B: the ratios
-// of the three channels (from full-range Y'CbCr) differ by at most max_spread. Channels under 8
-// levels in the background count as 8 (their ratio is noise).
-bool SameColourDimmed(int y, int u, int v, int ey, int eu, int ev, double max_spread) {
+constexpr double kLookDecay = 0.95;      // per frame
+constexpr double kLookMinMass = 2000;    // pixels before a look is trusted
+
+// The frame/background ratios of R, G and B (from full-range Y'CbCr) less their mean, and that
+// mean. Background channels under 8 levels count as 8 (their ratio is noise).
+float ChannelPattern(int y, int u, int v, int ey, int eu, int ev, float q[3]) {
   const float cb = static_cast<float>(u - 128), cr = static_cast<float>(v - 128);
   const float ecb = static_cast<float>(eu - 128), ecr = static_cast<float>(ev - 128);
   const float fy = static_cast<float>(y), by = static_cast<float>(ey);
   const float f[3] = {fy + 1.402f * cr, fy - 0.344136f * cb - 0.714136f * cr, fy + 1.772f * cb};
   const float b[3] = {by + 1.402f * ecr, by - 0.344136f * ecb - 0.714136f * ecr, by + 1.772f * ecb};
-  float lo = 1e9f, hi = -1e9f;
+  float mean = 0;
   for (int c = 0; c < 3; ++c) {
-    const float r = std::max(0.0f, f[c]) / std::max(8.0f, b[c]);
-    lo = std::min(lo, r);
-    hi = std::max(hi, r);
+    q[c] = std::max(0.0f, f[c]) / std::max(8.0f, b[c]);
+    mean += q[c] / 3;
   }
-  return hi - lo <= static_cast<float>(max_spread);
+  for (int c = 0; c < 3; ++c) q[c] -= mean;
+  return mean;
 }
 
 // Weighted least squares of y = a x + b; false when the xs do not spread.
@@ -461,6 +463,9 @@ void BackgroundModel::Reset(const YuvImage& background) {
   first_frame_ = -1;
   stats_.pixels = static_cast<int64_t>(np);
   transfer_ = PhotometricTransfer{};
+  look_ = ShadowLook{};
+  ratio_histogram_.assign(kRatioBins, 0.0);
+  learning_ = ShadowLearning{};
 }
 
 void BackgroundModel::SetAlternative(const BackgroundLearner::Alternative& alternative, int min_support) {
@@ -543,8 +548,66 @@ uint8_t BackgroundModel::Classify(int y, int u, int v, int by, int bu, int bv, i
   if (y < static_cast<int>(std::ceil(s.min_ratio * expected)) || y > static_cast<int>(std::floor(s.max_ratio * expected))) {
     return kChanged;
   }
-  if (!chroma_) return kShadow;
-  return SameColourDimmed(y, u, v, expected, eu, ev, s.max_channel_spread) ? kShadow : kChanged;
+  return FitsShadowLook(y, u, v, expected, eu, ev, nullptr) ? kShadow : kChanged;
+}
+
+bool BackgroundModel::FitsShadowLook(int y, int u, int v, int ey, int eu, int ev, ShadowLearning* learn) const {
+  const ShadowOptions& s = options_.shadows;
+  const double ratio = static_cast<double>(y) / static_cast<double>(ey);
+  const bool learned = s.learn && look_.ratio > 0;
+  float q[3] = {0, 0, 0};
+  float distance = 0;
+  if (chroma_) {
+    ChannelPattern(y, u, v, ey, eu, ev, q);
+    for (int c = 0; c < 3; ++c) distance = std::max(distance, std::abs(q[c] - look_.pattern[static_cast<size_t>(c)]));
+  }
+  if (learn != nullptr && distance <= 2.5f * static_cast<float>(s.max_channel_spread)) {
+    learn->histogram[static_cast<size_t>(std::clamp(static_cast<int>(ratio * kRatioBins), 0, kRatioBins - 1))] += 1;
+    if (!learned || std::abs(ratio - look_.ratio) <= s.ratio_window) {
+      // Mean shift towards the densest pattern: weights fall to 0 at twice the tolerance.
+      const float gate = 2.0f * static_cast<float>(s.max_channel_spread);
+      const float w = std::max(0.0f, 1.0f - (distance / gate) * (distance / gate));
+      for (int c = 0; c < 3; ++c) learn->pattern_sum[static_cast<size_t>(c)] += w * q[c];
+      learn->pattern_count += w;
+    }
+  }
+  if (learned && std::abs(ratio - look_.ratio) > s.ratio_window) return false;
+  return distance <= static_cast<float>(s.max_channel_spread);
+}
+
+void BackgroundModel::LearnShadowLook(const ShadowLearning& frame) {
+  if (ratio_histogram_.size() != kRatioBins) ratio_histogram_.assign(kRatioBins, 0.0);
+  double mass = 0;
+  for (int b = 0; b < kRatioBins; ++b) {
+    ratio_histogram_[static_cast<size_t>(b)] = kLookDecay * ratio_histogram_[static_cast<size_t>(b)] + frame.histogram[static_cast<size_t>(b)];
+    mass += ratio_histogram_[static_cast<size_t>(b)];
+  }
+  look_.mass = mass;
+  if (mass < kLookMinMass) return;
+  int best = 0;
+  double best_v = -1;
+  for (int b = 0; b < kRatioBins; ++b) {  // the mode, over three bins
+    double v = ratio_histogram_[static_cast<size_t>(b)];
+    if (b > 0) v += ratio_histogram_[static_cast<size_t>(b - 1)];
+    if (b + 1 < kRatioBins) v += ratio_histogram_[static_cast<size_t>(b + 1)];
+    if (v > best_v) {
+      best_v = v;
+      best = b;
+    }
+  }
+  look_.ratio = (best + 0.5) / kRatioBins;
+  if (chroma_ && frame.pattern_count >= 100) {
+    std::array<float, 3> p{};
+    float mean = 0;
+    for (int c = 0; c < 3; ++c) {
+      p[static_cast<size_t>(c)] = static_cast<float>(frame.pattern_sum[static_cast<size_t>(c)] / frame.pattern_count);
+      mean += p[static_cast<size_t>(c)] / 3;
+    }
+    for (int c = 0; c < 3; ++c) {
+      const float target = p[static_cast<size_t>(c)] - mean;
+      look_.pattern[static_cast<size_t>(c)] += static_cast<float>(1 - kLookDecay) * 2 * (target - look_.pattern[static_cast<size_t>(c)]);
+    }
+  }
 }
 
 bool BackgroundModel::TextureLikeBackground(ImageView<const uint8_t> frame_y, int x, int y) const {
@@ -607,6 +670,7 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
   }
   transfer_ = EstimateTransfer(bg8_.view(), frame.y);
   threshold_ = threshold;
+  if (learning_.pending) LearnShadowLook(learning_);  // the previous frame's shadows
   const ShadowOptions& s = options_.shadows;
   for (int level = 0; level < 256; ++level) {
     const int expected = ClampInt(transfer_.Apply(level), 0, 255);
@@ -621,6 +685,12 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
   }
   const int tc = chroma_ ? options_.chroma_threshold : 0;
   int64_t changed = 0, shadow = 0;
+  ShadowLearning* learn = nullptr;
+  if (options_.shadows.enabled && options_.shadows.learn) {
+    learning_ = ShadowLearning{};
+    learning_.pending = true;
+    learn = &learning_;
+  }
   for (int y = 0; y < height_; ++y) {
     const uint8_t* fy = frame.y.row(y);
     const uint8_t* fu = chroma_ ? frame.u.row(y / 2) : nullptr;
@@ -647,11 +717,7 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
       if (is_changed) {
         c = kChanged;
         if (d < 0 && fy[x] >= shadow_lo_[b] && fy[x] <= shadow_hi_[b]) {
-          if (!chroma_) {
-            c = kShadow;
-          } else {
-            if (SameColourDimmed(fy[x], u, v, expected, eu, ev, s.max_channel_spread)) c = kShadow;
-          }
+          if (FitsShadowLook(fy[x], u, v, expected, eu, ev, learn)) c = kShadow;
           if (c == kShadow && !TextureLikeBackground(frame.y, x, y)) c = kChanged;
         }
       }

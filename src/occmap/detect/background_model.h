@@ -45,6 +45,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -80,11 +81,14 @@ Result<BackgroundLearning> ParseBackgroundLearning(std::string_view name);  // m
 
 struct ShadowOptions {
   bool enabled = true;
-  double min_ratio = 0.2;      // a shadow keeps at least this share of the lit brightness
-  double max_ratio = 0.6;      // and loses at least 1 - max_ratio of it
-  // The frame/background brightness ratios of R, G and B differ by at most this (a shadow
-  // dims every channel alike; a sky-lit shadow a little less in blue).
-  double max_channel_spread = 0.1;
+  double min_ratio = 0.15;     // a shadow keeps at least this share of the lit brightness
+  double max_ratio = 0.85;     // and loses at least 1 - max_ratio of it
+  // The scene's shadows are learned (ShadowLook): their ratio, within ratio_window of it, and
+  // their colour pattern, each of R, G, B's ratio (less the pixel's mean ratio) within
+  // max_channel_spread of it. Until learned: any ratio in range, the pattern of white light.
+  bool learn = true;
+  double ratio_window = 0.12;
+  double max_channel_spread = 0.06;
   // Texture: over the (2 r + 1)^2 window around the pixel, a shadow's luma correlates with the
   // background's (normalised cross-correlation >= min_texture_correlation). Where the
   // background is flat (standard deviation under flat_std) texture cannot tell.
@@ -156,6 +160,16 @@ class BackgroundLearner {
   std::vector<uint8_t> y_, u_, v_;  // frame-major samples
 };
 
+// What a scene's cast shadows look like to a camera, learned from its frames: the brightness
+// ratio that the darker changed pixels share (the mode of their ratios: a scene's shadows share
+// one, clothing spreads over all) and their colour pattern (the share of the mean ratio each
+// of R, G, B keeps, less their mean: 0, 0, 0 under white light, more blue under a blue sky).
+struct ShadowLook {
+  double ratio = 0;                          // 0: not learned yet
+  std::array<float, 3> pattern{0, 0, 0};     // R, G, B ratios less their mean
+  double mass = 0;                           // decayed count of the pixels it was learned from
+};
+
 // What the change test found in the last frame, and what the updates did over the run.
 struct BackgroundStats {
   int64_t frames = 0;
@@ -209,12 +223,26 @@ class BackgroundModel {
   // first updated frame), at frame_index.
   double MeanAgeS(int64_t frame_index) const;
   const PhotometricTransfer& transfer() const { return transfer_; }
+  const ShadowLook& shadow_look() const { return look_; }
 
  private:
   enum Class : uint8_t { kBackground = 0, kChanged = 1, kShadow = 2 };
   size_t Index(int x, int y) const { return static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x); }
 
   uint8_t Classify(int y, int u, int v, int by, int bu, int bv, int threshold) const;
+  // The colour part of the shadow test for a darker pixel; adds it to the learning sums when
+  // `learn` is given. A frame's sums are applied at the start of the next DetectChanges, so
+  // that the look a frame was tested with stays the model's until then (the reference test
+  // reads it).
+  static constexpr int kRatioBins = 50;  // the shadow ratio histogram over [0, 1)
+  struct ShadowLearning {
+    std::array<double, kRatioBins> histogram{};
+    std::array<double, 3> pattern_sum{};
+    double pattern_count = 0;
+    bool pending = false;
+  };
+  bool FitsShadowLook(int y, int u, int v, int ey, int eu, int ev, ShadowLearning* learn) const;
+  void LearnShadowLook(const ShadowLearning& frame);
   // The texture part of the shadow test at (x, y).
   bool TextureLikeBackground(ImageView<const uint8_t> frame_y, int x, int y) const;
 
@@ -235,6 +263,9 @@ class BackgroundModel {
   Image<uint8_t> bg8_;                   // the luma background in 8 bits, for the transfer
   PhotometricTransfer transfer_;
   int threshold_ = 0;  // of the last DetectChanges
+  ShadowLook look_;
+  std::vector<double> ratio_histogram_;  // decayed, over [0, 1)
+  ShadowLearning learning_;              // the last frame's sums
   BackgroundStats stats_;
   // Tables of the last frame's transfer, per background level.
   int pred_[256];          // expected frame luma

@@ -1146,7 +1146,9 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
           {"mean_age_s", m->MeanAgeS(last_frame_index)},
           {"absorbed_pixel_events", st.pixels_absorbed},
           {"last_frame", {{"gain", st.transfer.gain}, {"offset", st.transfer.offset},
-                          {"changed_fraction", st.changed_fraction}, {"shadow_fraction", st.shadow_fraction}}}};
+                          {"changed_fraction", st.changed_fraction}, {"shadow_fraction", st.shadow_fraction}}},
+          {"shadow_look", {{"ratio", m->shadow_look().ratio}, {"pattern_rgb", m->shadow_look().pattern},
+                           {"mass", m->shadow_look().mass}}}};
     }
     if (c.ended_at_frame) e["ended_at_frame"] = *c.ended_at_frame;
     if (!c.end_reason.empty()) e["end_reason"] = c.end_reason;
