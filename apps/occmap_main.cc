@@ -342,6 +342,16 @@ Status RunSynth(const CommonOptions& common, const SynthCommand& cmd) {
   // The plaza is run as on a real site: the backgrounds are learnt from the busy frames unless
   // --site-backgrounds hands over the empty scene.
   d.site_backgrounds = cmd.site_backgrounds || scene.spec().name != "plaza";
+  if (scene.spec().name == "plaza") {
+    // Outdoors, busy and sunny: colour, the background learned and kept up to date from the
+    // fused map, cast shadows told from objects (site `backgrounds:`, docs/formats.md).
+    d.site_detection_yaml = fmt::format(
+        "detection:\n  threshold: {}\n  tolerance_px: 1\n  colour: true\n"
+        "# Outdoors, busy and sunny: the background is learned from the video, kept up to date from\n"
+        "# the fused map, and cast shadows are told from objects.\n"
+        "backgrounds:\n  adaptive: true\n",
+        d.detection_threshold);
+  }
   Context ctx(common.threads);
   ProgressBar bar;
   auto summary = sim::WriteDataset(scene, d, ctx, [&](const sim::DatasetProgress& p) {

@@ -94,6 +94,17 @@ sed -i 's|      floor_from_image: \[\[1, 0, 0\], \[0, -1, 479\], \[0, 0, 1\]\]| 
 check run_missing_frames 2 "no frame found" -- "$occmap" run "$work/homography.yaml" --no-cache --out "$work/r"
 check run_bad_option 2 "frames" -- "$occmap" run "$work/homography.yaml" --frames 0 --no-cache --out "$work/r"
 
+# The plaza as a user runs it: no background given (learned from the busy frames), colour,
+# shadows; the change masks scored against the perfect ones.
+check synth_plaza 0 'wrote' -- "$occmap" synth --scene plaza --scale 0.25 --duration-s 3 --out "$work/plaza"
+check plaza_site_learns 0 'adaptive: true' -- cat "$work/plaza/site.yaml"
+check plaza_no_background 1 '^$' -- grep -q 'background:' "$work/plaza/site.yaml"
+check run_plaza 0 'background learned: mode of 3 frames' -- "$occmap" run "$work/plaza/site.yaml" --no-cache --no-video --change-pngs --out "$work/pr"
+check plaza_change_pngs 0 '000029.png' -- ls "$work/pr/changes/c1"
+check plaza_summary 0 '"shadow_look"' -- cat "$work/pr/summary.json"
+check eval_plaza_changes 0 '"shadow_changed_fraction"' -- bash -c "\"$occmap\" eval \"$work/plaza\" \"$work/pr\" >/dev/null && cat \"$work/pr/evaluation.json\""
+check bad_backgrounds 2 "backgrounds.learning: expected median, mode, mog2 or knn, found 'gmm'" -- bash -c "sed 's/  adaptive: true/  adaptive: true\n  learning: gmm/' \"$work/plaza/site.yaml\" > \"$work/plaza/bad.yaml\" && \"$occmap\" check \"$work/plaza/bad.yaml\""
+
 datasets="$src/../shared/datasets"
 if [ -d "$datasets/wildtrack" ]; then
   check wildtrack_lut 0 '^C7 +1920x1080' -- "$occmap" lut "$src/sites/wildtrack.yaml" --no-cache --out "$work/w"
