@@ -11,6 +11,7 @@ namespace occmap {
 namespace {
 
 constexpr int kRingPoints = 12;  // points per circle of the projected box
+constexpr int kConsensusBlock = 4;  // cells per side of a consensus block
 constexpr int kVoteWindowPx = 2;
 
 bool ChangedNear(ImageView<const uint8_t> changes, int cx, int cy) {
@@ -33,7 +34,17 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
                                           int threshold) {
   OCCMAP_CHECK(static_cast<int>(models.size()) == lut.num_cameras(), "consensus: one model (or null) per camera");
   const size_t cams = models.size();
-  const size_t cells = static_cast<size_t>(lut.grid().num_cells());
+  // Blocks of kConsensusBlock x kConsensusBlock cells: a far cell is hit by few pixels' rays,
+  // a block by enough cameras.
+  const FloorGrid& g = lut.grid();
+  const int bx = (g.cells_x + kConsensusBlock - 1) / kConsensusBlock;
+  const int by = (g.cells_y + kConsensusBlock - 1) / kConsensusBlock;
+  const size_t cells = static_cast<size_t>(bx) * static_cast<size_t>(by);
+  auto block_of = [&](uint32_t cell) {
+    const int i = static_cast<int>(cell % static_cast<uint32_t>(g.cells_x)) / kConsensusBlock;
+    const int j = static_cast<int>(cell / static_cast<uint32_t>(g.cells_x)) / kConsensusBlock;
+    return static_cast<size_t>(j) * static_cast<size_t>(bx) + static_cast<size_t>(i);
+  };
   const uint32_t sentinel = lut.sentinel();
   // Mean background luma per (cell, camera).
   std::vector<float> sum(cells * cams, 0.0f);
@@ -46,7 +57,7 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
     for (size_t p = 0; p < l1.size(); ++p) {
       if (l1[p] == sentinel) continue;
       const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
-      const size_t k = static_cast<size_t>(l1[p]) * cams + n;
+      const size_t k = block_of(l1[p]) * cams + n;
       if (count[k] == 65535) continue;
       sum[k] += static_cast<float>(m->BackgroundLevel(x, y));
       ++count[k];
@@ -98,14 +109,17 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
     const std::span<const uint32_t> l1 = lut.l1(static_cast<int>(n));
     const int w = m->width();
     for (size_t p = 0; p < l1.size(); ++p) {
-      if (l1[p] == sentinel || consensus[l1[p]] < 0) continue;
+      if (l1[p] == sentinel || consensus[block_of(l1[p])] < 0) continue;
       const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
       ++result.pixels_checked;
-      const float expected = consensus[l1[p]] * gain[n];
+      const float expected = consensus[block_of(l1[p])] * gain[n];
       const float d_bg = std::abs(static_cast<float>(m->BackgroundLevel(x, y)) - expected);
-      if (d_bg <= static_cast<float>(threshold)) continue;
       const int alt = m->AlternativeLevel(x, y);
-      if (alt >= 0 && std::abs(static_cast<float>(alt) - expected) <= static_cast<float>(threshold)) {
+      if (alt < 0) continue;
+      // The alternative is much closer to what the other cameras see there (the block's mean:
+      // no texture, hence a comparison, not a tolerance).
+      const float d_alt = std::abs(static_cast<float>(alt) - expected);
+      if (d_alt + static_cast<float>(threshold) < d_bg) {
         m->SwapWithAlternative(x, y);
         ++result.pixels_swapped;
       }

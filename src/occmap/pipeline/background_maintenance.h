@@ -37,16 +37,16 @@ class BackgroundModel;
 
 // Learned backgrounds checked against each other through the floor (after learning, before
 // the run): a floor cell looks alike from every camera, while a person who stood through the
-// learning window covers different cells in different views. Per cell, the consensus is the
-// median over the cameras that see it (at least three) of their backgrounds' mean luma there,
-// each camera brought to a reference camera's exposure by the median ratio over the cells both
-// see. A pixel whose background is more than threshold from its cell's consensus takes its
-// alternative (BackgroundLearner's second cluster) when that is within threshold of it. It
+// learning window covers different cells in different views. Per block of 4 x 4 cells, the
+// consensus is the median over the cameras that see it (at least three) of their backgrounds'
+// mean luma there, each camera brought to a reference camera's exposure by the median ratio
+// over the blocks both see. A pixel takes its alternative (BackgroundLearner's second cluster)
+// when that is closer to its block's consensus than its background by more than threshold. It
 // cannot fix the person's own footprint (every camera saw the feet there), pixels whose ray
 // leaves the monitored floor (a low camera sees most of a standing person against the far
 // side), nor pixels without an alternative (covered for over 90 % of the window).
 struct ConsensusResult {
-  int64_t pixels_checked = 0;  // floor pixels whose cell has a consensus
+  int64_t pixels_checked = 0;  // floor pixels whose block has a consensus
   int64_t pixels_swapped = 0;  // took their alternative
 };
 ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vector<BackgroundModel*>& models,
