@@ -22,6 +22,34 @@ int ClampInt(double v, int lo, int hi) { return static_cast<int>(std::clamp(std:
 constexpr double kLookDecay = 0.95;      // per frame
 constexpr double kLookMinMass = 2000;    // pixels before a look is trusted
 
+// One row of the luma test: cls = out = 1 where |frame - expected| > threshold or the chroma
+// test said so (cc), expected = clamp((gq b + cq) >> 16); returns the count. Cloned for AVX2
+// (32-bit multiplies: the baseline x86-64 has none in SIMD); the same values on any path.
+__attribute__((target_clones("avx2", "default"))) int LumaTestRow(const uint8_t* frame, const uint8_t* background,
+                                                                  const uint8_t* cc, int width, int32_t gq,
+                                                                  int32_t cq, int threshold, uint8_t* cls,
+                                                                  uint8_t* out) {
+  int count = 0;
+  for (int x = 0; x < width; ++x) {
+    int p = (gq * static_cast<int32_t>(background[x]) + cq) >> 16;
+    p = p < 0 ? 0 : (p > 255 ? 255 : p);
+    const int d = frame[x] - p;
+    const uint8_t c = static_cast<uint8_t>((d > threshold) | (d < -threshold) | cc[x]);
+    cls[x] = c;
+    out[x] = c;
+    count += c;
+  }
+  return count;
+}
+
+// 8.8 fixed point to 8 bits, rounded, saturated.
+__attribute__((target_clones("avx2", "default"))) void RoundRow(const uint16_t* src, int width, uint8_t* dst) {
+  for (int x = 0; x < width; ++x) {
+    const int v = (src[x] + 128) >> 8;
+    dst[x] = static_cast<uint8_t>(v > 255 ? 255 : v);
+  }
+}
+
 // The frame/background ratios of R, G and B (from full-range Y'CbCr) less their mean, and that
 // mean. Background channels under 8 levels count as 8 (their ratio is noise).
 float ChannelPattern(int y, int u, int v, int ey, int eu, int ev, float q[3]) {
@@ -531,7 +559,7 @@ YuvImage BackgroundModel::Current() const {
 // The class of one pixel from its frame values and its background's 8-bit levels, under the
 // current transfer (the reference's formulas; DetectChanges reads the same from tables).
 uint8_t BackgroundModel::Classify(int y, int u, int v, int by, int bu, int bv, int threshold) const {
-  const int expected = ClampInt(transfer_.Apply(by), 0, 255);
+  const int expected = ExpectedLuma(by);
   const int d = y - expected;
   bool changed = std::abs(d) > threshold;
   int eu = 0, ev = 0;
@@ -663,17 +691,15 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
   OCCMAP_CHECK(changes.width() == width_ && changes.height() == height_, "background model: change mask size");
   // The transfer against the current background's luma (8-bit).
   if (bg8_.width() != width_ || bg8_.height() != height_) bg8_ = Image<uint8_t>(width_, height_);
-  for (int y = 0; y < height_; ++y) {
-    uint8_t* dst = bg8_.row(y);
-    const uint16_t* src = by_.data() + static_cast<size_t>(y) * width_;
-    for (int x = 0; x < width_; ++x) dst[x] = static_cast<uint8_t>(std::min(255, (src[x] + 128) >> 8));
-  }
+  for (int y = 0; y < height_; ++y) RoundRow(by_.data() + static_cast<size_t>(y) * width_, width_, bg8_.row(y));
   transfer_ = EstimateTransfer(bg8_.view(), frame.y);
   threshold_ = threshold;
   if (learning_.pending) LearnShadowLook(learning_);  // the previous frame's shadows
   const ShadowOptions& s = options_.shadows;
+  gain_q16_ = static_cast<int32_t>(std::lround(transfer_.gain * 65536));
+  offset_q16_ = static_cast<int32_t>(std::lround(transfer_.offset * 65536)) + 32768;
   for (int level = 0; level < 256; ++level) {
-    const int expected = ClampInt(transfer_.Apply(level), 0, 255);
+    const int expected = ExpectedLuma(level);
     pred_[level] = expected;
     pred_c_[level] = ClampInt(128 + transfer_.gain * (level - 128), 0, 255);
     shadow_lo_[level] = static_cast<int>(std::ceil(s.min_ratio * expected));
@@ -691,41 +717,63 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
     learning_.pending = true;
     learn = &learning_;
   }
+  // Per row: the chroma test once per chroma row (spread over the row's pixels), the luma test
+  // over the whole row in a loop the compiler vectorises, then the shadow test on the changed
+  // pixels only (a few percent).
+  chroma_changed_.assign(static_cast<size_t>(width_), 0);
+  const int32_t gq = gain_q16_, cq = offset_q16_;
   for (int y = 0; y < height_; ++y) {
     const uint8_t* fy = frame.y.row(y);
+    const uint8_t* b8 = bg8_.row(y);
     const uint8_t* fu = chroma_ ? frame.u.row(y / 2) : nullptr;
     const uint8_t* fv = chroma_ ? frame.v.row(y / 2) : nullptr;
-    const uint16_t* rby = by_.data() + static_cast<size_t>(y) * width_;
     const uint16_t* rbu = chroma_ ? bu_.data() + static_cast<size_t>(y / 2) * cw_ : nullptr;
     const uint16_t* rbv = chroma_ ? bv_.data() + static_cast<size_t>(y / 2) * cw_ : nullptr;
     uint8_t* cls = class_.data() + static_cast<size_t>(y) * width_;
     uint8_t* out = changes.row(y);
+    uint8_t* cc = chroma_changed_.data();
+    if (tc > 0 && y % 2 == 0) {
+      for (int x = 0; x < cw_; ++x) {
+        const int eu = pred_c_[std::min(255, (rbu[x] + 128) >> 8)], ev = pred_c_[std::min(255, (rbv[x] + 128) >> 8)];
+        const uint8_t c = std::abs(fu[x] - eu) > tc || std::abs(fv[x] - ev) > tc ? 1 : 0;
+        cc[2 * x] = c;
+        if (2 * x + 1 < width_) cc[2 * x + 1] = c;
+      }
+    }
+    int row_changed = LumaTestRow(fy, b8, cc, width_, gq, cq, threshold, cls, out);
+    if (!options_.shadows.enabled || row_changed == 0) {
+      changed += row_changed;
+      continue;
+    }
     for (int x = 0; x < width_; ++x) {
-      const int b = std::min(255, (rby[x] + 128) >> 8);
+      // Eight pixels at a time past unchanged runs.
+      if (x + 8 <= width_) {
+        uint64_t word;
+        std::memcpy(&word, cls + x, 8);
+        if (word == 0) {
+          x += 7;
+          continue;
+        }
+      }
+      if (cls[x] == kBackground) continue;
+      const int b = b8[x];
       const int expected = pred_[b];
-      const int d = fy[x] - expected;
-      bool is_changed = std::abs(d) > threshold;
+      if (fy[x] >= expected || fy[x] < shadow_lo_[b] || fy[x] > shadow_hi_[b]) continue;
       int eu = 0, ev = 0, u = 0, v = 0;
       if (chroma_) {
         eu = pred_c_[std::min(255, (rbu[x >> 1] + 128) >> 8)];
         ev = pred_c_[std::min(255, (rbv[x >> 1] + 128) >> 8)];
         u = fu[x >> 1];
         v = fv[x >> 1];
-        if (tc > 0) is_changed |= std::abs(u - eu) > tc || std::abs(v - ev) > tc;
       }
-      uint8_t c = kBackground;
-      if (is_changed) {
-        c = kChanged;
-        if (d < 0 && fy[x] >= shadow_lo_[b] && fy[x] <= shadow_hi_[b]) {
-          if (FitsShadowLook(fy[x], u, v, expected, eu, ev, learn)) c = kShadow;
-          if (c == kShadow && !TextureLikeBackground(frame.y, x, y)) c = kChanged;
-        }
+      if (FitsShadowLook(fy[x], u, v, expected, eu, ev, learn) && TextureLikeBackground(frame.y, x, y)) {
+        cls[x] = kShadow;
+        out[x] = 0;
+        --row_changed;
+        ++shadow;
       }
-      cls[x] = c;
-      out[x] = c == kChanged ? 1 : 0;
-      changed += c == kChanged;
-      shadow += c == kShadow;
     }
+    changed += row_changed;
   }
   const double np = static_cast<double>(width_) * height_;
   stats_.changed_fraction = static_cast<double>(changed) / np;

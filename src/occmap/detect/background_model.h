@@ -263,6 +263,11 @@ class BackgroundModel {
   Image<uint8_t> bg8_;                   // the luma background in 8 bits, for the transfer
   PhotometricTransfer transfer_;
   int threshold_ = 0;  // of the last DetectChanges
+  // The transfer in 16.16 fixed point (the offset with the rounding half added): the expected
+  // luma of a background level, the same in the fast and the reference test.
+  int32_t gain_q16_ = 65536, offset_q16_ = 32768;
+  int ExpectedLuma(int level) const { return std::clamp((gain_q16_ * level + offset_q16_) >> 16, 0, 255); }
+  std::vector<uint8_t> chroma_changed_;  // per pixel of the current chroma row
   ShadowLook look_;
   std::vector<double> ratio_histogram_;  // decayed, over [0, 1)
   ShadowLearning learning_;              // the last frame's sums
