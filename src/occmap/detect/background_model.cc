@@ -269,6 +269,18 @@ void BackgroundLearner::Add(const YuvView& frame) {
   ++count_;
 }
 
+YuvView BackgroundLearner::Sample(int k) const {
+  OCCMAP_CHECK(k >= 0 && k < count_, "background learner: no such sample");
+  const size_t np = static_cast<size_t>(width_) * height_, nc = static_cast<size_t>(cw_) * ch_;
+  YuvView v;
+  v.y = ImageView<const uint8_t>(y_.data() + static_cast<size_t>(k) * np, width_, height_, width_);
+  if (chroma_) {
+    v.u = ImageView<const uint8_t>(u_.data() + static_cast<size_t>(k) * nc, cw_, ch_, cw_);
+    v.v = ImageView<const uint8_t>(v_.data() + static_cast<size_t>(k) * nc, cw_, ch_, cw_);
+  }
+  return v;
+}
+
 YuvImage BackgroundLearner::Learn(BackgroundLearning method, int mode_radius, Alternative* alternative) const {
   OCCMAP_CHECK(count_ > 0, "background learner: no frames");
   const size_t k = static_cast<size_t>(count_);
@@ -682,6 +694,11 @@ void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold
       changes(x, y) = cls == kChanged ? 1 : 0;
     }
   }
+}
+
+void BackgroundModel::WarmUp(const std::vector<YuvView>& frames, int threshold) {
+  Image<uint8_t> scratch(width_, height_);
+  for (const YuvView& f : frames) DetectChanges(f, threshold, scratch.view());
 }
 
 void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageView<uint8_t> changes) {

@@ -142,6 +142,8 @@ class BackgroundLearner {
   // Same size as given to the constructor (a CHECK); chroma when constructed with it.
   void Add(const YuvView& frame);
   int count() const { return count_; }
+  // Sample k (0 <= k < count()), as added.
+  YuvView Sample(int k) const;
   // Needs at least one frame (a CHECK). mode_radius is used by kMode. With kMode and
   // `alternative`, also each pixel's second densest cluster of samples (outside the first
   // cluster's levels) and in alternative->support its number of samples (0: none): what the
@@ -209,6 +211,9 @@ class BackgroundModel {
   // The background now, 8-bit (for pictures and saving).
   YuvImage Current() const;
 
+  // Runs the change test over frames without keeping their changes: the shadow look (and the
+  // transfer) learned from them before the first frame of a run.
+  void WarmUp(const std::vector<YuvView>& frames, int threshold);
   // Estimates the frame's transfer, then writes 1 where the pixel changed, 0 elsewhere.
   // Shadows are 0 in `changes`; the classes are kept for Update.
   void DetectChanges(const YuvView& frame, int threshold, ImageView<uint8_t> changes);

@@ -104,6 +104,7 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
   const ImageSize size = cam.camera->image_size();
   YuvImage background;
   std::optional<BackgroundLearner::Alternative> alternative;
+  std::optional<BackgroundLearner> learned_from;  // its samples warm the shadow look up
   auto check_size = [&](int w, int h, const fs::path& path) -> Status {
     if (w == size.width && h == size.height) return Status::Ok();
     return InvalidInput(fmt::format("camera {}: background '{}' is {}x{}, expected the image size {}x{}", cam.id,
@@ -171,7 +172,7 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
       OCCMAP_RETURN_IF_ERROR(src->SkipTo(options.start_frame));
       const int64_t window = std::max<int64_t>(1, std::llround(bo.learn_s * fps));
       const int64_t step = std::max<int64_t>(1, window / bo.learn_samples);
-      BackgroundLearner learner(size.width, size.height, chroma, bo.learn_samples);
+      BackgroundLearner& learner = learned_from.emplace(size.width, size.height, chroma, bo.learn_samples);
       Frame f;
       for (int64_t read = 0; read < window && learner.count() < bo.learn_samples; ++read) {
         OCCMAP_ASSIGN_OR_RETURN(bool got, src->Read(f));
@@ -205,6 +206,12 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
   c.model->Reset(background);
   if (alternative) {
     c.model->SetAlternative(*alternative, static_cast<int>(std::ceil(bo.alternative_min_share * bo.learn_samples)));
+  }
+  if (learned_from && bo.shadows.enabled && bo.shadows.learn) {
+    // The shadow look from the learning samples, so that the first frames are tested with it.
+    std::vector<YuvView> samples;
+    for (int k = 0; k < learned_from->count(); ++k) samples.push_back(learned_from->Sample(k));
+    c.model->WarmUp(samples, site.detection.threshold);
   }
   return Status::Ok();
 }
