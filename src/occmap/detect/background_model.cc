@@ -136,6 +136,9 @@ Status ShadowOptions::Validate() const {
     return InvalidInput(fmt::format("backgrounds.shadows: expected 0 < min_ratio < max_ratio < 1, found min_ratio {} and max_ratio {}",
                                     min_ratio, max_ratio));
   }
+  if (!(ratio_window > 0 && ratio_window <= 1)) {
+    return InvalidInput(fmt::format("backgrounds.shadows.ratio_window: expected 0 < w <= 1, found {}", ratio_window));
+  }
   if (!(max_channel_spread >= 0 && max_channel_spread <= 1)) {
     return InvalidInput(fmt::format("backgrounds.shadows.max_channel_spread: expected 0..1, found {}", max_channel_spread));
   }

@@ -87,7 +87,7 @@ struct ShadowOptions {
   // their colour pattern, each of R, G, B's ratio (less the pixel's mean ratio) within
   // max_channel_spread of it. Until learned: any ratio in range, the pattern of white light.
   bool learn = true;
-  double ratio_window = 0.12;
+  double ratio_window = 0.2;
   double max_channel_spread = 0.06;
   // Texture: over the (2 r + 1)^2 window around the pixel, a shadow's luma correlates with the
   // background's (normalised cross-correlation >= min_texture_correlation). Where the

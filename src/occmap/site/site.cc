@@ -314,11 +314,14 @@ Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
   OCCMAP_ASSIGN_OR_RETURN(int64_t tc, f.GetInt("chroma_threshold", b.chroma_threshold));
   b.chroma_threshold = static_cast<int>(std::clamp<int64_t>(tc, -1, 1000));
   if (auto s = f.Find("shadows")) {
-    OCCMAP_RETURN_IF_ERROR(s->CheckKeys({"enabled", "min_ratio", "max_ratio", "max_channel_spread", "texture_radius_px",
+    OCCMAP_RETURN_IF_ERROR(s->CheckKeys({"enabled", "min_ratio", "max_ratio", "learn", "ratio_window", "max_channel_spread",
+                                         "texture_radius_px",
                                          "min_texture_correlation", "flat_std"}));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.enabled, s->GetBool("enabled", b.shadows.enabled));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.min_ratio, s->GetDouble("min_ratio", b.shadows.min_ratio));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.max_ratio, s->GetDouble("max_ratio", b.shadows.max_ratio));
+    OCCMAP_ASSIGN_OR_RETURN(b.shadows.learn, s->GetBool("learn", b.shadows.learn));
+    OCCMAP_ASSIGN_OR_RETURN(b.shadows.ratio_window, s->GetDouble("ratio_window", b.shadows.ratio_window));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.max_channel_spread, s->GetDouble("max_channel_spread", b.shadows.max_channel_spread));
     OCCMAP_ASSIGN_OR_RETURN(int64_t radius_px, s->GetInt("texture_radius_px", b.shadows.texture_radius_px));
     b.shadows.texture_radius_px = static_cast<int>(std::clamp<int64_t>(radius_px, -1, 1000));

@@ -105,7 +105,8 @@ TEST_F(SiteFixture, LoadsAValidSite) {
 TEST_F(SiteFixture, ReadsTheBackgroundsSection) {
   auto site = Parse(Valid() +
                     "backgrounds:\n  adaptive: true\n  learning: knn\n  learn_s: 90\n  learn_samples: 45\n"
-                    "  absorb_s: 12\n  person_height_m: 1.1\n  shadows: {enabled: false, min_ratio: 0.3}\n");
+                    "  absorb_s: 12\n  person_height_m: 1.1\n"
+                    "  shadows: {enabled: false, min_ratio: 0.3, learn: false, ratio_window: 0.2, max_channel_spread: 0.05}\n");
   ASSERT_TRUE(site.ok()) << site.status().message();
   EXPECT_TRUE(site->backgrounds.adaptive);
   EXPECT_EQ(site->backgrounds.learning, BackgroundLearning::kKnn);
@@ -116,6 +117,9 @@ TEST_F(SiteFixture, ReadsTheBackgroundsSection) {
   EXPECT_FALSE(site->backgrounds.shadows.enabled);
   EXPECT_EQ(site->backgrounds.shadows.min_ratio, 0.3);
   EXPECT_EQ(site->backgrounds.shadows.max_ratio, ShadowOptions{}.max_ratio);
+  EXPECT_FALSE(site->backgrounds.shadows.learn);
+  EXPECT_EQ(site->backgrounds.shadows.ratio_window, 0.2);
+  EXPECT_EQ(site->backgrounds.shadows.max_channel_spread, 0.05);
 }
 
 TEST_F(SiteFixture, ResizedCameraProjectsToScaledPixels) {
