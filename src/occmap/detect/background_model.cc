@@ -21,6 +21,7 @@ int ClampInt(double v, int lo, int hi) { return static_cast<int>(std::clamp(std:
 
 constexpr double kLookDecay = 0.95;      // per frame
 constexpr double kLookMinMass = 2000;    // pixels before a look is trusted
+constexpr double kLookMinPeakShare = 0.15; // of them within the mode's three bins
 
 // One row of the luma test: cls = out = 1 where |frame - expected| > threshold or the chroma
 // test said so (cc), expected = clamp((gq b + cq) >> 16); returns the count. Cloned for AVX2
@@ -614,6 +615,8 @@ bool BackgroundModel::FitsShadowLook(int y, int u, int v, int ey, int eu, int ev
       learn->pattern_count += w;
     }
   }
+  // Learning, nothing is a shadow until the scene has shown its shadows' ratio.
+  if (s.learn && !learned) return false;
   if (learned && std::abs(ratio - look_.ratio) > s.ratio_window) return false;
   return distance <= static_cast<float>(s.max_channel_spread);
 }
@@ -638,7 +641,10 @@ void BackgroundModel::LearnShadowLook(const ShadowLearning& frame) {
       best = b;
     }
   }
-  look_.ratio = (best + 0.5) / kRatioBins;
+  // Shadows share a ratio; dark clothing alone spreads over all of them (a scene without cast
+  // shadows): a peak too flat is no shadow look.
+  look_.peak_share = best_v / mass;
+  look_.ratio = look_.peak_share >= kLookMinPeakShare ? (best + 0.5) / kRatioBins : 0.0;
   if (chroma_ && frame.pattern_count >= 100) {
     std::array<float, 3> p{};
     float mean = 0;

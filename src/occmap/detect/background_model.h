@@ -85,7 +85,9 @@ struct ShadowOptions {
   double max_ratio = 0.85;     // and loses at least 1 - max_ratio of it
   // The scene's shadows are learned (ShadowLook): their ratio, within ratio_window of it, and
   // their colour pattern, each of R, G, B's ratio (less the pixel's mean ratio) within
-  // max_channel_spread of it. Until learned: any ratio in range, the pattern of white light.
+  // max_channel_spread of it. Until learned (and in scenes whose darker changes share no
+  // ratio: no cast shadows) nothing is a shadow; without learning: any ratio in range, the
+  // pattern of white light.
   bool learn = true;
   double ratio_window = 0.2;
   double max_channel_spread = 0.06;
@@ -170,6 +172,7 @@ struct ShadowLook {
   double ratio = 0;                          // 0: not learned yet
   std::array<float, 3> pattern{0, 0, 0};     // R, G, B ratios less their mean
   double mass = 0;                           // decayed count of the pixels it was learned from
+  double peak_share = 0;                     // of them at the ratio's mode (6 % wide)
 };
 
 // What the change test found in the last frame, and what the updates did over the run.

@@ -184,7 +184,9 @@ TEST(BackgroundModel, ShadowsAreNotChangesButObjectsOfTheSameBrightnessAre) {
   b.y = Image<uint8_t>(w, h, 160);
   b.u = Image<uint8_t>(16, 16, 118);
   b.v = Image<uint8_t>(16, 16, 138);
-  BackgroundModel model(BackgroundOptions{}, 10);
+  BackgroundOptions fixed;  // no learning: the test of one frame
+  fixed.shadows.learn = false;
+  BackgroundModel model(fixed, 10);
   model.Reset(b);
   YuvImage f = b;
   Paint(f, 0, 0, 8, 8, 80, static_cast<uint8_t>(128 + 0.5 * (118 - 128)), static_cast<uint8_t>(128 + 0.5 * (138 - 128)));  // shadow
@@ -200,7 +202,7 @@ TEST(BackgroundModel, ShadowsAreNotChangesButObjectsOfTheSameBrightnessAre) {
   EXPECT_EQ(changes(2, 20), 0);
   EXPECT_NEAR(model.stats().shadow_fraction, 64.0 / (w * h), 1e-9);
 
-  BackgroundOptions no_shadows;
+  BackgroundOptions no_shadows = fixed;
   no_shadows.shadows.enabled = false;
   BackgroundModel plain(no_shadows, 10);
   plain.Reset(b);
@@ -212,6 +214,7 @@ TEST(BackgroundModel, AShadowKeepsTheFloorsTextureAndFlatClothesDoNot) {
   const YuvImage b = TexturedBackground(64, 64, 21);  // tiles and grain
   BackgroundOptions with_texture;
   with_texture.shadows.texture_radius_px = 2;
+  with_texture.shadows.learn = false;  // one frame
   BackgroundModel model(with_texture, 10);
   model.Reset(b);
   YuvImage f = Seen(b, 1.0, 0, 22, 0.5);

@@ -1155,7 +1155,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
           {"last_frame", {{"gain", st.transfer.gain}, {"offset", st.transfer.offset},
                           {"changed_fraction", st.changed_fraction}, {"shadow_fraction", st.shadow_fraction}}},
           {"shadow_look", {{"ratio", m->shadow_look().ratio}, {"pattern_rgb", m->shadow_look().pattern},
-                           {"mass", m->shadow_look().mass}}}};
+                           {"mass", m->shadow_look().mass}, {"peak_share", m->shadow_look().peak_share}}}};
     }
     if (c.ended_at_frame) e["ended_at_frame"] = *c.ended_at_frame;
     if (!c.end_reason.empty()) e["end_reason"] = c.end_reason;
