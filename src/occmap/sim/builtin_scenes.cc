@@ -17,18 +17,6 @@ namespace {
 
 const Eigen::Vector3f kGrey(0.3f, 0.3f, 0.3f);
 
-Material MakeMaterial(Eigen::Vector3f colour, Pattern pattern = Pattern::kPlain, float variation = 0,
-                      Eigen::Vector3f colour2 = {0.3f, 0.3f, 0.3f}, float scale_m = 0.5f, uint32_t seed = 0) {
-  Material m;
-  m.colour = colour;
-  m.pattern = pattern;
-  m.variation = variation;
-  m.colour2 = colour2;
-  m.scale_m = scale_m;
-  m.seed = seed;
-  return m;
-}
-
 StaticObjectSpec Box(std::string name, double cx, double cy, double sx, double sy, double h, Material m,
                      double base = 0) {
   StaticObjectSpec s;

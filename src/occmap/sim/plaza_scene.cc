@@ -44,18 +44,6 @@ class Rng {
   uint64_t state_;
 };
 
-Material MakeMaterial(Eigen::Vector3f colour, Pattern pattern, float variation, Eigen::Vector3f colour2, float scale_m,
-                      uint32_t seed) {
-  Material m;
-  m.colour = colour;
-  m.pattern = pattern;
-  m.variation = variation;
-  m.colour2 = colour2;
-  m.scale_m = scale_m;
-  m.seed = seed;
-  return m;
-}
-
 StaticObjectSpec Static(std::string name, StaticObjectSpec::Shape shape, Eigen::Vector2d centre, Eigen::Vector2d size,
                         double height_m, double yaw_deg, Material m, double base_m = 0) {
   StaticObjectSpec s;

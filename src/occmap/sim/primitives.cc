@@ -393,4 +393,16 @@ Eigen::Vector3f Shade(const Material& material, const Eigen::Vector3d& point_m, 
   return albedo.cwiseProduct(lighting.ambient_colour) * static_cast<float>(lighting.ambient) + direct;
 }
 
+Material MakeMaterial(Eigen::Vector3f colour, Pattern pattern, float variation, Eigen::Vector3f colour2, float scale_m,
+                      uint32_t seed) {
+  Material m;
+  m.colour = colour;
+  m.pattern = pattern;
+  m.variation = variation;
+  m.colour2 = colour2;
+  m.scale_m = scale_m;
+  m.seed = seed;
+  return m;
+}
+
 }  // namespace occmap::sim

@@ -46,6 +46,10 @@ struct Material {
   Eigen::Vector3f AlbedoAt(const Eigen::Vector3d& point_in_world) const;
 };
 
+// A material from its fields, in the order scenes write them.
+Material MakeMaterial(Eigen::Vector3f colour, Pattern pattern = Pattern::kPlain, float variation = 0,
+                      Eigen::Vector3f colour2 = {0.3f, 0.3f, 0.3f}, float scale_m = 0.5f, uint32_t seed = 0);
+
 // What a surface is, for masks and ground truth.
 enum class Surface : uint8_t { kFloor, kStatic, kDynamic };
 
