@@ -361,12 +361,27 @@ YuvImage BackgroundLearner::Learn(BackgroundLearning method, int mode_radius, Al
               best_i = i;
             }
           }
-          int sum = 0;
-          for (size_t q = best_i; q < best_i + best_n; ++q) sum += packed[q] >> 8;
-          out.y(x, y) = Clamp8(static_cast<double>(sum) / static_cast<double>(best_n));
+          // A run's mean level into `to` at (x, y), and its frames' mean chroma at the block's
+          // top-left pixel.
+          auto write_run = [&](size_t first, size_t n, YuvImage& to) {
+            int sum = 0;
+            for (size_t q = first; q < first + n; ++q) sum += packed[q] >> 8;
+            to.y(x, y) = Clamp8(static_cast<double>(sum) / static_cast<double>(n));
+            if (!chroma_ || x % 2 != 0 || y % 2 != 0) return;
+            const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+            int su = 0, sv = 0;
+            for (size_t q = first; q < first + n; ++q) {
+              const size_t f = packed[q] & 0xff;
+              su += nu[f * nc + c];
+              sv += nv[f * nc + c];
+            }
+            to.u(x / 2, y / 2) = Clamp8(static_cast<double>(su) / static_cast<double>(n));
+            to.v(x / 2, y / 2) = Clamp8(static_cast<double>(sv) / static_cast<double>(n));
+          };
+          write_run(best_i, best_n, out);
           if (alternative != nullptr) {
             // The densest run among the samples more than 2 * mode_radius from the first run's
-            // mean: before it (indices < best_i) or after it (> best_i + best_n - 1).
+            // mean.
             const int mean = out.y(x, y);
             size_t alt_i = 0, alt_n = 0;
             for (size_t j = 0, i2 = 0; j < k; ++j) {
@@ -381,33 +396,9 @@ YuvImage BackgroundLearner::Learn(BackgroundLearning method, int mode_radius, Al
               }
             }
             if (alt_n > 0) {
-              int alt_sum = 0;
-              for (size_t q = alt_i; q < alt_i + alt_n; ++q) alt_sum += packed[q] >> 8;
-              alternative->levels.y(x, y) = Clamp8(static_cast<double>(alt_sum) / static_cast<double>(alt_n));
+              write_run(alt_i, alt_n, alternative->levels);
               alternative->support(x, y) = static_cast<uint8_t>(alt_n);
-              if (chroma_ && x % 2 == 0 && y % 2 == 0) {
-                const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
-                int su = 0, sv = 0;
-                for (size_t q = alt_i; q < alt_i + alt_n; ++q) {
-                  const size_t f = packed[q] & 0xff;
-                  su += nu[f * nc + c];
-                  sv += nv[f * nc + c];
-                }
-                alternative->levels.u(x / 2, y / 2) = Clamp8(static_cast<double>(su) / static_cast<double>(alt_n));
-                alternative->levels.v(x / 2, y / 2) = Clamp8(static_cast<double>(sv) / static_cast<double>(alt_n));
-              }
             }
-          }
-          if (chroma_ && x % 2 == 0 && y % 2 == 0) {
-            const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
-            int su = 0, sv = 0;
-            for (size_t q = best_i; q < best_i + best_n; ++q) {
-              const size_t f = packed[q] & 0xff;
-              su += nu[f * nc + c];
-              sv += nv[f * nc + c];
-            }
-            out.u(x / 2, y / 2) = Clamp8(static_cast<double>(su) / static_cast<double>(best_n));
-            out.v(x / 2, y / 2) = Clamp8(static_cast<double>(sv) / static_cast<double>(best_n));
           }
         }
       }
