@@ -84,6 +84,33 @@ Status CheckFrameSize(const CameraState& c, const Frame& f) {
   return Status::Ok();
 }
 
+// A background picture's size against the camera's image size.
+Status CheckBackgroundSize(const SiteCamera& cam, int width, int height, const fs::path& path) {
+  const ImageSize size = cam.camera->image_size();
+  if (width == size.width && height == size.height) return Status::Ok();
+  return InvalidInput(fmt::format("camera {}: background '{}' is {}x{}, expected the image size {}x{}", cam.id,
+                                  path.string(), width, height, size.width, size.height));
+}
+
+// The part of an estimated background's cache key every estimate depends on (the source and its
+// modification time, the start frame, colour, the size); callers add their own settings.
+Hasher BackgroundKey(std::string_view version, const Site& site, const SiteCamera& cam, int64_t start_frame,
+                     bool colour) {
+  Hasher h;
+  h.Add(version);
+  h.Add(site.name);
+  h.Add(cam.id);
+  h.Add(cam.source.location);
+  h.AddPod(start_frame);
+  h.AddPod(colour);
+  const ImageSize size = cam.camera->image_size();
+  h.AddPod(size.width);
+  h.AddPod(size.height);
+  std::error_code ec;
+  if (const auto mtime = fs::last_write_time(cam.source.location, ec); !ec) h.AddPod(mtime.time_since_epoch().count());
+  return h;
+}
+
 YuvView FrameYuv(const Frame& f) {
   if (f.u.empty()) return {f.gray.view(), {}, {}};
   return {f.gray.view(), f.u.view(), f.v.view()};
@@ -105,11 +132,7 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
   YuvImage background;
   std::optional<BackgroundLearner::Alternative> alternative;
   std::optional<BackgroundLearner> learned_from;  // its samples warm the shadow look up
-  auto check_size = [&](int w, int h, const fs::path& path) -> Status {
-    if (w == size.width && h == size.height) return Status::Ok();
-    return InvalidInput(fmt::format("camera {}: background '{}' is {}x{}, expected the image size {}x{}", cam.id,
-                                    path.string(), w, h, size.width, size.height));
-  };
+  auto check_size = [&](int w, int h, const fs::path& path) { return CheckBackgroundSize(cam, w, h, path); };
   double fps = 10;
   if (cam.background) {
     if (chroma) {
@@ -126,21 +149,12 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
     c.info.background = fmt::format("given: {}", cam.background->string());
     if (auto f = c.source->fps()) fps = *f;
   } else {
-    Hasher h;
-    h.Add("adaptive-background-v2");
-    h.Add(site.name);
-    h.Add(cam.id);
-    h.Add(cam.source.location);
+    Hasher h = BackgroundKey("adaptive-background-v3", site, cam, options.start_frame, chroma);
     h.Add(ToString(bo.learning));
     h.AddPod(bo.learn_s);
     h.AddPod(bo.learn_samples);
     h.AddPod(bo.mode_radius);
-    h.AddPod(options.start_frame);
-    h.AddPod(chroma);
-    h.AddPod(size.width);
-    h.AddPod(size.height);
     std::error_code ec;
-    if (const auto mtime = fs::last_write_time(cam.source.location, ec); !ec) h.AddPod(mtime.time_since_epoch().count());
     const fs::path cached = options.cache_dir.empty() ? fs::path()
                                                       : options.cache_dir / "backgrounds" /
                                                             fmt::format("{}-{}-{:016x}", site.name, cam.id, h.Digest());
@@ -225,11 +239,7 @@ Status PrepareBackground(const Site& site, const RunOptions& options, bool colou
     c.info.background = "none (foreground masks)";
     return Status::Ok();
   }
-  auto check_size = [&](int w, int h, const fs::path& path) -> Status {
-    if (w == size.width && h == size.height) return Status::Ok();
-    return InvalidInput(fmt::format("camera {}: background '{}' is {}x{}, expected the image size {}x{}", cam.id,
-                                    path.string(), w, h, size.width, size.height));
-  };
+  auto check_size = [&](int w, int h, const fs::path& path) { return CheckBackgroundSize(cam, w, h, path); };
   auto load = [&](const fs::path& path) -> Status {
     if (colour) {
       auto rgb = ReadRgbImage(path);
@@ -249,19 +259,10 @@ Status PrepareBackground(const Site& site, const RunOptions& options, bool colou
     return Status::Ok();
   }
   // Estimated backgrounds are cached under a key of everything they depend on.
-  Hasher h;
-  h.Add("background-v1");
-  h.Add(site.name);
-  h.Add(cam.id);
-  h.Add(cam.source.location);
+  Hasher h = BackgroundKey("background-v2", site, cam, options.start_frame, colour);
   h.AddPod(options.background_frames);
   h.AddPod(options.background_step);
-  h.AddPod(options.start_frame);
-  h.AddPod(colour);
-  h.AddPod(size.width);
-  h.AddPod(size.height);
   std::error_code ec;
-  if (const auto mtime = fs::last_write_time(cam.source.location, ec); !ec) h.AddPod(mtime.time_since_epoch().count());
   const fs::path cached = options.cache_dir.empty()
                               ? fs::path()
                               : options.cache_dir / "backgrounds" / fmt::format("{}-{}-{:016x}.png", site.name, cam.id, h.Digest());
