@@ -496,6 +496,7 @@ void BackgroundModel::Reset(const YuvImage& background) {
   set_frame_.assign(np, -1);
   stats_ = BackgroundStats{};
   first_frame_ = -1;
+  pixels_updated_ = 0;
   stats_.pixels = static_cast<int64_t>(np);
   transfer_ = PhotometricTransfer{};
   look_ = ShadowLook{};
@@ -843,7 +844,7 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
             alt_y_[i] = old;
             alt_frames_[i] = 0;
             steady_frames_[i] = 0;
-            set_frame_[i] = f;
+            MarkSet(i, f);
             ++absorbed;
             continue;
           }
@@ -863,7 +864,7 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
           bu_[c] = static_cast<uint16_t>(bu_[c] + ((inv_c[fu[x >> 1]] - bu_[c]) * alpha + 32768) / 65536);
           bv_[c] = static_cast<uint16_t>(bv_[c] + ((inv_c[fv[x >> 1]] - bv_[c]) * alpha + 32768) / 65536);
         }
-        set_frame_[i] = f;
+        MarkSet(i, f);
         continue;
       }
       // Changed: count the frames it stays steady; taken as background after relight_s (no
@@ -877,16 +878,14 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
           bv_[c] = static_cast<uint16_t>(inv_c[fv[x >> 1]]);
         }
         steady_frames_[i] = 0;
-        set_frame_[i] = f;
+        MarkSet(i, f);
         ++absorbed;
       }
     }
   }
   ++stats_.frames;
   stats_.pixels_absorbed += absorbed;
-  int64_t updated = 0;
-  for (int32_t s : set_frame_) updated += s >= 0;
-  stats_.pixels_updated = updated;
+  stats_.pixels_updated = pixels_updated_;
 }
 
 double BackgroundModel::MeanAgeS(int64_t frame_index) const {

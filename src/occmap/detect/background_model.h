@@ -268,6 +268,11 @@ class BackgroundModel {
   std::vector<uint16_t> alt_frames_;      // frames changed and showing the alternative in a row
   std::vector<int32_t> set_frame_;       // frame of the last set (-1: learning)
   int64_t first_frame_ = -1;             // of the first Update since Reset
+  int64_t pixels_updated_ = 0;           // pixels whose set_frame_ is >= 0
+  void MarkSet(size_t i, int32_t frame) {
+    pixels_updated_ += set_frame_[i] < 0;
+    set_frame_[i] = frame;
+  }
   Image<uint8_t> bg8_;                   // the luma background in 8 bits, for the transfer
   PhotometricTransfer transfer_;
   int threshold_ = 0;  // of the last DetectChanges
