@@ -223,7 +223,7 @@ Status RunRun(const CommonOptions& common, RunCommand cmd) {
   OCCMAP_ASSIGN_OR_RETURN(Site site, LoadSite(cmd.site_path, load));
   if (cmd.min_blob_area_m2) {
     if (!(*cmd.min_blob_area_m2 >= 0)) return InvalidInput("--min-blob-area-m2: expected >= 0");
-    site.blobs.min_area_m2 = *cmd.min_blob_area_m2;
+    site.objects.min_area_m2 = *cmd.min_blob_area_m2;
   }
   Context ctx(common.threads);
   RunOptions& o = cmd.options;

@@ -247,7 +247,7 @@ TEST_F(FullLab, FusedTolerancePathGivesTheSameRun) {
   auto site = LoadSite(Dataset() / "site.yaml");
   ASSERT_TRUE(site.ok()) << site.status().message();
   ASSERT_GE(site->detection.tolerance_px, 1);
-  ASSERT_FALSE(site->blobs.support_heights_m.empty());
+  ASSERT_FALSE(site->objects.support_heights_m.empty());
   RunOptions run;
   run.out_dir = dir_->path() / "run_fused";
   run.occupancy_video = run.mosaic_video = false;

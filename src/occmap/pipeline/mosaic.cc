@@ -57,7 +57,7 @@ MosaicRenderer::MosaicRenderer(const Site& site, int width_px) : grid_(site.grid
 }
 
 Image<Rgb8> MosaicRenderer::Render(const std::vector<MosaicCamera>& cameras, const OccupancyMap& map,
-                                   const std::vector<Blob>& blobs, int64_t frame, double time_s,
+                                   const std::vector<Detection>& blobs, int64_t frame, double time_s,
                                    const std::vector<Track>& tracks, const std::vector<Trail>& trails) const {
   cv::Mat canvas(height_, width_, CV_8UC3, cv::Scalar(40, 40, 40));
   // Camera tiles.

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "occmap/fusion/blobs.h"
+#include "occmap/objects/detection.h"
 #include "occmap/fusion/occupancy_map.h"
 #include "occmap/site/site.h"
 #include "occmap/track/track.h"
@@ -32,7 +33,7 @@ class MosaicRenderer {
   ImageSize size() const { return {width_, height_}; }
   // tracks and trails may be empty (no tracking); zones are drawn as outlines.
   Image<Rgb8> Render(const std::vector<MosaicCamera>& cameras, const OccupancyMap& map,
-                     const std::vector<Blob>& blobs, int64_t frame, double time_s,
+                     const std::vector<Detection>& blobs, int64_t frame, double time_s,
                      const std::vector<Track>& tracks = {}, const std::vector<Trail>& trails = {}) const;
 
  private:

@@ -18,14 +18,12 @@
 #include "occmap/detect/change_detection.h"
 #include "occmap/fusion/fast_fusion.h"
 #include "occmap/fusion/fusion.h"
-#include "occmap/fusion/morphology.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/io/video_writer.h"
 #include "occmap/pipeline/background_maintenance.h"
-#include "occmap/pipeline/object_detector.h"
+#include "occmap/objects/object_detector.h"
 #include "occmap/pipeline/mosaic.h"
 #include "occmap/pipeline/stage_queue.h"
-#include "occmap/track/detections.h"
 #include "occmap/site/site_lut.h"
 #include "occmap/track/multi_target_tracker.h"
 #include "occmap/track/track_output.h"
@@ -315,19 +313,22 @@ class AnyTracker {
     }
     return t;
   }
-  // splits: the ObjectDetector's (same map, same options), or empty for the tracker to split.
-  Result<std::vector<Track>> Update(const std::vector<Blob>& blobs, const std::vector<BlobSplit>& splits,
-                                    const OccupancyMap& map, double time_s) {
-    if (window_) return window_->Update(blobs, map, time_s);
-    return splits.empty() ? multi_->Update(blobs, map, time_s) : multi_->Update(blobs, splits, map, time_s);
+  // The multi-target tracker measures the detections; the paper's window tracker reads the
+  // groups' cells in the grown map.
+  Result<std::vector<Track>> Update(const DetectedObjects& objects, double time_s) {
+    if (!window_) return multi_->Update(objects, time_s);
+    groups_.clear();
+    for (const DetectionGroup& g : objects.groups) groups_.push_back(g.group);
+    return window_->Update(groups_, objects.grown, time_s);
   }
 
  private:
   std::unique_ptr<WindowTracker> window_;
   std::unique_ptr<MultiTargetTracker> multi_;
+  std::vector<Blob> groups_;  // the window tracker's input, buffer kept
 };
 
-json BlobJson(const Blob& b) {
+json BlobJson(const Detection& b) {
   return {{"x_m", std::round(b.x_m * 1e4) / 1e4}, {"y_m", std::round(b.y_m * 1e4) / 1e4},
           {"area_m2", std::round(b.area_m2 * 1e5) / 1e5}, {"cells", b.cells}};
 }
@@ -511,14 +512,10 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   Image<Rgb8> best_mosaic;
   size_t best_blobs = 0;
 
-  // The tracker sees footprints grown by r, so its idea of one person's size grows with them.
-  TrackerOptions tracker_options = site.tracking;
-  tracker_options.person_diameter_m += 2 * site.blobs.group_radius_m;
   std::vector<ObjectDetector::CameraView> views;
   for (const auto& c : cams) views.push_back({c.cam->camera.get(), &c.cam->mask});
-  ObjectDetector detector(site.blobs, tracker_options, site.plane_height_m, std::move(views));
+  ObjectDetector detector(site.objects, site.plane_height_m, std::move(views));
   DetectedObjects objects;
-  const OccupancyMap& grown = objects.grown;
 
   // Tracking.
   std::optional<AnyTracker> tracker;
@@ -528,7 +525,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   std::set<int64_t> track_ids;
   double last_track_time_s = -std::numeric_limits<double>::infinity();
   if (options.track) {
-    OCCMAP_ASSIGN_OR_RETURN(AnyTracker t, AnyTracker::Create(tracker_options));
+    OCCMAP_ASSIGN_OR_RETURN(AnyTracker t, AnyTracker::Create(site.tracking));
     tracker = std::move(t);
     OCCMAP_ASSIGN_OR_RETURN(ZoneMonitor z, ZoneMonitor::Create(site.tracking.zones, site.tracking.zone_count_every_frame));
     zones = std::move(z);
@@ -741,7 +738,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   // was fully fused), the map, detections and tracks.
   std::vector<Image<uint8_t>> post_raw(cams.size());
   std::vector<std::vector<uint8_t>> post_scratch(cams.size());
-  auto render_mosaic = [&](FrameSet& set, const std::vector<Blob>& blobs, double time_s,
+  auto render_mosaic = [&](FrameSet& set, const std::vector<Detection>& blobs, double time_s,
                            const std::vector<Track>& tracks, const std::vector<Trail>& trail_list) {
     const std::vector<Frame>& frames = set.frames;
     const std::vector<bool>& active = set.active;
@@ -777,7 +774,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   // shows, drawn at the end.
   struct KeptFrame {
     FrameSet set;
-    std::vector<Blob> detections;
+    std::vector<Detection> detections;
     std::vector<Track> tracks;
     std::vector<Trail> trails;
     double time_s = 0;
@@ -834,8 +831,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
           post_changes.push_back(b);
         }
         detector.Detect(map, active, changed, objects, post_changes);
-        const std::vector<Blob>& blobs = objects.detections;
-        const std::vector<Blob>& groups = objects.groups;
+        const std::vector<Detection>& blobs = objects.detections;
         summary.blobs_s += Since(t0);
         const int64_t frame_index = set.frame_index;
         const double time_s = std::isnan(frames[0].timestamp_s) ? static_cast<double>(frame_index) / fps
@@ -850,7 +846,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         if (tracker) {
           const double track_time_s = std::max(time_s, last_track_time_s + 1e-6);
           last_track_time_s = track_time_s;
-          OCCMAP_ASSIGN_OR_RETURN(tracks, tracker->Update(groups, objects.splits, grown, track_time_s));
+          OCCMAP_ASSIGN_OR_RETURN(tracks, tracker->Update(objects, track_time_s));
           // Zones count every live track; the outputs get the reported ones.
           const ZoneFrame z = zones->Update(frame_index, time_s, tracks);
           std::erase_if(tracks, [&](const Track& t) { return !IsReported(t, site.tracking.report_coasting_s); });
@@ -1131,9 +1127,9 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                    {"max_free_views", site.fusion.max_free_views},
                    {"sync", options.sync == FrameSync::kIndex ? "index" : "timestamp"},
                    {"on_camera_failure", options.on_camera_failure == OnCameraFailure::kStop ? "stop" : "continue"},
-                   {"blobs", {{"group_radius_m", site.blobs.group_radius_m}, {"min_area_m2", site.blobs.min_area_m2},
-                              {"split", site.blobs.split}, {"remove_ghosts", site.blobs.remove_ghosts},
-                              {"occluder_height_m", site.blobs.occluder_height_m}}},
+                   {"blobs", {{"group_radius_m", site.objects.group_radius_m}, {"min_area_m2", site.objects.min_area_m2},
+                              {"split", site.objects.split}, {"remove_ghosts", site.objects.remove_ghosts},
+                              {"occluder_height_m", site.objects.occluder_height_m}}},
                    {"threads", ctx.num_threads()},
                    {"grid", {{"origin_m", {site.grid.origin_x_m, site.grid.origin_y_m}},
                              {"cells", {site.grid.cells_x, site.grid.cells_y}},

@@ -197,8 +197,8 @@ TEST_F(RunFixture, FastPathsGiveTheSameMapsAsWithTheChangeBuffer) {
 TEST_F(RunFixture, EstimatesAndReusesMedianBackgrounds) {
   Site site = LoadSiteText(SiteText(/*with_backgrounds=*/false));
   // The median keeps a little of the walker, which cuts its blob into pieces smaller than a
-  // tracked person (track/detections.h drops those): count the raw blobs here.
-  site.blobs.split = false;
+  // tracked person (objects/split.h drops those): count the raw blobs here.
+  site.objects.split = false;
   Context ctx(2);
   RunOptions o = Options("estimated");
   o.cache_dir = dir_ / "cache";

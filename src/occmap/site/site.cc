@@ -446,41 +446,11 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
   if (auto f = root.Find("detection")) OCCMAP_RETURN_IF_ERROR(ParseDetection(*f, site.detection));
   if (auto f = root.Find("backgrounds")) OCCMAP_RETURN_IF_ERROR(ParseBackgrounds(*f, site.backgrounds));
   if (auto f = root.Find("fusion")) OCCMAP_RETURN_IF_ERROR(ParseFusion(*f, site.cameras.size(), site.fusion));
-  if (auto f = root.Find("blobs")) {
-    OCCMAP_RETURN_IF_ERROR(f->CheckKeys({"group_radius_m", "min_area_m2", "split", "remove_ghosts", "occluder_height_m",
-                                             "support_heights_m", "min_support", "support_slack_m"}));
-    OCCMAP_ASSIGN_OR_RETURN(site.blobs.split, f->GetBool("split", site.blobs.split));
-    OCCMAP_ASSIGN_OR_RETURN(site.blobs.remove_ghosts, f->GetBool("remove_ghosts", site.blobs.remove_ghosts));
-    OCCMAP_ASSIGN_OR_RETURN(site.blobs.occluder_height_m, f->GetDouble("occluder_height_m", site.blobs.occluder_height_m));
-    if (f->Find("support_heights_m")) {
-      OCCMAP_ASSIGN_OR_RETURN(site.blobs.support_heights_m, f->GetDoubles("support_heights_m"));
-      for (double h : site.blobs.support_heights_m) {
-        if (!(h > 0 && h < 10)) {
-          return f->Find("support_heights_m")->Error(fmt::format("expected heights in (0, 10) m, found {}", h));
-        }
-      }
-    }
-    OCCMAP_ASSIGN_OR_RETURN(site.blobs.min_support, f->GetDouble("min_support", site.blobs.min_support));
-    if (!(site.blobs.min_support >= 0 && site.blobs.min_support <= 1)) {
-      return f->Find("min_support")->Error(fmt::format("expected a fraction in [0, 1], found {}", site.blobs.min_support));
-    }
-    OCCMAP_ASSIGN_OR_RETURN(site.blobs.support_slack_m, f->GetDouble("support_slack_m", site.blobs.support_slack_m));
-    if (!(site.blobs.support_slack_m >= 0)) {
-      return f->Find("support_slack_m")->Error(fmt::format("expected >= 0 m, found {}", site.blobs.support_slack_m));
-    }
-    if (!(site.blobs.occluder_height_m > 0)) {
-      return f->Find("occluder_height_m")->Error(fmt::format("expected > 0 m, found {}", site.blobs.occluder_height_m));
-    }
-    OCCMAP_ASSIGN_OR_RETURN(site.blobs.group_radius_m, f->GetDouble("group_radius_m", site.blobs.group_radius_m));
-    OCCMAP_ASSIGN_OR_RETURN(site.blobs.min_area_m2, f->GetDouble("min_area_m2", site.blobs.min_area_m2));
-    if (site.blobs.group_radius_m < 0 || site.blobs.group_radius_m > 5) {
-      return f->Find("group_radius_m")->Error(fmt::format("expected 0..5 m, found {}", site.blobs.group_radius_m));
-    }
-    if (site.blobs.min_area_m2 < 0) {
-      return f->Find("min_area_m2")->Error(fmt::format("expected >= 0, found {}", site.blobs.min_area_m2));
-    }
+  if (auto f = root.Find("blobs")) OCCMAP_RETURN_IF_ERROR(ParseObjectOptions(*f, site.objects));
+  if (auto f = root.Find("tracking")) {
+    OCCMAP_RETURN_IF_ERROR(ParseTrackerOptions(*f, site.tracking, kObjectKeysInTracking));
+    OCCMAP_RETURN_IF_ERROR(ParseObjectKeysOfTracking(*f, site.objects));
   }
-  if (auto f = root.Find("tracking")) OCCMAP_RETURN_IF_ERROR(ParseTrackerOptions(*f, site.tracking));
   if (auto f = root.Find("lut")) {
     OCCMAP_RETURN_IF_ERROR(f->CheckKeys({"add_cell_projections"}));
     OCCMAP_ASSIGN_OR_RETURN(site.lut.add_cell_projections, f->GetBool("add_cell_projections", true));

@@ -19,6 +19,7 @@
 //   blobs: {group_radius_m: 0.2, min_area_m2: 0.003, split: true, remove_ghosts: true}
 //   lut: {add_cell_projections: true}
 //   tracking: {algorithm: multi_target, max_speed_mps: 2.5, zones: [...]}   # track/tracker_options.h
+//   (blobs: and tracking:'s person size and split keys: objects/object_options.h)
 //
 // Every error names the file, line and field, what was expected and what was found:
 //   site.yaml:14: cameras[2].calibration.intrinsic: file not found: '/data/intr_C3.xml'
@@ -38,36 +39,14 @@
 #include "occmap/fusion/fusion.h"
 #include "occmap/geometry/camera_model.h"
 #include "occmap/io/frame_source.h"
-#include "occmap/track/tracker_options.h"
 #include "occmap/lut/floor_grid.h"
 #include "occmap/lut/ground_lut.h"
+#include "occmap/objects/object_options.h"
+#include "occmap/track/tracker_options.h"
 #include "occmap/util/image.h"
 #include "occmap/util/status.h"
 
 namespace occmap {
-
-// From the occupancy map to detections (pipeline/run.cc):
-// 1. occupied fragments closer than 2 * group_radius_m form one group (fusion/morphology.h: a
-//    person's two feet, a chair's four legs, when the grid is fine enough to see them apart;
-//    0 = the paper's connected components);
-// 2. groups whose footprint is smaller than min_area_m2 are dropped;
-// 3. with split, a group too large for one object is split at the necks of its shape
-//    (track/detections.h, with the tracking section's person size);
-// 4. with remove_ghosts, a detection that every camera seeing it sees only through another,
-//    nearer detection is dropped (pipeline/ghosts.h).
-struct BlobSettings {
-  double group_radius_m = 0.0;
-  double min_area_m2 = 0.0;
-  bool split = true;
-  bool remove_ghosts = true;
-  double occluder_height_m = 1.8;  // objects that hide the floor behind them (ghost test)
-  // The elevated check (empty = off): a detection is kept only when, on one of the planes
-  // support_heights_m above the floor, at least min_support of its footprint cells are also
-  // occupied within support_slack_m (tested pixel by pixel through each camera's changes).
-  std::vector<double> support_heights_m;
-  double min_support = 0.2;
-  double support_slack_m = 0.05;
-};
 
 struct SiteCamera {
   std::string id;
@@ -90,8 +69,11 @@ struct Site {
   ChangeDetectionOptions detection;
   BackgroundOptions backgrounds;  // the `backgrounds:` section: learning, maintenance, shadows
   FusionOptions fusion;
-  BlobSettings blobs;
-  TrackerOptions tracking;  // the `tracking:` section (trackers, zones, trails)
+  // From the map to detections: the `blobs:` section and the person-size and split keys of
+  // `tracking:` (objects/object_options.h, parsed there).
+  ObjectOptions objects;
+  // The rest of `tracking:`: trackers, zones, trails (track/tracker_options.h, parsed there).
+  TrackerOptions tracking;
 
   std::vector<LutCameraInput> LutInputs() const;
 };

@@ -94,11 +94,11 @@ TEST_F(SiteFixture, LoadsAValidSite) {
   EXPECT_EQ(site->detection.tolerance_px, 2);
   EXPECT_EQ(site->fusion.method, FusionMethod::kMapBased);
   EXPECT_EQ(site->fusion.max_free_views, 1);
-  EXPECT_EQ(site->blobs.group_radius_m, 0.2);
-  EXPECT_EQ(site->blobs.min_area_m2, 0.015);
-  EXPECT_EQ(site->blobs.support_heights_m, (std::vector<double>{0.35, 1.0}));
-  EXPECT_EQ(site->blobs.min_support, 0.3);
-  EXPECT_EQ(site->blobs.support_slack_m, 0.04);
+  EXPECT_EQ(site->objects.group_radius_m, 0.2);
+  EXPECT_EQ(site->objects.min_area_m2, 0.015);
+  EXPECT_EQ(site->objects.support_heights_m, (std::vector<double>{0.35, 1.0}));
+  EXPECT_EQ(site->objects.min_support, 0.3);
+  EXPECT_EQ(site->objects.support_slack_m, 0.04);
   EXPECT_FALSE(site->backgrounds.adaptive);  // the paper's fixed background unless asked
 }
 

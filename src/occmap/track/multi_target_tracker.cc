@@ -39,12 +39,21 @@ Eigen::Matrix2d MultiTargetTracker::MeasurementCovariance(const Detection& detec
   return base * Eigen::Matrix2d::Identity() + options_.spread_noise_weight * positive_excess;
 }
 
-void MultiTargetTracker::UpdateClass(TrackState& track, double area_m2) const {
+void MultiTargetTracker::UpdateClass(TrackState& track, const Detection& detection) const {
+  const double area_m2 = detection.area_m2;
   track.area_m2 = track.area_m2 <= 0 ? area_m2
                                   : (1.0 - options_.class_area_smoothing) * track.area_m2 +
                                         options_.class_area_smoothing * area_m2;
   const auto& classes = options_.classes;
   if (classes.empty()) return;
+  if (!detection.class_hint.empty()) {
+    for (size_t k = 0; k < classes.size(); ++k) {
+      if (classes[k].name == detection.class_hint) {
+        track.class_index = static_cast<int>(k);
+        return;
+      }
+    }
+  }
   auto class_of = [&](double area) {
     for (size_t k = 0; k < classes.size(); ++k) {
       if (area <= classes[k].max_area_m2) return static_cast<int>(k);
@@ -92,7 +101,7 @@ void MultiTargetTracker::Associate(const std::vector<size_t>& rows, const std::v
     track.filter.Update({detection.x_m, detection.y_m}, covariances[d]);
     track.last_update_s = time_s;
     track.updated = true;
-    if (!detection.guided) UpdateClass(track, detection.area_m2);
+    if (!detection.guided) UpdateClass(track, detection);
     ++track.hits;
     detection_used[d] = 1;
   }
@@ -113,22 +122,9 @@ Track MultiTargetTracker::Report(const TrackState& state, double time_s) const {
   return track;
 }
 
-Result<std::vector<Track>> MultiTargetTracker::Update(const std::vector<Blob>& blobs, const OccupancyMap& map,
-                                                      double time_s) {
-  return Step(blobs, nullptr, map, time_s);
-}
-
-Result<std::vector<Track>> MultiTargetTracker::Update(const std::vector<Blob>& blobs,
-                                                      const std::vector<BlobSplit>& splits, const OccupancyMap& map,
-                                                      double time_s) {
-  OCCMAP_CHECK(splits.size() == blobs.size(), "MultiTargetTracker::Update: one split per blob");
-  return Step(blobs, &splits, map, time_s);
-}
-
-Result<std::vector<Track>> MultiTargetTracker::Step(const std::vector<Blob>& blobs, const std::vector<BlobSplit>* splits,
-                                                    const OccupancyMap& map, double time_s) {
+Result<std::vector<Track>> MultiTargetTracker::Update(const ObjectFrame& frame, double time_s) {
   OCCMAP_ASSIGN_OR_RETURN(const double dt_s, clock_.Advance(time_s));
-  const FloorGrid& grid = map.grid();
+  const FloorGrid& grid = frame.grid;
 
   // 1. Predict.
   for (TrackState& track : tracks_) {
@@ -137,15 +133,14 @@ Result<std::vector<Track>> MultiTargetTracker::Step(const std::vector<Blob>& blo
     track.updated = false;
   }
 
-  // 2. Detect, guided by the confirmed tracks' predictions (most hits first).
+  // 2. The frame's detections, guided by the confirmed tracks' predictions (most hits first).
   std::vector<size_t> confirmed, tentative;
   for (size_t k = 0; k < tracks_.size(); ++k) (tracks_[k].confirmed ? confirmed : tentative).push_back(k);
   std::stable_sort(confirmed.begin(), confirmed.end(),
                    [&](size_t a, size_t b) { return tracks_[a].hits > tracks_[b].hits; });
   std::vector<Eigen::Vector2d> predictions;
   for (size_t k : confirmed) predictions.push_back(tracks_[k].filter.position_m());
-  detections_ = splits != nullptr ? DetectionsFromSplits(blobs, *splits, map, options_, predictions)
-                                 : DetectionsFromBlobs(blobs, map, options_, predictions);
+  detections_ = GuidedDetections(frame, predictions);
   std::vector<Eigen::Matrix2d> covariances;
   covariances.reserve(detections_.size());
   for (const Detection& d : detections_) covariances.push_back(MeasurementCovariance(d, grid));
@@ -175,7 +170,7 @@ Result<std::vector<Track>> MultiTargetTracker::Step(const std::vector<Blob>& blo
     track.last_update_s = time_s;
     track.frames = 1;
     track.updated = true;
-    if (!detections_[d].guided) UpdateClass(track, detections_[d].area_m2);
+    if (!detections_[d].guided) UpdateClass(track, detections_[d]);
     track.hits = 1;
     tracks_.push_back(std::move(track));
   }

@@ -1,12 +1,14 @@
-// MultiTargetTracker: tracks people (and other classes of objects) through the blobs of the
-// occupancy map, keeping identities through crossings and short occlusions.
+// MultiTargetTracker: tracks people (and other classes of objects) through the detections of
+// each frame (objects/object_frame.h), keeping identities through crossings and short
+// occlusions.
 //
 // Per frame (Update), at time t:
 //  1. Every track's constant-velocity Kalman filter (kalman.h) is predicted to t.
-//  2. Detections come from the blobs (detections.h): blobs holding several people are split
-//     at distance-transform necks; when people overlap too much for a neck, the confirmed
-//     tracks' predictions on the blob, moved together onto its centroid, are the detections
-//     (guided). Each detection's measurement covariance is
+//  2. The detections are the frame's (the detector split groups holding several people at
+//     their necks); when people overlap too much for a neck, the confirmed tracks'
+//     predictions on the group, moved together onto its footprint's centroid, are the group's
+//     detections (guided; GuidedDetections in objects/object_frame.h: only for detections
+//     that come from a group with its split). Each detection's measurement covariance is
 //       R = (measurement_sigma_m^2 + cell^2 / 12) I + spread_noise_weight * max(0, spread - disc)
 //           (+ guided_split_sigma_m^2 I for a guided cut)
 //     where spread is the covariance of its cells and disc = (person radius)^2 / 4 I, that of
@@ -24,7 +26,8 @@
 //     detection coasts on its prediction and ends once more than max_coast_s has passed since
 //     its last detection, or as soon as its prediction leaves the grid.
 //  6. With classes, each track's class follows its smoothed footprint area with hysteresis
-//     (guided cuts do not count: their area is a guess).
+//     (guided cuts do not count: their area is a guess), or a detection's class hint when it
+//     names one of the classes.
 // Update returns the confirmed tracks (coasting ones included, flagged), in increasing id.
 //
 // Limits: inside a merged blob without a neck, the members' relative motion is extrapolated
@@ -36,15 +39,14 @@
 //
 //   OCCMAP_ASSIGN_OR_RETURN(MultiTargetTracker tracker, MultiTargetTracker::Create(options));
 //   for (each frame)  OCCMAP_ASSIGN_OR_RETURN(std::vector<Track> tracks,
-//                                             tracker.Update(FindBlobs(map), map, time_s));
+//                                             tracker.Update(objects, time_s));   // ObjectFrame
 #pragma once
 
 #include <cstdint>
 #include <vector>
 
-#include "occmap/fusion/blobs.h"
-#include "occmap/fusion/occupancy_map.h"
-#include "occmap/track/detections.h"
+#include "occmap/objects/detection.h"
+#include "occmap/objects/object_frame.h"
 #include "occmap/track/kalman.h"
 #include "occmap/track/track.h"
 #include "occmap/track/tracker_options.h"
@@ -57,13 +59,9 @@ class MultiTargetTracker {
   // Fails when options.Validate() does.
   static Result<MultiTargetTracker> Create(const TrackerOptions& options);
 
-  // One frame: `blobs` must be FindBlobs of `map` (the tracker reads their cells); time_s
-  // must increase from frame to frame (an error otherwise, and nothing changes).
-  Result<std::vector<Track>> Update(const std::vector<Blob>& blobs, const OccupancyMap& map, double time_s);
-  // The same with each blob's split already made (splits[b] = SplitBlob(blobs[b], map, options()),
-  // e.g. by the ObjectDetector): the blobs are not split again.
-  Result<std::vector<Track>> Update(const std::vector<Blob>& blobs, const std::vector<BlobSplit>& splits,
-                                    const OccupancyMap& map, double time_s);
+  // One frame: its detections (with their groups, when the detector has them, for the guided
+  // split); time_s must increase from frame to frame (an error otherwise, and nothing changes).
+  Result<std::vector<Track>> Update(const ObjectFrame& frame, double time_s);
 
   // The detections of the last frame (for drawing and debugging).
   const std::vector<Detection>& detections() const { return detections_; }
@@ -93,10 +91,8 @@ class MultiTargetTracker {
   // Gated Hungarian assignment of the tracks in `rows` to the detections not yet used.
   void Associate(const std::vector<size_t>& rows, const std::vector<Eigen::Matrix2d>& covariances,
                  std::vector<uint8_t>& detection_used, double time_s);
-  void UpdateClass(TrackState& track, double area_m2) const;
+  void UpdateClass(TrackState& track, const Detection& detection) const;
   Track Report(const TrackState& track, double time_s) const;
-  Result<std::vector<Track>> Step(const std::vector<Blob>& blobs, const std::vector<BlobSplit>* splits,
-                                  const OccupancyMap& map, double time_s);
 
   TrackerOptions options_;
   std::vector<TrackState> tracks_;  // in order of birth

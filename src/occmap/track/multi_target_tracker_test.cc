@@ -5,7 +5,7 @@
 #include <map>
 #include <set>
 
-#include "occmap/track/test_floor.h"
+#include "occmap/track/test_tracking.h"
 
 namespace occmap {
 namespace {
@@ -142,7 +142,7 @@ TEST(MultiTargetTracker, TrackEndsOnceMaxCoastHasPassedSinceItsLastDetection) {
   const Eigen::Vector2d later = walk.At(2.4);
   for (int f = 30; f < 35; ++f) {
     const OccupancyMap map = testing::FloorWithDiscs(testing::TestGrid(), {later});
-    auto now = tracker.Update(FindBlobs(map), map, kDt * f);
+    auto now = tracker.Update(testing::DetectObjects(map), kDt * f);
     ASSERT_TRUE(now.ok());
     for (const Track& t : *now) EXPECT_EQ(t.id, 2);
   }
@@ -192,7 +192,7 @@ TEST(MultiTargetTracker, ClassesFollowTheFootprintAreaWithHysteresis) {
   for (int f = 0; f < 60; ++f) {
     const double radius_m = f < 20 ? 0.24 : f < 40 ? 0.2 : 0.17;
     const OccupancyMap map = testing::FloorWithDiscs(testing::TestGrid(), {at}, radius_m);
-    auto tracks = tracker.Update(FindBlobs(map), map, kDt * f);
+    auto tracks = tracker.Update(testing::DetectObjects(map), kDt * f);
     ASSERT_TRUE(tracks.ok());
     classes.push_back(tracks->empty() ? "" : tracks->front().object_class);
   }
@@ -205,12 +205,65 @@ TEST(MultiTargetTracker, ClassesFollowTheFootprintAreaWithHysteresis) {
 TEST(MultiTargetTracker, FrameTimesMustIncrease) {
   MultiTargetTracker tracker = MakeTracker();
   const OccupancyMap map = testing::FloorWithDiscs(testing::TestGrid(), {{2.0, 2.0}});
-  const std::vector<Blob> blobs = FindBlobs(map);
-  ASSERT_TRUE(tracker.Update(blobs, map, 1.0).ok());
-  const auto again = tracker.Update(blobs, map, 1.0);
+  const ObjectFrame frame = testing::DetectObjects(map);
+  ASSERT_TRUE(tracker.Update(frame, 1.0).ok());
+  const auto again = tracker.Update(frame, 1.0);
   ASSERT_FALSE(again.ok());
   EXPECT_EQ(again.status().message(), "tracker: frame time 1 s is not after the previous frame's 1 s");
-  EXPECT_TRUE(tracker.Update(blobs, map, 1.1).ok());
+  EXPECT_TRUE(tracker.Update(frame, 1.1).ok());
+}
+
+TEST(MultiTargetTracker, TracksDetectionsFromADetectorWithoutGroups) {
+  // Positions, areas and spreads only (as a multi-view person detector gives them): tracked as
+  // any other; two close predictions never cut anything (no group to guide).
+  MultiTargetTracker tracker = MakeTracker();
+  const Walk a{{2.0, 3.0}, {1.0, 0.0}}, b{{2.0, 3.6}, {1.0, 0.0}};
+  std::vector<Track> last;
+  for (int f = 0; f < 20; ++f) {
+    ObjectFrame frame;
+    frame.grid = testing::TestGrid();
+    for (const Walk& w : {a, b}) {
+      Detection d;
+      d.x_m = w.At(kDt * f).x();
+      d.y_m = w.At(kDt * f).y();
+      d.area_m2 = 0.2;
+      d.spread_m2 = 0.01 * Eigen::Matrix2d::Identity();
+      frame.detections.push_back(d);
+    }
+    auto tracks = tracker.Update(frame, kDt * f);
+    ASSERT_TRUE(tracks.ok());
+    last = *tracks;
+    for (const Detection& d : tracker.detections()) EXPECT_FALSE(d.guided);
+  }
+  ASSERT_EQ(last.size(), 2u);
+  EXPECT_LT((Position(*NearestTrack(last, a.At(1.9))) - a.At(1.9)).norm(), 0.05);
+  EXPECT_LT((Position(*NearestTrack(last, b.At(1.9))) - b.At(1.9)).norm(), 0.05);
+}
+
+TEST(MultiTargetTracker, AClassHintThatNamesAClassWinsOverTheArea) {
+  TrackerOptions options;
+  options.classes = {{"robot", 0.14}, {"person", 0.45}, {"cart"}};
+  MultiTargetTracker tracker = MakeTracker(options);
+  std::vector<Track> last;
+  for (int f = 0; f < 5; ++f) {
+    // 0.3 m^2 would be a person; the detector says robot (and "dog", no class here, is ignored).
+    ObjectFrame frame;
+    frame.grid = testing::TestGrid();
+    for (const auto& [x_m, hint] : {std::pair<double, const char*>{2.0, "robot"}, {5.0, "dog"}}) {
+      Detection d;
+      d.x_m = x_m;
+      d.y_m = 2.0;
+      d.area_m2 = 0.3;
+      d.class_hint = hint;
+      frame.detections.push_back(d);
+    }
+    auto tracks = tracker.Update(frame, kDt * f);
+    ASSERT_TRUE(tracks.ok());
+    last = *tracks;
+  }
+  ASSERT_EQ(last.size(), 2u);
+  EXPECT_EQ(NearestTrack(last, {2.0, 2.0})->object_class, "robot");
+  EXPECT_EQ(NearestTrack(last, {5.0, 2.0})->object_class, "person");
 }
 
 TEST(MultiTargetTracker, CreateRefusesInvalidOptions) {

@@ -38,11 +38,6 @@ template <typename Options, typename Fn>
 void VisitNumbers(Options& o, Fn&& fn) {
   fn("max_speed_mps", o.max_speed_mps, kPositive);
   fn("person_diameter_m", o.person_diameter_m, kPositive);
-  fn("min_detection_area_m2", o.min_detection_area_m2, kNonNegative);
-  fn("max_people_per_blob", o.max_people_per_blob, Range{1, false, 1000, false});
-  fn("split_area_margin", o.split_area_margin, Range{0, false, 1, false});
-  fn("split_min_neck_m", o.split_min_neck_m, kPositive);
-  fn("split_min_peak_radius_m", o.split_min_peak_radius_m, kNonNegative);
   fn("acceleration_psd_m2ps3", o.acceleration_psd_m2ps3, kNonNegative);
   fn("measurement_sigma_m", o.measurement_sigma_m, kPositive);
   fn("spread_noise_weight", o.spread_noise_weight, kNonNegative);
@@ -165,10 +160,11 @@ Status TrackerOptions::Validate() const {
   return Status::Ok();
 }
 
-Status ParseTrackerOptions(const YamlField& field, TrackerOptions& options) {
+Status ParseTrackerOptions(const YamlField& field, TrackerOptions& options, std::span<const std::string_view> other_keys) {
   if (field.IsNull()) return Status::Ok();
   std::vector<std::string> keys = {"algorithm", "classes", "zones", "zone_count_every_frame"};
   VisitNumbers(options, [&](std::string_view key, auto&, const Range&) { keys.emplace_back(key); });
+  for (std::string_view key : other_keys) keys.emplace_back(key);
   OCCMAP_RETURN_IF_ERROR(field.CheckKeys(keys));
 
   TrackerOptions parsed = options;

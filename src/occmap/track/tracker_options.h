@@ -1,5 +1,6 @@
 // TrackerOptions: the settings of the trackers, the zones and the track outputs: the site
-// file's `tracking:` section. Lengths in metres, times in seconds, areas in square metres;
+// file's `tracking:` section, but for its person-size and split keys, which are the object
+// detector's (objects/object_options.h: kObjectKeysInTracking). Lengths in metres, times in seconds, areas in square metres;
 // every default suits people walking on a floor mapped with cells of 2-10 cm.
 //
 // Validate() checks every field (ranges, confirm_hits <= confirm_frames, class areas in
@@ -17,11 +18,6 @@
 //     algorithm: multi_target          # or: window (the paper's tracker, a baseline)
 //     max_speed_mps: 2.5
 //     person_diameter_m: 0.5
-//     min_detection_area_m2: 0.03
-//     max_people_per_blob: 8
-//     split_area_margin: 0.2
-//     split_min_neck_m: 0.05
-//     split_min_peak_radius_m: 0.08
 //     acceleration_psd_m2ps3: 1.0
 //     measurement_sigma_m: 0.05
 //     spread_noise_weight: 1.0
@@ -47,6 +43,7 @@
 #include <Eigen/Core>
 #include <limits>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -89,24 +86,10 @@ struct TrackerOptions {
   // gate of the multi-target tracker (an object cannot be farther than max_speed_mps times
   // the time since it was last seen, plus a person's radius, from where it was predicted).
   double max_speed_mps = 2.5;
-  // Expected diameter of one person's footprint in the occupancy map (a disc): the unit for
-  // splitting blobs, the birth separation, and the footprint spread counted as no noise.
+  // Expected diameter of one person's footprint in the detections (a disc): the margin of the
+  // distance gate and the footprint spread counted as no noise. (The site file's
+  // person_diameter_m sets it and ObjectOptions::person_diameter_m, the splitter's, alike.)
   double person_diameter_m = 0.5;
-
-  // --- Detections from blobs (DetectionsFromBlobs in detections.h).
-  // Blobs, and parts of split blobs, smaller than this are ignored as noise.
-  double min_detection_area_m2 = 0.03;
-  // The most detections one blob may give.
-  int max_people_per_blob = 8;
-  // A blob may hold n people only if its area is at least (n - 1 + split_area_margin)
-  // person areas (person area = pi person_diameter_m^2 / 4).
-  double split_area_margin = 0.2;
-  // Distance-transform peaks: a secondary peak counts as another person only if it stands at
-  // least this much above the saddle joining it to a higher peak (the "neck" between two
-  // people; the tracker uses at least one cell size) ...
-  double split_min_neck_m = 0.05;
-  // ... and is at least this far from the blob's edge.
-  double split_min_peak_radius_m = 0.08;
 
   // --- Constant-velocity Kalman filter (state x, y, vx, vy in m and m/s).
   // Spectral density of the white-noise acceleration (m^2/s^3): the process noise over dt is
@@ -177,6 +160,9 @@ struct TrackerOptions {
 
 // Reads a `tracking:` section over `options` (keys left out keep their values). A null
 // field (an empty section) changes nothing. Errors are located: file, line and field path.
-Status ParseTrackerOptions(const YamlField& field, TrackerOptions& options);
+// other_keys: keys of the section that another reader handles (the site passes the object
+// detector's kObjectKeysInTracking); they are accepted and ignored here.
+Status ParseTrackerOptions(const YamlField& field, TrackerOptions& options,
+                           std::span<const std::string_view> other_keys = {});
 
 }  // namespace occmap

@@ -94,6 +94,22 @@ TEST(ParseTrackerOptions, AnEmptySectionKeepsTheDefaults) {
   EXPECT_EQ(options.max_speed_mps, 1.5);
 }
 
+TEST(ParseTrackerOptions, TheObjectDetectorsKeysAreAcceptedOnlyWhenPassedAsOtherKeys) {
+  // The site passes the object detector's keys of the section (objects/object_options.h).
+  const std::string_view split_keys[] = {"split_min_neck_m"};
+  const Result<YamlField> root = ParseYaml("tracking:\n  split_min_neck_m: 0.1\n", "site.yaml");
+  ASSERT_TRUE(root.ok());
+  TrackerOptions options;
+  EXPECT_TRUE(ParseTrackerOptions(*root->Find("tracking"), options, split_keys).ok());
+  EXPECT_EQ(ParseTrackerOptions(*root->Find("tracking"), options).message(),
+            "site.yaml:2: tracking: unknown field 'split_min_neck_m' (expected one of: algorithm, classes, zones, "
+            "zone_count_every_frame, max_speed_mps, person_diameter_m, acceleration_psd_m2ps3, measurement_sigma_m, "
+            "spread_noise_weight, guided_split_sigma_m, initial_speed_sigma_mps, gate_chi2, confirm_hits, "
+            "confirm_frames, max_coast_s, report_coasting_s, birth_min_separation_m, class_hysteresis, "
+            "class_area_smoothing, window_object_radius_m, window_lost_timeout_s, window_min_new_area_m2, "
+            "trail_length)");
+}
+
 TEST(ParseTrackerOptions, MalformedInputsGiveLocatedMessagesAndLeaveTheOptionsAlone) {
   const struct {
     const char* yaml;
@@ -102,8 +118,7 @@ TEST(ParseTrackerOptions, MalformedInputsGiveLocatedMessagesAndLeaveTheOptionsAl
       {"tracking: 3", "site.yaml:1: tracking: expected a map, found '3'"},
       {"tracking:\n  max_sped_mps: 2", "site.yaml:2: tracking: unknown field 'max_sped_mps' (did you mean 'max_speed_mps'?)"},
       {"tracking:\n  colour: red", "site.yaml:2: tracking: unknown field 'colour' (expected one of: algorithm, classes, zones, "
-                                   "zone_count_every_frame, max_speed_mps, person_diameter_m, min_detection_area_m2, "
-                                   "max_people_per_blob, split_area_margin, split_min_neck_m, split_min_peak_radius_m, "
+                                   "zone_count_every_frame, max_speed_mps, person_diameter_m, "
                                    "acceleration_psd_m2ps3, measurement_sigma_m, spread_noise_weight, guided_split_sigma_m, "
                                    "initial_speed_sigma_mps, gate_chi2, confirm_hits, confirm_frames, max_coast_s, "
                                    "report_coasting_s, birth_min_separation_m, class_hysteresis, class_area_smoothing, window_object_radius_m, "

@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "occmap/track/test_floor.h"
+#include "occmap/track/test_tracking.h"
 
 namespace occmap {
 namespace {

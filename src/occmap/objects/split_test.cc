@@ -1,11 +1,11 @@
-#include "occmap/track/detections.h"
+#include "occmap/objects/split.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <random>
 
-#include "occmap/track/test_floor.h"
+#include "occmap/objects/test_floor.h"
 
 namespace occmap {
 namespace {
@@ -22,7 +22,7 @@ std::vector<Detection> SortedByX(std::vector<Detection> d) {
 }
 
 TEST(MaxPeopleInArea, NeedsTheMarginAbovePersonAreasForEachExtraPerson) {
-  TrackerOptions options;  // person area = pi 0.25^2 = 0.19635 m^2, margin 0.2
+  ObjectOptions options;  // person area = pi 0.25^2 = 0.19635 m^2, margin 0.2
   const double a = options.person_area_m2();
   EXPECT_EQ(MaxPeopleInArea(0.5 * a, options), 1);
   EXPECT_EQ(MaxPeopleInArea(1.19 * a, options), 1);
@@ -52,7 +52,7 @@ TEST(BlobCells, FindsTheBlobAmongOtherBlobsReachingIntoItsBox) {
 TEST(DetectionsFromBlobs, OnePersonIsOneDetectionAtTheBlobCentroid) {
   const OccupancyMap map = FloorWithDiscs(TestGrid(), {{2.0, 3.0}});
   const std::vector<Blob> blobs = FindBlobs(map);
-  const std::vector<Detection> d = DetectionsFromBlobs(blobs, map, TrackerOptions{});
+  const std::vector<Detection> d = DetectionsFromBlobs(blobs, map, ObjectOptions{});
   ASSERT_EQ(d.size(), 1u);
   EXPECT_NEAR(d[0].x_m, blobs[0].x_m, 1e-9);
   EXPECT_NEAR(d[0].y_m, blobs[0].y_m, 1e-9);
@@ -71,7 +71,7 @@ TEST(DetectionsFromBlobs, MergedBlobOfTwoPeopleStanding0_6mApartIsSplitIntoTwoDe
     const OccupancyMap map = FloorWithDiscs(TestGrid(), {a, b}, 0.32);
     const std::vector<Blob> blobs = FindBlobs(map);
     ASSERT_EQ(blobs.size(), 1u) << "the two footprints should form one blob";
-    const std::vector<Detection> d = DetectionsFromBlobs(blobs, map, TrackerOptions{});
+    const std::vector<Detection> d = DetectionsFromBlobs(blobs, map, ObjectOptions{});
     ASSERT_EQ(d.size(), 2u) << offset.transpose();
     const Eigen::Vector2d p0(d[0].x_m, d[0].y_m), p1(d[1].x_m, d[1].y_m);
     const double error = std::min(std::max((p0 - a).norm(), (p1 - b).norm()), std::max((p0 - b).norm(), (p1 - a).norm()));
@@ -87,7 +87,7 @@ TEST(DetectionsFromBlobs, TwoPeopleHoldingHandsAreSplitAtTheirArms) {
   testing::MarkRectangle(map, 3.0, 2.45, 3.6, 2.55);
   const std::vector<Blob> blobs = FindBlobs(map);
   ASSERT_EQ(blobs.size(), 1u);
-  const std::vector<Detection> d = SortedByX(DetectionsFromBlobs(blobs, map, TrackerOptions{}));
+  const std::vector<Detection> d = SortedByX(DetectionsFromBlobs(blobs, map, ObjectOptions{}));
   ASSERT_EQ(d.size(), 2u);
   EXPECT_NEAR(d[0].x_m, 3.0, 0.05);
   EXPECT_NEAR(d[1].x_m, 3.6, 0.05);
@@ -99,7 +99,7 @@ TEST(DetectionsFromBlobs, ThreePeopleInARowGiveThreeDetections) {
   const OccupancyMap map = FloorWithDiscs(TestGrid(), {{2.0, 3.0}, {2.6, 3.0}, {3.2, 3.0}}, 0.32);
   const std::vector<Blob> blobs = FindBlobs(map);
   ASSERT_EQ(blobs.size(), 1u);
-  const std::vector<Detection> d = SortedByX(DetectionsFromBlobs(blobs, map, TrackerOptions{}));
+  const std::vector<Detection> d = SortedByX(DetectionsFromBlobs(blobs, map, ObjectOptions{}));
   ASSERT_EQ(d.size(), 3u);
   EXPECT_NEAR(d[0].x_m, 2.0, 0.06);
   EXPECT_NEAR(d[1].x_m, 2.6, 0.02);
@@ -112,7 +112,7 @@ TEST(DetectionsFromBlobs, LargeObjectWithoutANeckStaysOneDetection) {
   testing::MarkRectangle(map, 2.0, 2.0, 3.0, 2.5);
   const std::vector<Blob> blobs = FindBlobs(map);
   ASSERT_EQ(blobs.size(), 1u);
-  TrackerOptions options;
+  ObjectOptions options;
   ASSERT_GE(MaxPeopleInArea(blobs[0].area_m2, options), 2);
   const std::vector<Detection> d = DetectionsFromBlobs(blobs, map, options);
   ASSERT_EQ(d.size(), 1u);
@@ -126,7 +126,7 @@ TEST(DetectionsFromBlobs, PeopleOverlappingWithoutANeckAreTheTracksPredictionsMo
   const OccupancyMap map = FloorWithDiscs(TestGrid(), {a, b});
   const std::vector<Blob> blobs = FindBlobs(map);
   ASSERT_EQ(blobs.size(), 1u);
-  const TrackerOptions options;
+  const ObjectOptions options;
   EXPECT_EQ(DetectionsFromBlobs(blobs, map, options).size(), 1u) << "no neck: one detection without tracks";
 
   // Predictions 0.1 m too far up and right: the detections keep their spacing, on the blob.
@@ -158,7 +158,7 @@ TEST(DetectionsFromBlobs, BlobsSmallerThanTheMinimumAreaAreIgnored) {
   map.states()[static_cast<size_t>(map.grid().CellAt(5.0, 5.0))] = CellState::kOccupied;  // one speck
   const std::vector<Blob> blobs = FindBlobs(map);
   ASSERT_EQ(blobs.size(), 2u);
-  const std::vector<Detection> d = DetectionsFromBlobs(blobs, map, TrackerOptions{});
+  const std::vector<Detection> d = DetectionsFromBlobs(blobs, map, ObjectOptions{});
   ASSERT_EQ(d.size(), 1u);
   EXPECT_NEAR(d[0].x_m, 2.0, 0.01);
 }
@@ -169,7 +169,7 @@ TEST(DetectionsFromSplits, EqualsDetectionsFromBlobsWithAndWithoutPredictions) {
   // predictions near and away from them: the split made once gives what the reference gives.
   std::mt19937 rng(17);
   std::uniform_real_distribution<double> x(1.0, 7.0), y(1.0, 5.0), near(-0.35, 0.35);
-  TrackerOptions options;
+  ObjectOptions options;
   int guided = 0, split = 0;
   for (int trial = 0; trial < 120; ++trial) {
     std::vector<Eigen::Vector2d> people, predictions;
@@ -196,7 +196,7 @@ TEST(DetectionsFromSplits, EqualsDetectionsFromBlobsWithAndWithoutPredictions) {
         EXPECT_EQ(fast[k].area_m2, reference[k].area_m2);
         EXPECT_EQ(fast[k].cells, reference[k].cells);
         EXPECT_EQ(fast[k].spread_m2, reference[k].spread_m2);
-        EXPECT_EQ(fast[k].blob_index, reference[k].blob_index);
+        EXPECT_EQ(fast[k].group, reference[k].group);
         EXPECT_EQ(fast[k].parts, reference[k].parts);
         EXPECT_EQ(fast[k].guided, reference[k].guided);
         guided += fast[k].guided;
@@ -213,7 +213,7 @@ TEST(SplitBlob, WithReusedScratchEqualsTheReferenceOnRandomGroups) {
   // reused over all blobs (flat k-means, buffers kept) gives the reference's split exactly.
   std::mt19937 rng(29);
   std::uniform_real_distribution<double> x(1.0, 7.0), y(1.0, 5.0), near(-0.45, 0.45), radius(0.15, 0.3);
-  TrackerOptions options;
+  ObjectOptions options;
   SplitScratch scratch;
   int split = 0;
   options.max_people_per_blob = 12;

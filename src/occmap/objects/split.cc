@@ -1,4 +1,4 @@
-#include "occmap/track/detections.h"
+#include "occmap/objects/split.h"
 
 #include <immintrin.h>
 
@@ -252,7 +252,7 @@ void SquaredDistanceTransformInto(const std::vector<uint8_t>& inside, int width,
 // DistancePeaks into scratch.peaks, the buffers reused and each distance's square root
 // taken only where a persistence is tested (the same expression: the same values).
 // The cells' grid coordinates come in s.ci, s.cj (no division per cell).
-void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells, const TrackerOptions& options,
+void DistancePeaksInto(const FloorGrid& grid, const std::vector<int64_t>& cells, const ObjectOptions& options,
                        SplitScratch& s) {
   s.peaks.clear();
   if (cells.empty()) return;
@@ -660,13 +660,13 @@ std::vector<int64_t> BlobCells(const OccupancyMap& map, const Blob& blob) {
   return best;
 }
 
-int MaxPeopleInArea(double area_m2, const TrackerOptions& options) {
+int MaxPeopleInArea(double area_m2, const ObjectOptions& options) {
   const double n = std::floor(area_m2 / options.person_area_m2() + 1.0 - options.split_area_margin);
   return static_cast<int>(std::clamp(n, 1.0, static_cast<double>(options.max_people_per_blob)));
 }
 
 std::vector<Eigen::Vector2d> DistancePeaks(const FloorGrid& grid, const std::vector<int64_t>& cells,
-                                           const TrackerOptions& options) {
+                                           const ObjectOptions& options) {
   if (cells.empty()) return {};
   int min_i = grid.cells_x, min_j = grid.cells_y, max_i = -1, max_j = -1;
   for (int64_t c : cells) {
@@ -760,7 +760,7 @@ std::vector<Eigen::Vector2d> DistancePeaks(const FloorGrid& grid, const std::vec
 }
 
 std::vector<Detection> DetectionsFromBlobs(const std::vector<Blob>& blobs, const OccupancyMap& map,
-                                           const TrackerOptions& options,
+                                           const ObjectOptions& options,
                                            const std::vector<Eigen::Vector2d>& predicted_positions_m) {
   const FloorGrid& grid = map.grid();
   const double radius_m = options.person_radius_m();
@@ -805,7 +805,7 @@ std::vector<Detection> DetectionsFromBlobs(const std::vector<Blob>& blobs, const
           d.y_m = p.y() + shift.y();
           d.area_m2 = whole.area_m2 * share;
           d.cells = whole.cells / static_cast<int64_t>(inside.size());
-          d.blob_index = static_cast<int>(b);
+          d.group = static_cast<int>(b);
           d.parts = static_cast<int>(inside.size());
           d.guided = true;
           detections.push_back(d);
@@ -830,7 +830,7 @@ std::vector<Detection> DetectionsFromBlobs(const std::vector<Blob>& blobs, const
       if (part.empty()) continue;
       Detection d = DetectionFromCells(grid, part);
       if (d.area_m2 < options.min_detection_area_m2) continue;
-      d.blob_index = static_cast<int>(b);
+      d.group = static_cast<int>(b);
       detections.push_back(d);
     }
     for (size_t k = first; k < detections.size(); ++k) detections[k].parts = static_cast<int>(detections.size() - first);
@@ -838,7 +838,7 @@ std::vector<Detection> DetectionsFromBlobs(const std::vector<Blob>& blobs, const
   return detections;
 }
 
-BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOptions& options) {
+BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const ObjectOptions& options) {
   BlobSplit split;
   if (blob.area_m2 < options.min_detection_area_m2 || blob.cells <= 0) return split;
   const FloorGrid& grid = map.grid();
@@ -863,7 +863,7 @@ BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOpti
     if (part.empty()) return;
     Detection d = DetectionFromCells(grid, part);
     if (d.area_m2 < options.min_detection_area_m2) return;
-    d.blob_index = 0;
+    d.group = 0;
     split.detections.push_back(d);
   };
   if (parts.empty()) {
@@ -875,13 +875,13 @@ BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOpti
   return split;
 }
 
-BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOptions& options, SplitScratch& scratch) {
+BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const ObjectOptions& options, SplitScratch& scratch) {
   if (blob.area_m2 < options.min_detection_area_m2 || blob.cells <= 0) return BlobSplit{};
   return SplitBlobCells(blob, map.grid(), BlobCells(map, blob), options, scratch);
 }
 
 BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, std::span<const int32_t> labels, int32_t label,
-                    const TrackerOptions& options, SplitScratch& scratch) {
+                    const ObjectOptions& options, SplitScratch& scratch) {
   if (blob.area_m2 < options.min_detection_area_m2 || blob.cells <= 0) return BlobSplit{};
   const FloorGrid& grid = map.grid();
   OCCMAP_CHECK(labels.size() == static_cast<size_t>(grid.num_cells()) && blob.min_i >= 0 && blob.min_j >= 0 &&
@@ -901,7 +901,7 @@ BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, std::span<const i
 }
 
 BlobSplit SplitBlobCells(const Blob& blob, const FloorGrid& grid, std::vector<int64_t> blob_cells,
-                         const TrackerOptions& options, SplitScratch& scratch) {
+                         const ObjectOptions& options, SplitScratch& scratch) {
   BlobSplit split;
   split.cells = std::move(blob_cells);
   const std::vector<int64_t>& cells = split.cells;
@@ -961,7 +961,7 @@ BlobSplit SplitBlobCells(const Blob& blob, const FloorGrid& grid, std::vector<in
     if (part.empty()) return;
     Detection d = DetectionFromCells(grid, part);
     if (d.area_m2 < options.min_detection_area_m2) return;
-    d.blob_index = 0;
+    d.group = 0;
     split.detections.push_back(d);
   };
   if (num_parts == 0) {
@@ -971,7 +971,7 @@ BlobSplit SplitBlobCells(const Blob& blob, const FloorGrid& grid, std::vector<in
       if (parts[k].empty()) continue;
       Detection d = DetectionFromPoints(grid, scratch.xs, scratch.ys, parts[k]);
       if (d.area_m2 < options.min_detection_area_m2) continue;
-      d.blob_index = 0;
+      d.group = 0;
       split.detections.push_back(d);
     }
   }
@@ -979,54 +979,70 @@ BlobSplit SplitBlobCells(const Blob& blob, const FloorGrid& grid, std::vector<in
   return split;
 }
 
+std::vector<Eigen::Vector2d> PredictionsOnBlob(const FloorGrid& grid, const Blob& blob, const BlobSplit& split,
+                                               double radius_m,
+                                               const std::vector<Eigen::Vector2d>& predicted_positions_m) {
+  // Step 5 (as DetectionsFromBlobs): predictions within a person's radius of the blob's cells.
+  std::vector<Eigen::Vector2d> inside;
+  if (split.cells.empty() || split.max_people < 2 || predicted_positions_m.empty()) return inside;
+  const double x_lo = grid.origin_x_m + blob.min_i * grid.cell_size_m - radius_m;
+  const double x_hi = grid.origin_x_m + (blob.max_i + 1) * grid.cell_size_m + radius_m;
+  const double y_lo = grid.origin_y_m + blob.min_j * grid.cell_size_m - radius_m;
+  const double y_hi = grid.origin_y_m + (blob.max_j + 1) * grid.cell_size_m + radius_m;
+  for (const Eigen::Vector2d& p : predicted_positions_m) {
+    if (static_cast<int>(inside.size()) == split.max_people) break;
+    if (p.x() < x_lo || p.x() > x_hi || p.y() < y_lo || p.y() > y_hi) continue;
+    const bool near = std::any_of(split.cells.begin(), split.cells.end(), [&](int64_t c) {
+      return (grid.CellCenter(c) - p).squaredNorm() <= radius_m * radius_m;
+    });
+    if (near) inside.push_back(p);
+  }
+  return inside;
+}
+
+std::vector<Detection> GuidedCut(double x_m, double y_m, double area_m2, int64_t cells,
+                                 const std::vector<Eigen::Vector2d>& inside) {
+  std::vector<Detection> out;
+  if (inside.empty()) return out;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector2d& p : inside) mean += p;
+  const Eigen::Vector2d shift = Eigen::Vector2d(x_m, y_m) - mean / static_cast<double>(inside.size());
+  const double share = 1.0 / static_cast<double>(inside.size());
+  for (const Eigen::Vector2d& p : inside) {
+    Detection d;
+    d.x_m = p.x() + shift.x();
+    d.y_m = p.y() + shift.y();
+    d.area_m2 = area_m2 * share;
+    d.cells = cells / static_cast<int64_t>(inside.size());
+    d.parts = static_cast<int>(inside.size());
+    d.guided = true;
+    out.push_back(d);
+  }
+  return out;
+}
+
 std::vector<Detection> DetectionsFromSplits(const std::vector<Blob>& blobs, const std::vector<BlobSplit>& splits,
-                                            const OccupancyMap& map, const TrackerOptions& options,
+                                            const OccupancyMap& map, const ObjectOptions& options,
                                             const std::vector<Eigen::Vector2d>& predicted_positions_m) {
   OCCMAP_CHECK(splits.size() == blobs.size(), "DetectionsFromSplits: one split per blob");
   const FloorGrid& grid = map.grid();
-  const double radius_m = options.person_radius_m();
   std::vector<Detection> detections;
   for (size_t b = 0; b < blobs.size(); ++b) {
-    const Blob& blob = blobs[b];
     const BlobSplit& split = splits[b];
     if (split.cells.empty()) continue;
-    // Step 5 (as DetectionsFromBlobs): predictions within a person's radius of the blob's cells.
-    std::vector<Eigen::Vector2d> inside;
-    if (split.max_people >= 2 && !predicted_positions_m.empty()) {
-      const double x_lo = grid.origin_x_m + blob.min_i * grid.cell_size_m - radius_m;
-      const double x_hi = grid.origin_x_m + (blob.max_i + 1) * grid.cell_size_m + radius_m;
-      const double y_lo = grid.origin_y_m + blob.min_j * grid.cell_size_m - radius_m;
-      const double y_hi = grid.origin_y_m + (blob.max_j + 1) * grid.cell_size_m + radius_m;
-      for (const Eigen::Vector2d& p : predicted_positions_m) {
-        if (static_cast<int>(inside.size()) == split.max_people) break;
-        if (p.x() < x_lo || p.x() > x_hi || p.y() < y_lo || p.y() > y_hi) continue;
-        const bool near = std::any_of(split.cells.begin(), split.cells.end(), [&](int64_t c) {
-          return (grid.CellCenter(c) - p).squaredNorm() <= radius_m * radius_m;
-        });
-        if (near) inside.push_back(p);
-      }
-    }
+    const std::vector<Eigen::Vector2d> inside =
+        PredictionsOnBlob(grid, blobs[b], split, options.person_radius_m(), predicted_positions_m);
     if (inside.size() >= 2 && inside.size() > split.peaks) {
+      // The blob measures where the group is; the predictions, how its members stand in it.
       const Detection whole = DetectionFromCells(grid, split.cells);
-      Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-      for (const Eigen::Vector2d& p : inside) mean += p;
-      const Eigen::Vector2d shift = Eigen::Vector2d(whole.x_m, whole.y_m) - mean / static_cast<double>(inside.size());
-      const double share = 1.0 / static_cast<double>(inside.size());
-      for (const Eigen::Vector2d& p : inside) {
-        Detection d;
-        d.x_m = p.x() + shift.x();
-        d.y_m = p.y() + shift.y();
-        d.area_m2 = whole.area_m2 * share;
-        d.cells = whole.cells / static_cast<int64_t>(inside.size());
-        d.blob_index = static_cast<int>(b);
-        d.parts = static_cast<int>(inside.size());
-        d.guided = true;
+      for (Detection d : GuidedCut(whole.x_m, whole.y_m, whole.area_m2, whole.cells, inside)) {
+        d.group = static_cast<int>(b);
         detections.push_back(d);
       }
       continue;
     }
     for (Detection d : split.detections) {
-      d.blob_index = static_cast<int>(b);
+      d.group = static_cast<int>(b);
       detections.push_back(d);
     }
   }

@@ -1,4 +1,4 @@
-#include "occmap/pipeline/object_detector.h"
+#include "occmap/objects/object_detector.h"
 
 #include <gtest/gtest.h>
 
@@ -46,8 +46,8 @@ class ObjectDetectorTest : public ::testing::Test {
     return [this](int n, int x, int y) { return changed_[static_cast<size_t>(n)].count({x, y}) > 0; };
   }
 
-  static BlobSettings Settings(std::vector<double> heights) {
-    BlobSettings s;
+  static ObjectOptions Settings(std::vector<double> heights) {
+    ObjectOptions s;
     s.min_area_m2 = 0.01;
     s.remove_ghosts = false;  // this test is about the elevated check alone
     s.support_heights_m = std::move(heights);
@@ -58,12 +58,11 @@ class ObjectDetectorTest : public ::testing::Test {
   OccupancyMap map_;
   std::vector<std::set<std::pair<int, int>>> changed_;
   std::vector<ObjectDetector::CameraView> views_;
-  TrackerOptions tracker_;
   std::vector<bool> all_active_ = std::vector<bool>(4, true);
 };
 
 TEST_F(ObjectDetectorTest, WithoutTheElevatedCheckBothDiscsAreDetections) {
-  ObjectDetector detector(Settings({}), tracker_, 0.0, views_);
+  ObjectDetector detector(Settings({}), 0.0, views_);
   DetectedObjects out;
   detector.Detect(map_, all_active_, Lookup(), out);
   ASSERT_EQ(out.detections.size(), 2u);
@@ -71,31 +70,31 @@ TEST_F(ObjectDetectorTest, WithoutTheElevatedCheckBothDiscsAreDetections) {
 }
 
 TEST_F(ObjectDetectorTest, AFlatDetectionIsDroppedAndAStandingOneKept) {
-  ObjectDetector detector(Settings({0.35, 1.0}), tracker_, 0.0, views_);
+  ObjectDetector detector(Settings({0.35, 1.0}), 0.0, views_);
   DetectedObjects out;
   detector.Detect(map_, all_active_, Lookup(), out);
   ASSERT_EQ(out.detections.size(), 1u);
   EXPECT_NEAR(out.detections[0].x_m, standing_.x(), 0.03);
   EXPECT_NEAR(out.detections[0].y_m, standing_.y(), 0.03);
   ASSERT_EQ(out.groups.size(), 1u) << "the tracker gets only the groups that hold a kept detection";
-  EXPECT_NEAR(out.groups[0].x_m, standing_.x(), 0.03);
+  EXPECT_NEAR(out.groups[0].group.x_m, standing_.x(), 0.03);
 }
 
 TEST_F(ObjectDetectorTest, AnyPlaneThatSupportsTheObjectKeepsIt) {
   // Only a plane above the cylinder (2 m): it is free over both discs, and it drops both;
   // with a plane at 0.5 m beside it, the standing one is supported again (any plane suffices).
   DetectedObjects out;
-  ObjectDetector above(Settings({2.0}), tracker_, 0.0, views_);
+  ObjectDetector above(Settings({2.0}), 0.0, views_);
   above.Detect(map_, all_active_, Lookup(), out);
   EXPECT_TRUE(out.detections.empty());
-  ObjectDetector both(Settings({2.0, 0.5}), tracker_, 0.0, views_);
+  ObjectDetector both(Settings({2.0, 0.5}), 0.0, views_);
   both.Detect(map_, all_active_, Lookup(), out);
   ASSERT_EQ(out.detections.size(), 1u);
   EXPECT_NEAR(out.detections[0].x_m, standing_.x(), 0.03);
 }
 
 TEST_F(ObjectDetectorTest, WithoutChangesOrCamerasThereIsNoEvidenceAgainst) {
-  ObjectDetector detector(Settings({0.35}), tracker_, 0.0, views_);
+  ObjectDetector detector(Settings({0.35}), 0.0, views_);
   DetectedObjects out;
   // No change lookup (a path that has no per-pixel changes): the check is skipped.
   detector.Detect(map_, all_active_, {}, out);
@@ -109,11 +108,44 @@ TEST_F(ObjectDetectorTest, ACameraThatSeesTheFlatDiscFreeIsEnoughToDropIt) {
   // With only one camera active, the flat disc is still seen free above the floor by it.
   std::vector<bool> one(4, false);
   one[2] = true;
-  ObjectDetector detector(Settings({0.35}), tracker_, 0.0, views_);
+  ObjectDetector detector(Settings({0.35}), 0.0, views_);
   DetectedObjects out;
   detector.Detect(map_, one, Lookup(), out);
   ASSERT_EQ(out.detections.size(), 1u);
   EXPECT_NEAR(out.detections[0].x_m, standing_.x(), 0.03);
+}
+
+TEST_F(ObjectDetectorTest, WithoutSplitTheTrackerMeasuresTheDetectionsAsTheyAre) {
+  // Two discs touching: one group that the split would cut in two, and two predictions on it.
+  OccupancyMap map(room_.grid);
+  for (int64_t i = 0; i < room_.grid.num_cells(); ++i) {
+    const Eigen::Vector2d c = room_.grid.CellCenter(i);
+    const bool on = (c - standing_).norm() < 0.3 || (c - standing_ - Eigen::Vector2d(0.5, 0)).norm() < 0.3;
+    map.states()[static_cast<size_t>(i)] = on ? CellState::kOccupied : CellState::kFree;
+  }
+  const std::vector<Eigen::Vector2d> predictions = {standing_ + Eigen::Vector2d(0.1, 0),
+                                                    standing_ + Eigen::Vector2d(0.3, 0),
+                                                    standing_ + Eigen::Vector2d(0.4, 0)};
+  ObjectOptions options = Settings({});
+  DetectedObjects out;
+  ObjectDetector(options, 0.0, views_).Detect(map, all_active_, out);
+  ASSERT_EQ(out.detections.size(), 2u) << "split at the neck";
+  ASSERT_EQ(out.groups.size(), 1u);
+  EXPECT_EQ(out.detections[0].group, 0);
+  EXPECT_EQ(out.detections[1].group, 0);
+  EXPECT_EQ(GuidedDetections(out, predictions).size(), 3u) << "three predictions on two peaks: guided";
+
+  options.split = false;
+  ObjectDetector(options, 0.0, views_).Detect(map, all_active_, out);
+  ASSERT_EQ(out.detections.size(), 1u);
+  ASSERT_EQ(out.groups.size(), 1u);
+  EXPECT_TRUE(out.groups[0].split.cells.empty());
+  const std::vector<Detection> measured = GuidedDetections(out, predictions);
+  ASSERT_EQ(measured.size(), 1u) << "no split, no guided split: the tracker sees detections.jsonl";
+  EXPECT_EQ(measured[0].x_m, out.detections[0].x_m);
+  EXPECT_EQ(measured[0].y_m, out.detections[0].y_m);
+  EXPECT_EQ(measured[0].area_m2, out.detections[0].area_m2);
+  EXPECT_FALSE(measured[0].guided);
 }
 
 TEST_F(ObjectDetectorTest, ChangeBuffersGiveTheSameDetectionsAsTheLookup) {
@@ -134,11 +166,11 @@ TEST_F(ObjectDetectorTest, ChangeBuffersGiveTheSameDetectionsAsTheLookup) {
     for (const std::vector<double>& heights : {std::vector<double>{0.35, 1.0}, {2.0}, {2.0, 0.5}, {0.35}}) {
       // One fast detector for all sets of cameras: what it kept from a frame must not leak
       // into the next.
-      ObjectDetector fast(Settings(heights), tracker_, 0.0, views_);
+      ObjectDetector fast(Settings(heights), 0.0, views_);
       for (int mask = 0; mask < 16; ++mask) {
         std::vector<bool> active(4);
         for (size_t n = 0; n < 4; ++n) active[n] = (mask >> n) & 1;
-        ObjectDetector reference(Settings(heights), tracker_, 0.0, views_);
+        ObjectDetector reference(Settings(heights), 0.0, views_);
         DetectedObjects expected, got;
         reference.Detect(map_, active, Lookup(), expected);
         fast.Detect(map_, active, {}, got, buffers);

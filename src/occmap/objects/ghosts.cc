@@ -1,4 +1,4 @@
-#include "occmap/pipeline/ghosts.h"
+#include "occmap/objects/ghosts.h"
 
 #include <algorithm>
 

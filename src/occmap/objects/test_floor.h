@@ -1,5 +1,5 @@
-// Synthetic floors for the track tests: people as discs of occupied cells on a grid of 5 cm
-// cells, so the trackers see what the pipeline gives them (FindBlobs of an OccupancyMap).
+// Synthetic floors for the objects and track tests: people as discs of occupied cells on a grid
+// of 5 cm cells, so the splitter and the trackers see what the pipeline gives them.
 //
 //   std::mt19937 rng(7);
 //   OccupancyMap map = testing::FloorWithDiscs(testing::TestGrid(), {{2.0, 3.0}}, 0.25, testing::kNoisy, rng);
@@ -16,7 +16,6 @@
 
 #include "occmap/fusion/blobs.h"
 #include "occmap/fusion/occupancy_map.h"
-#include "occmap/track/track.h"
 
 namespace occmap::testing {
 
@@ -82,47 +81,5 @@ struct Walk {
   Eigen::Vector2d velocity_mps;
   Eigen::Vector2d At(double time_s) const { return start_m + time_s * velocity_mps; }
 };
-
-}  // namespace occmap::testing
-
-namespace occmap::testing {
-
-// Runs a tracker (MultiTargetTracker or WindowTracker) over `frames` frames of `dt_s`: the
-// people of frame f are people(f), drawn as discs of radius_m with `noise`. Returns the tracks
-// of every frame; blob_counts (if given) gets the blobs of each frame at least 0.03 m^2.
-template <typename Tracker, typename PeopleFn>
-std::vector<std::vector<Track>> RunTracker(Tracker& tracker, int frames, double dt_s, PeopleFn&& people,
-                                           const FloorNoise& noise = kClean, unsigned seed = 1,
-                                           double radius_m = 0.25, std::vector<int>* blob_counts = nullptr) {
-  std::mt19937 rng(seed);
-  std::vector<std::vector<Track>> out;
-  for (int f = 0; f < frames; ++f) {
-    const OccupancyMap map = FloorWithDiscs(TestGrid(), people(f), radius_m, noise, rng);
-    const std::vector<Blob> blobs = FindBlobs(map);
-    if (blob_counts) {
-      blob_counts->push_back(static_cast<int>(
-          std::count_if(blobs.begin(), blobs.end(), [](const Blob& b) { return b.area_m2 >= 0.03; })));
-    }
-    auto tracks = tracker.Update(blobs, map, dt_s * f);
-    EXPECT_TRUE(tracks.ok()) << tracks.status().ToString();
-    out.push_back(tracks.ok() ? *tracks : std::vector<Track>{});
-  }
-  return out;
-}
-
-inline const Track* FindTrack(const std::vector<Track>& tracks, int64_t id) {
-  for (const Track& t : tracks) {
-    if (t.id == id) return &t;
-  }
-  return nullptr;
-}
-
-inline const Track* NearestTrack(const std::vector<Track>& tracks, const Eigen::Vector2d& p) {
-  const Track* best = nullptr;
-  for (const Track& t : tracks) {
-    if (!best || (Eigen::Vector2d(t.x_m, t.y_m) - p).norm() < (Eigen::Vector2d(best->x_m, best->y_m) - p).norm()) best = &t;
-  }
-  return best;
-}
 
 }  // namespace occmap::testing

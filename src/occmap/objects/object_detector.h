@@ -1,18 +1,23 @@
-// ObjectDetector: from an occupancy map to the objects standing on it (BlobSettings in
-// site/site.h), the stage between fusion and tracking:
-//   1. occupied fragments closer than 2 * group_radius_m form one group (GrowOccupied: a
+// ObjectDetector: from an occupancy map to the objects standing on it (ObjectOptions in
+// object_options.h), the stage between fusion and tracking:
+//   1. occupied fragments closer than 2 * group_radius_m form one group (grouping.h: a
 //      person's two feet, a chair's four legs);
 //   2. groups whose footprint (the occupied cells of the group, FootprintBlobs) is smaller than
 //      min_area_m2 are dropped;
 //   3. with split, a group too large for one object is split at the necks of its shape
-//      (track/detections.h);
-//   4. with remove_ghosts, detections that every camera seeing them sees only through other,
-//      certainly real detections are dropped (pipeline/ghosts.h).
-// A detection is placed at the centroid of its footprint (of its part of the footprint when
-// its group was split). The tracker gets the kept groups of the grown map.
+//      (split.h, on the grown map, with the person size grown by the grouping radius);
+//   4. with support_heights_m, flat detections are dropped (the elevated check: the planes
+//      above the floor, read through each camera's changes at the footprint, show nothing);
+//   5. with remove_ghosts, detections that every camera seeing them sees only through other,
+//      certainly real detections are dropped (ghosts.h).
+// A detection is placed at the centroid of its footprint (of its part of the group when its
+// group was split), with the footprint's area and spread. The output is an ObjectFrame
+// (object_frame.h): the detections, what detections.jsonl shows and what the tracker
+// measures, and the groups that still hold one, whose splits the tracker may redo along its
+// predictions (the guided split).
 //
-//   ObjectDetector detector(site.blobs, tracker_options, site.plane_height_m, views);
-//   detector.Detect(map, active, objects);   // objects.detections, objects.groups, objects.grown
+//   ObjectDetector detector(site.objects, site.plane_height_m, views);
+//   detector.Detect(map, active, changed, objects);   // objects.detections, .groups, .grown
 #pragma once
 
 #include <cstdint>
@@ -24,21 +29,19 @@
 #include "occmap/fusion/blobs.h"
 #include "occmap/fusion/occupancy_map.h"
 #include "occmap/geometry/camera_model.h"
-#include "occmap/pipeline/ghosts.h"
-#include "occmap/site/site.h"
-#include "occmap/track/detections.h"
-#include "occmap/track/tracker_options.h"
+#include "occmap/objects/detection.h"
+#include "occmap/objects/ghosts.h"
+#include "occmap/objects/object_frame.h"
+#include "occmap/objects/object_options.h"
+#include "occmap/objects/split.h"
 #include "occmap/util/image.h"
 
 namespace occmap {
 
-struct DetectedObjects {
-  std::vector<Blob> detections;  // one per object, at its footprint's centroid
-  std::vector<Blob> groups;      // the groups (of `grown`) the detections come from
-  // With BlobSettings::split, each group's split (SplitBlob of groups[k] on `grown` with the
-  // detector's tracker options), for MultiTargetTracker::Update; empty otherwise.
-  std::vector<BlobSplit> splits;
-  OccupancyMap grown;            // the map with fragments grouped
+// The detector's output: the frame (detections, one per object, and the groups of `grown`
+// they come from, each with its split when ObjectOptions::split) and the grown map.
+struct DetectedObjects : ObjectFrame {
+  OccupancyMap grown;  // the map with fragments grouped
 };
 
 class ObjectDetector {
@@ -50,10 +53,9 @@ class ObjectDetector {
     const Image<uint8_t>* mask = nullptr;
   };
 
-  // tracker_options: the person size the splitter uses (the tracker's, grown by the grouping
-  // radius as the grown map is).
-  ObjectDetector(const BlobSettings& settings, const TrackerOptions& tracker_options, double plane_height_m,
-                 std::vector<CameraView> cameras);
+  // options must be valid (checked). The splitter's person size is options.person_diameter_m
+  // grown by 2 group_radius_m, as the groups are.
+  ObjectDetector(const ObjectOptions& options, double plane_height_m, std::vector<CameraView> cameras);
 
   // Whether camera n's pixel (column x, row y) shows a change in the current frame.
   using ChangeLookup = std::function<bool(int camera, int x, int y)>;
@@ -101,12 +103,13 @@ class ObjectDetector {
   }
   static size_t PixelX(int32_t p) { return static_cast<uint32_t>(p) & 0xffffu; }
   static size_t PixelY(int32_t p) { return static_cast<uint32_t>(p) >> 16; }
+  // Drops out.detections that the planes above do not support. Their groups index kept_index.
   void RemoveUnsupported(const OccupancyMap& map, const ChangeLookup& changed, std::span<const ChangeBuffer> buffers,
-                         std::vector<int>& blob_group, const std::vector<int>& kept_index,
-                         const std::vector<Blob>& kept_groups, DetectedObjects& out);
+                         const std::vector<int>& kept_index, const std::vector<Blob>& kept_groups,
+                         DetectedObjects& out);
 
-  BlobSettings settings_;
-  TrackerOptions tracker_options_;
+  ObjectOptions settings_;
+  ObjectOptions split_options_;           // settings_ with the person grown as the groups are
   double plane_height_m_ = 0;
   std::vector<CameraView> cameras_;
   std::vector<Viewer> viewers_;          // per camera (centre at 0 when it has none)
@@ -116,6 +119,7 @@ class ObjectDetector {
   GhostOptions ghost_options_;
   BlobFinder groups_;                     // the groups of the grown map, buffers kept
   std::vector<Blob> footprints_;
+  std::vector<Eigen::Matrix2d> footprint_spreads_;
   std::vector<BlobSplit> splits_;         // per kept group, this frame
   SplitScratch split_scratch_;            // SplitBlob's buffers, kept
   // The elevated check's projections (SupportPixel), kNotProjected until first used.

@@ -1,4 +1,4 @@
-#include "occmap/fusion/morphology.h"
+#include "occmap/objects/grouping.h"
 
 #include <gtest/gtest.h>
 

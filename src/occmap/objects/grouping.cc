@@ -1,4 +1,4 @@
-#include "occmap/fusion/morphology.h"
+#include "occmap/objects/grouping.h"
 
 #include <cmath>
 #include <cstdlib>
@@ -102,11 +102,13 @@ std::vector<Blob> FootprintBlobs(const OccupancyMap& original, const std::vector
   return out;
 }
 
-void FootprintBlobs(const OccupancyMap& original, const BlobFinder& groups, std::vector<Blob>& out) {
+void FootprintBlobs(const OccupancyMap& original, const BlobFinder& groups, std::vector<Blob>& out,
+                    std::vector<Eigen::Matrix2d>* spreads) {
   const FloorGrid& g = original.grid();
   OCCMAP_CHECK(static_cast<int64_t>(groups.labels().size()) == g.num_cells(), "FootprintBlobs: groups of another grid");
   const auto& s = original.states();
   out = groups.blobs();
+  if (spreads != nullptr) spreads->assign(out.size(), Eigen::Matrix2d::Zero());
   for (size_t k = 0; k < out.size(); ++k) {
     int64_t n = 0, sum_i = 0, sum_j = 0;  // exact: the order of the cells does not matter
     for (int64_t c : groups.cells(k)) {
@@ -125,6 +127,19 @@ void FootprintBlobs(const OccupancyMap& original, const BlobFinder& groups, std:
     out[k].area_m2 = cells * g.cell_size_m * g.cell_size_m;
     out[k].x_m = g.origin_x_m + (static_cast<double>(sum_i) / cells + 0.5) * g.cell_size_m;
     out[k].y_m = g.origin_y_m + (static_cast<double>(sum_j) / cells + 0.5) * g.cell_size_m;
+    if (spreads == nullptr || n < 2) continue;
+    // About the mean index (exact sums), in cells, then scaled: a second pass over the cells.
+    const double mean_i = static_cast<double>(sum_i) / cells, mean_j = static_cast<double>(sum_j) / cells;
+    double sii = 0, sij = 0, sjj = 0;
+    for (int64_t c : groups.cells(k)) {
+      if (s[static_cast<size_t>(c)] != CellState::kOccupied) continue;
+      const double di = static_cast<double>(c % g.cells_x) - mean_i, dj = static_cast<double>(c / g.cells_x) - mean_j;
+      sii += di * di;
+      sij += di * dj;
+      sjj += dj * dj;
+    }
+    const double scale = g.cell_size_m * g.cell_size_m / cells;
+    (*spreads)[k] << sii * scale, sij * scale, sij * scale, sjj * scale;
   }
 }
 

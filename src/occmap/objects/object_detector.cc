@@ -1,20 +1,21 @@
-#include "occmap/pipeline/object_detector.h"
+#include "occmap/objects/object_detector.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
-#include "occmap/fusion/morphology.h"
-#include "occmap/track/detections.h"
+#include "occmap/objects/grouping.h"
 #include "occmap/util/status.h"
 
 namespace occmap {
 
-ObjectDetector::ObjectDetector(const BlobSettings& settings, const TrackerOptions& tracker_options,
-                               double plane_height_m, std::vector<CameraView> cameras)
-    : settings_(settings), tracker_options_(tracker_options), plane_height_m_(plane_height_m),
-      cameras_(std::move(cameras)) {
-  ghost_options_ = {.occluder_radius_m = tracker_options_.person_radius_m(),
+ObjectDetector::ObjectDetector(const ObjectOptions& options, double plane_height_m, std::vector<CameraView> cameras)
+    : settings_(options), split_options_(options), plane_height_m_(plane_height_m), cameras_(std::move(cameras)) {
+  const Status valid = options.Validate();
+  OCCMAP_CHECK(valid.ok(), "ObjectDetector: invalid options: " + valid.message());
+  // The groups are footprints grown by r, so one person's size grows with them.
+  split_options_.person_diameter_m += 2 * settings_.group_radius_m;
+  ghost_options_ = {.occluder_radius_m = split_options_.person_radius_m(),
                     .occluder_height_m = settings_.occluder_height_m};
   for (const CameraView& v : cameras_) {
     const CameraModel* model = v.camera;
@@ -113,17 +114,16 @@ int ObjectDetector::SupportState(size_t h, int64_t cell, int32_t* pixels, const 
 }
 
 void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const ChangeLookup& changed,
-                                       std::span<const ChangeBuffer> buffers, std::vector<int>& blob_group,
-                                       const std::vector<int>& kept_index, const std::vector<Blob>& kept_groups,
-                                       DetectedObjects& out) {
+                                       std::span<const ChangeBuffer> buffers, const std::vector<int>& kept_index,
+                                       const std::vector<Blob>& kept_groups, DetectedObjects& out) {
   const FloorGrid& grid = map.grid();
   PrepareSupport(grid);
-  std::vector<Blob>& blobs = out.detections;
+  std::vector<Detection>& blobs = out.detections;
   const std::vector<int32_t>& labels = groups_.labels();
   // Each detection's footprint cells: the occupied cells of its group (within the group's
   // box), each given to the group's nearest detection.
   std::vector<std::vector<int>> detections_of(kept_index.size());
-  for (size_t d = 0; d < blobs.size(); ++d) detections_of[static_cast<size_t>(blob_group[d])].push_back(static_cast<int>(d));
+  for (size_t d = 0; d < blobs.size(); ++d) detections_of[static_cast<size_t>(blobs[d].group)].push_back(static_cast<int>(d));
   std::vector<std::vector<std::pair<int, int>>>& footprint = footprint_;
   if (footprint.size() < blobs.size()) footprint.resize(blobs.size());
   for (size_t d = 0; d < blobs.size(); ++d) footprint[d].clear();
@@ -179,8 +179,7 @@ void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const ChangeLook
   // speaks against it. Planes are tried in order and the first that supports it ends the test;
   // at most kSupportSamples footprint cells, evenly spread, are tested.
   constexpr size_t kSupportSamples = 64;
-  std::vector<Blob> kept;
-  std::vector<int> kept_group;
+  std::vector<Detection> kept;
   for (size_t d = 0; d < blobs.size(); ++d) {
     const std::vector<std::pair<int, int>>& cells = footprint[d];
     const size_t stride = std::max<size_t>(1, (cells.size() + kSupportSamples - 1) / kSupportSamples);
@@ -199,19 +198,19 @@ void ObjectDetector::RemoveUnsupported(const OccupancyMap& map, const ChangeLook
       support = supported >= settings_.min_support * seen;
     }
     if (evidence && !support) continue;
-    kept.push_back(blobs[d]);
-    kept_group.push_back(blob_group[d]);
+    kept.push_back(std::move(blobs[d]));
   }
   blobs = std::move(kept);
-  blob_group = std::move(kept_group);
 }
 
 void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& active, const ChangeLookup& changed,
                             DetectedObjects& out, std::span<const ChangeBuffer> buffers) {
   OCCMAP_CHECK(buffers.empty() || buffers.size() == cameras_.size(), "ObjectDetector: one change buffer per camera");
+  out.grid = map.grid();
+  out.guide_radius_m = split_options_.person_radius_m();
   GrowOccupied(map, settings_.group_radius_m, out.grown);
   const std::vector<Blob>& groups = groups_.Find(out.grown);
-  FootprintBlobs(map, groups_, footprints_);
+  FootprintBlobs(map, groups_, footprints_, &footprint_spreads_);
   const std::vector<Blob>& footprints = footprints_;
   std::vector<Blob> kept_groups, kept_footprints;
   std::vector<int> kept_index;  // the group's index in `groups` (its label)
@@ -221,32 +220,43 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
     kept_footprints.push_back(footprints[k]);
     kept_index.push_back(static_cast<int>(k));
   }
-  std::vector<Blob>& blobs = out.detections;
-  blobs.clear();
-  std::vector<int> blob_group;
+  // A detection of kept group g with the group's whole footprint.
+  auto whole = [&](size_t g, int parts) {
+    const Blob& f = kept_footprints[g];
+    Detection d;
+    d.x_m = f.x_m;
+    d.y_m = f.y_m;
+    d.area_m2 = f.area_m2;
+    d.cells = f.cells;
+    d.spread_m2 = footprint_spreads_[static_cast<size_t>(kept_index[g])];
+    d.group = static_cast<int>(g);
+    d.parts = parts;
+    return d;
+  };
+  std::vector<Detection>& detections = out.detections;
+  detections.clear();
   if (settings_.split) {
-    // Each group split once (SplitBlob): the tracker gets the splits of the groups kept.
+    // Each group split once (SplitBlob); the tracker gets the splits of the groups kept.
     splits_.clear();
     for (size_t g = 0; g < kept_groups.size(); ++g) {
-      splits_.push_back(SplitBlob(kept_groups[g], out.grown, groups_.labels(), kept_index[g], tracker_options_,
+      splits_.push_back(SplitBlob(kept_groups[g], out.grown, groups_.labels(), kept_index[g], split_options_,
                                   split_scratch_));
     }
-    for (const Detection& d : DetectionsFromSplits(kept_groups, splits_, out.grown, tracker_options_)) {
-      Blob b = kept_footprints[d.blob_index];  // one part: the group's footprint
-      if (d.parts > 1) {
-        b.x_m = d.x_m;
-        b.y_m = d.y_m;
-        b.area_m2 = d.area_m2 * kept_footprints[d.blob_index].area_m2 / kept_groups[d.blob_index].area_m2;
-        b.cells = d.cells;
+    for (const Detection& d : DetectionsFromSplits(kept_groups, splits_, out.grown, split_options_)) {
+      if (d.parts == 1) {  // one part: the group's footprint
+        detections.push_back(whole(static_cast<size_t>(d.group), 1));
+        continue;
       }
-      blobs.push_back(b);
-      blob_group.push_back(d.blob_index);
+      // A part of the grown group: where the split put it, its share of the footprint's area.
+      Detection part = d;
+      part.area_m2 = d.area_m2 * kept_footprints[static_cast<size_t>(d.group)].area_m2 /
+                     kept_groups[static_cast<size_t>(d.group)].area_m2;
+      detections.push_back(part);
     }
   } else {
-    blobs = kept_footprints;
-    for (size_t k = 0; k < blobs.size(); ++k) blob_group.push_back(static_cast<int>(k));
+    for (size_t g = 0; g < kept_groups.size(); ++g) detections.push_back(whole(g, 1));
   }
-  if (!settings_.support_heights_m.empty() && (changed || !buffers.empty()) && !blobs.empty()) {
+  if (!settings_.support_heights_m.empty() && (changed || !buffers.empty()) && !detections.empty()) {
     // A new generation of the memos of SupportAt (all cleared before the counter overflows).
     if (++support_generation_ >= (1 << 28)) {
       support_generation_ = 1;
@@ -258,9 +268,9 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
     for (size_t n = 0; n < cameras_.size() && n < active.size(); ++n) {
       if (active[n]) active_cameras_.push_back(n);
     }
-    RemoveUnsupported(map, changed, buffers, blob_group, kept_index, kept_groups, out);
+    RemoveUnsupported(map, changed, buffers, kept_index, kept_groups, out);
   }
-  if (settings_.remove_ghosts && blobs.size() > 1) {
+  if (settings_.remove_ghosts && detections.size() > 1) {
     // The active cameras' viewers, rebuilt only when the active set changes (copying the
     // std::functions would allocate every frame).
     if (active != active_viewers_for_) {
@@ -271,28 +281,26 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
       }
     }
     std::vector<Eigen::Vector2d> points;
-    for (const Blob& b : blobs) points.emplace_back(b.x_m, b.y_m);
+    for (const Detection& d : detections) points.emplace_back(d.x_m, d.y_m);
     const std::vector<bool> ghost = FindGhosts(points, active_viewers_, ghost_options_);
-    std::vector<Blob> real;
-    std::vector<int> real_group;
-    for (size_t k = 0; k < blobs.size(); ++k) {
-      if (ghost[k]) continue;
-      real.push_back(blobs[k]);
-      real_group.push_back(blob_group[k]);
+    size_t kept = 0;
+    for (size_t k = 0; k < detections.size(); ++k) {
+      if (!ghost[k]) detections[kept++] = std::move(detections[k]);
     }
-    blobs = std::move(real);
-    blob_group = std::move(real_group);
+    detections.resize(kept);
   }
-  // The groups that still hold a detection, for the tracker.
-  std::vector<bool> group_real(kept_groups.size(), false);
-  for (int g : blob_group) group_real[static_cast<size_t>(g)] = true;
+  // The groups that still hold a detection, numbered anew, for the tracker.
+  std::vector<int> group_number(kept_groups.size(), -1);
+  for (const Detection& d : detections) group_number[static_cast<size_t>(d.group)] = 0;
   out.groups.clear();
-  out.splits.clear();
-  for (size_t k = 0; k < kept_groups.size(); ++k) {
-    if (!group_real[k]) continue;
-    out.groups.push_back(kept_groups[k]);
-    if (settings_.split) out.splits.push_back(std::move(splits_[k]));
+  for (size_t g = 0; g < kept_groups.size(); ++g) {
+    if (group_number[g] < 0) continue;
+    group_number[g] = static_cast<int>(out.groups.size());
+    DetectionGroup group{kept_groups[g], kept_footprints[g], {}};
+    if (settings_.split) group.split = std::move(splits_[g]);
+    out.groups.push_back(std::move(group));
   }
+  for (Detection& d : detections) d.group = group_number[static_cast<size_t>(d.group)];
 }
 
 }  // namespace occmap

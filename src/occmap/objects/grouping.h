@@ -1,4 +1,4 @@
-// Grouping the fragments of one object: the paper's map holds exactly what touches the floor,
+// Grouping (the first step of object detection, ObjectDetector): the fragments of one object: the paper's map holds exactly what touches the floor,
 // so a walking person is two feet and a chair four legs. To count and track objects, the
 // occupied cells are grown by a radius r (every seen cell within r of an occupied cell becomes
 // occupied; unseen cells never do): fragments less than 2r apart join into one blob. Each
@@ -10,8 +10,12 @@
 //   std::vector<int32_t> labels;
 //   std::vector<Blob> groups = FindBlobs(grown, {}, &labels);
 //   std::vector<Blob> detections = FootprintBlobs(map, labels, groups);
+// (Connected components themselves, FindBlobs and BlobFinder, are fusion/blobs.h's: a plain
+// operation on a map that the background maintenance, the window tracker and the evaluation
+// use too.)
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
 
@@ -34,7 +38,10 @@ std::vector<Blob> FootprintBlobs(const OccupancyMap& original, const std::vector
                                  const std::vector<Blob>& groups);
 
 // The same for the groups a BlobFinder found in the grown map, from each group's cells (no scan
-// of the whole map); equal to FootprintBlobs(original, groups.labels(), groups.blobs()).
-void FootprintBlobs(const OccupancyMap& original, const BlobFinder& groups, std::vector<Blob>& out);
+// of the whole map); equal to FootprintBlobs(original, groups.labels(), groups.blobs()). With
+// `spreads`, also each footprint's spread: the covariance of its cells' centres (m^2; zero for
+// a group without footprint).
+void FootprintBlobs(const OccupancyMap& original, const BlobFinder& groups, std::vector<Blob>& out,
+                    std::vector<Eigen::Matrix2d>* spreads = nullptr);
 
 }  // namespace occmap

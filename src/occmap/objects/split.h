@@ -1,5 +1,5 @@
-// Detections: what the multi-target tracker measures, one per object, from the blobs of an
-// occupancy map. A blob holding several people (they walk close, or cross) is split.
+// Splitting: detections (detection.h), one per object, from the blobs of an occupancy map. A
+// blob holding several people (they walk close, or cross) is split.
 //
 // How a blob is split, and why this way:
 //  1. Its cells are found again in the map (BlobCells) and their Euclidean distance
@@ -39,19 +39,10 @@
 
 #include "occmap/fusion/blobs.h"
 #include "occmap/fusion/occupancy_map.h"
-#include "occmap/track/tracker_options.h"
+#include "occmap/objects/detection.h"
+#include "occmap/objects/object_options.h"
 
 namespace occmap {
-
-struct Detection {
-  double x_m = 0, y_m = 0;  // centroid of its cells' centres
-  double area_m2 = 0;
-  int64_t cells = 0;
-  Eigen::Matrix2d spread_m2 = Eigen::Matrix2d::Zero();  // covariance of its cells' centres (0 if guided)
-  int blob_index = -1;  // the blob it came from
-  int parts = 1;        // how many detections that blob gave
-  bool guided = false;  // placed by the tracks' predictions (step 5), not by the blob's shape
-};
 
 // The cells (map indices, increasing) of a blob FindBlobs found in `map`: the 8-connected
 // occupied component in its bounding box with its cell count and centroid. The blob must
@@ -59,18 +50,18 @@ struct Detection {
 std::vector<int64_t> BlobCells(const OccupancyMap& map, const Blob& blob);
 
 // The most people a blob of this area may hold (step 3 above), >= 1.
-int MaxPeopleInArea(double area_m2, const TrackerOptions& options);
+int MaxPeopleInArea(double area_m2, const ObjectOptions& options);
 
 // The peaks of the distance transform of a set of cells (step 2), strongest first, as
 // positions in metres. `cells` are map indices of one connected blob.
 std::vector<Eigen::Vector2d> DistancePeaks(const FloorGrid& grid, const std::vector<int64_t>& cells,
-                                           const TrackerOptions& options);
+                                           const ObjectOptions& options);
 
 // Detections of all blobs, in blob order. `predicted_positions_m` are the predictions of the
 // tracks that may guide a split, in order of priority (the first ones win when a blob can
 // hold fewer).
 std::vector<Detection> DetectionsFromBlobs(const std::vector<Blob>& blobs, const OccupancyMap& map,
-                                           const TrackerOptions& options,
+                                           const ObjectOptions& options,
                                            const std::vector<Eigen::Vector2d>& predicted_positions_m = {});
 
 // DetectionsFromBlobs in two halves, so that a blob is split once per frame although both the
@@ -86,7 +77,7 @@ struct BlobSplit {
   size_t peaks = 0;                    // distance peaks kept (at most max_people; 0 if max_people < 2)
   std::vector<Detection> detections;   // without predictions, blob_index 0
 };
-BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOptions& options);
+BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const ObjectOptions& options);
 
 // Buffers SplitBlob reuses from one call to the next (the distance transform, the peaks'
 // union-find, the k-means points and labels): with one per caller, a frame's splits allocate
@@ -104,17 +95,27 @@ struct SplitScratch {
 };
 // The same split as SplitBlob (equal, tested), with scratch buffers reused and the k-means on
 // flat arrays.
-BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const TrackerOptions& options, SplitScratch& scratch);
+BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const ObjectOptions& options, SplitScratch& scratch);
 // The same split of a blob found by a BlobFinder (or FindBlobs) on `map`: its cells are those
 // of its label, read from the box (no search of the map, no relabelling where other blobs
 // reach into the box; the same cells as BlobCells, tested).
 BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, std::span<const int32_t> labels, int32_t label,
-                    const TrackerOptions& options, SplitScratch& scratch);
+                    const ObjectOptions& options, SplitScratch& scratch);
 // The split from the blob's cells as BlobCells gives them (sorted, one component).
 BlobSplit SplitBlobCells(const Blob& blob, const FloorGrid& grid, std::vector<int64_t> blob_cells,
-                         const TrackerOptions& options, SplitScratch& scratch);
+                         const ObjectOptions& options, SplitScratch& scratch);
+// Step 5's two halves, shared with GuidedDetections (object_frame.h): the predictions within
+// radius_m of the blob's cells (split.cells; none when it may hold fewer than two), at most
+// split.max_people, in the order given ...
+std::vector<Eigen::Vector2d> PredictionsOnBlob(const FloorGrid& grid, const Blob& blob, const BlobSplit& split,
+                                               double radius_m,
+                                               const std::vector<Eigen::Vector2d>& predicted_positions_m);
+// ... and the guided detections of a group with the centroid (x_m, y_m), area and cells given:
+// the predictions moved together onto the centroid, equal shares (group -1: the caller's).
+std::vector<Detection> GuidedCut(double x_m, double y_m, double area_m2, int64_t cells,
+                                 const std::vector<Eigen::Vector2d>& inside);
 std::vector<Detection> DetectionsFromSplits(const std::vector<Blob>& blobs, const std::vector<BlobSplit>& splits,
-                                            const OccupancyMap& map, const TrackerOptions& options,
+                                            const OccupancyMap& map, const ObjectOptions& options,
                                             const std::vector<Eigen::Vector2d>& predicted_positions_m = {});
 
 }  // namespace occmap
