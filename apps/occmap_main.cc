@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "occmap/lut/visibility_image.h"
+#include "occmap/eval/benchmark_annotations.h"
 #include "occmap/eval/evaluate_run.h"
 #include "occmap/pipeline/demo.h"
 #include "occmap/pipeline/run.h"
@@ -374,13 +375,53 @@ struct EvalCommand {
   std::string run_dir;
   double threshold_m = 0.5;
   bool json_to_stdout = false;
+  // A benchmark's annotations (eval/benchmark_annotations.h).
+  std::string format = "auto";
+  std::optional<std::string> frame_step;
+  std::optional<int64_t> first_frame;
+  std::optional<std::string> annotation_range;
 };
+
+// DATASET is read as a benchmark's annotations when a format is given, or when it has no
+// ground_truth.jsonl and holds annotations_positions/ (or is that folder).
+Result<EvaluationReport> EvaluateEvalCommand(const EvalCommand& cmd, const EvalOptions& o, Context& ctx) {
+  const fs::path dataset(cmd.dataset_dir);
+  std::error_code ec;
+  const bool has_ground_truth = fs::is_regular_file(dataset / "ground_truth.jsonl", ec) ||
+                                fs::is_regular_file(dataset / "gt" / "ground_truth.jsonl", ec);
+  const bool mapping_given = cmd.frame_step || cmd.first_frame || cmd.annotation_range;
+  if (cmd.format == "auto" && has_ground_truth) {
+    if (mapping_given) {
+      return InvalidInput(fmt::format("--frame-step, --first-frame, --annotation-range: expected a benchmark's annotation "
+                                      "folder, found {} (give --format to read its annotations_positions/)",
+                                      (dataset / "ground_truth.jsonl").string()));
+    }
+    return EvaluateRun(dataset, cmd.run_dir, o, ctx);
+  }
+  if (cmd.format == "auto" && !FindAnnotationFolder(dataset)) {
+    return NotFound(fmt::format("{}: no ground truth: expected ground_truth.jsonl, gt/ground_truth.jsonl, "
+                                "annotations_positions/ or annotation files (00000005.json)",
+                                dataset.string()));
+  }
+  BenchmarkEvalOptions b;
+  if (cmd.format != "auto") {
+    OCCMAP_ASSIGN_OR_RETURN(b.format, ParseBenchmarkFormat(cmd.format, "--format"));
+  }
+  if (cmd.frame_step) {
+    OCCMAP_ASSIGN_OR_RETURN(b.frame_step, ParseFrameStep(*cmd.frame_step, "--frame-step"));
+  }
+  if (cmd.first_frame) b.first_frame = *cmd.first_frame;
+  if (cmd.annotation_range) {
+    OCCMAP_ASSIGN_OR_RETURN(b.annotation_range, ParseAnnotationRange(*cmd.annotation_range, "--annotation-range"));
+  }
+  return EvaluateRunOnBenchmark(dataset, cmd.run_dir, b, o, ctx);
+}
 
 Status RunEval(const CommonOptions& common, const EvalCommand& cmd) {
   EvalOptions o;
   o.match_threshold_m = cmd.threshold_m;
   Context ctx(common.threads);
-  OCCMAP_ASSIGN_OR_RETURN(EvaluationReport report, EvaluateRun(cmd.dataset_dir, cmd.run_dir, o, ctx));
+  OCCMAP_ASSIGN_OR_RETURN(EvaluationReport report, EvaluateEvalCommand(cmd, o, ctx));
   const std::string json_text = EvaluationReportJson(report).dump(2) + "\n";
   OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(fs::path(cmd.run_dir) / "evaluation.json", json_text));
   std::fputs(cmd.json_to_stdout ? json_text.c_str() : EvaluationReportText(report).c_str(), stdout);
@@ -505,11 +546,27 @@ int main(int argc, char** argv) {
 
   EvalCommand eval;
   CLI::App* eval_cmd = app.add_subcommand("eval", "score a run against a dataset's ground truth");
-  eval_cmd->add_option("dataset", eval.dataset_dir, "dataset folder (ground_truth.jsonl, gt/)")->required();
+  eval_cmd->add_option("dataset", eval.dataset_dir,
+                       "dataset folder (ground_truth.jsonl, gt/), or a WILDTRACK / MultiviewX dataset root holding "
+                       "annotations_positions/ (or that folder)")
+      ->required();
   eval_cmd->add_option("run", eval.run_dir, "run folder (detections.jsonl, tracks.jsonl, occupancy/, changes/)")
       ->required();
   eval_cmd->add_option("--threshold-m", eval.threshold_m, "match distance")->capture_default_str();
   eval_cmd->add_flag("--json", eval.json_to_stdout, "print the report as JSON");
+  eval_cmd->add_option("--format", eval.format,
+                       "annotations: wildtrack or multiviewx (auto: from the file names, 8 or 5 digits)")
+      ->check(CLI::IsMember({"auto", "wildtrack", "multiviewx"}))
+      ->capture_default_str();
+  eval_cmd->add_option("--frame-step", eval.frame_step,
+                       "annotations: annotation numbers per run frame, N or P/Q (default wildtrack 5, multiviewx 1: "
+                       "a run over the distributed images; 1 for 10 fps WILDTRACK frames)");
+  eval_cmd->add_option("--first-frame", eval.first_frame,
+                       "annotations: the annotation number of run frame 0 (default 0; file = F + step x frame)")
+      ->check(CLI::Range(int64_t{0}, int64_t{999'999'999'999}));
+  eval_cmd->add_option("--annotation-range", eval.annotation_range,
+                       "annotations: FIRST:LAST annotation numbers to evaluate, e.g. 1800:1995 (default: the run's "
+                       "frames)");
 
   BenchCommand bench_opts;
   CLI::App* bench_cmd = app.add_subcommand("bench", "measure change detection + fusion: paper loop, OpenCV, fast path");

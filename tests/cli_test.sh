@@ -68,6 +68,42 @@ check run_clemson 0 'wrote .*summary.json' -- "$occmap" run "$work/clemson/site.
 check eval_clemson 0 'MODA' -- "$occmap" eval "$work/clemson" "$work/clemson-run"
 check eval_json 0 '"detection"' -- "$occmap" eval "$work/clemson" "$work/clemson-run" --json
 check eval_missing_run 2 'detections.jsonl|nothing to evaluate|not found' -- "$occmap" eval "$work/clemson" "$work/nowhere"
+# Ground truth from a benchmark's annotation folder (WILDTRACK layout: 8-digit file names, one
+# file per image by default): what it reads, how it maps frames, and its errors.
+mkdir -p "$work/bench/annotations_positions"
+echo '[{"personID": 1, "positionID": 1000, "views": []}]' >"$work/bench/annotations_positions/00000000.json"
+echo '[]' >"$work/bench/annotations_positions/00000005.json"
+check eval_annotations 0 'ground truth: wildtrack annotations, 2 files \(0\.\.5\); file = 0 \+ 5 x run frame' -- \
+  "$occmap" eval "$work/bench" "$work/clemson-run"
+check eval_annotations_json 0 '"annotation_file": 5' -- "$occmap" eval "$work/bench/annotations_positions" "$work/clemson-run" --json
+check eval_annotations_range 0 'evaluated: 2 files, 1 people, numbers 0\.\.5 \(the range given\)' -- \
+  "$occmap" eval "$work/bench" "$work/clemson-run" --annotation-range 0:5 --frame-step 1/2 --format wildtrack
+check eval_annotations_no_frames 2 'expected annotated frames among the run.s frames 0\.\.5' -- \
+  "$occmap" eval "$work/bench" "$work/clemson-run" --first-frame 100
+check eval_bad_format 2 'format' -- "$occmap" eval "$work/bench" "$work/clemson-run" --format pets
+check eval_bad_frame_step 2 "^occmap: error: --frame-step: expected a whole number or a fraction P/Q \(5, 1/6\) of whole numbers 1\.\.1000000, found '1/0'" -- \
+  "$occmap" eval "$work/bench" "$work/clemson-run" --frame-step 1/0
+check eval_mapping_on_synth 2 'expected a benchmark.s annotation folder, found .*ground_truth.jsonl' -- \
+  "$occmap" eval "$work/clemson" "$work/clemson-run" --frame-step 1
+check eval_no_ground_truth 2 'no ground truth: expected ground_truth.jsonl, gt/ground_truth.jsonl, annotations_positions/' -- \
+  "$occmap" eval "$work/clemson-run" "$work/clemson-run"
+echo '[{"personID": 1, "positionID": 691200}]' >"$work/bench/annotations_positions/00000010.json"
+check eval_annotations_out_of_grid 2 "00000010.json: \[0\].positionID: expected an integer 0\.\.691199 \(a cell of WILDTRACK's 480 x 1440 grid\), found 691200" -- \
+  "$occmap" eval "$work/bench" "$work/clemson-run"
+echo '[{"personID": 1, "positionID": 5}, {"personID": 1, "positionID": 6}]' >"$work/bench/annotations_positions/00000010.json"
+check eval_annotations_duplicate 2 '00000010.json: \[1\].personID: expected ids unique within a file, found 1 again \(also \[0\]\)' -- \
+  "$occmap" eval "$work/bench" "$work/clemson-run"
+echo '[{"personID": 1, "positionID": 5},' >"$work/bench/annotations_positions/00000010.json"
+check eval_annotations_malformed 2 '00000010.json: expected a JSON list of people, found invalid JSON' -- \
+  "$occmap" eval "$work/bench" "$work/clemson-run"
+rm "$work/bench/annotations_positions/00000010.json"
+echo '[]' >"$work/bench/annotations_positions/frame10.json"
+check eval_annotations_file_name 2 "frame10.json: file name: expected the frame number in digits \(00000005.json\), found 'frame10.json'" -- \
+  "$occmap" eval "$work/bench" "$work/clemson-run"
+rm "$work/bench/annotations_positions/"*.json
+check eval_annotations_empty 2 'expected annotation files named by their frame number \(00000005.json\), found none' -- \
+  "$occmap" eval "$work/bench" "$work/clemson-run"
+
 check synth_bad_scene 2 'scene|expected' -- "$occmap" synth --scene atlantis --out "$work/x"
 cat >"$work/scene.yaml" <<'YAML'
 name: broken
@@ -112,6 +148,25 @@ if [ -d "$datasets/wildtrack" ]; then
   check run_gopro4 0 'blobs per frame: mean 4.00, max 4' -- "$occmap" run "$src/sites/gopro4.yaml" --no-cache --out "$work/gr"
   check run_gopro4_outputs 0 '"max_per_frame": 4' -- cat "$work/gr/summary.json"
   check bad_data_root 2 "data folder not found" -- "$occmap" --data-root "$work/nowhere" lut "$src/sites/gopro4.yaml" --no-cache
+  # The simulator renders WILDTRACK's real trajectories at 10 fps: a run on it scored against the
+  # real annotation files (--frame-step 1: run frame k is 10 fps frame k; files 0, 5, 10, 15)
+  # counts exactly what its own ground truth counts at those frames.
+  check synth_wildtrack 0 'run it with' -- \
+    "$occmap" --data-root "$datasets" synth --scene wildtrack --scale 0.5 --frames 16 --no-change-masks --out "$work/ws"
+  check run_wildtrack 0 'wrote' -- "$occmap" run "$work/ws/site.yaml" --no-cache --no-video --out "$work/wr"
+  check eval_wildtrack_own 0 '"moda"' -- bash -c "\"$occmap\" eval \"$work/ws\" \"$work/wr\" --json > \"$work/own.json\" && cat \"$work/own.json\""
+  check eval_wildtrack_annotations 0 '"files_evaluated": 4' -- \
+    bash -c "\"$occmap\" eval \"$datasets/wildtrack\" \"$work/wr\" --frame-step 1 --json > \"$work/ann.json\" && cat \"$work/ann.json\""
+  check eval_wildtrack_same_counts 0 '^same counts in 4 frames, MODA [-0-9.]+$' -- python3 -c "
+import json
+own = {f['frame']: f for f in json.load(open('$work/own.json'))['detection']['per_frame']}
+ann = json.load(open('$work/ann.json'))['detection']
+keys = ('gt', 'detections', 'tp', 'fp', 'fn')
+frames = [f['frame'] for f in ann['per_frame']]
+assert frames == [0, 5, 10, 15], frames
+for f in ann['per_frame']:
+    assert f['annotation_file'] == f['frame'] and all(f[k] == own[f['frame']][k] for k in keys), (f, own[f['frame']])
+print('same counts in %d frames, MODA %s' % (len(frames), ann['moda']))"
 else
   echo "shared datasets not found beside the checkout; dataset CLI checks skipped"
 fi

@@ -26,13 +26,13 @@ bool IsDirectory(const fs::path& p) {
   return fs::is_directory(p, ec);
 }
 
-Status CheckUniqueObjectIds(const std::vector<GroundTruthFrame>& frames, const fs::path& path) {
+Status CheckUniqueObjectIds(const std::vector<GroundTruthFrame>& frames, std::string_view source) {
   for (const GroundTruthFrame& f : frames) {
     std::set<int64_t> ids;
     for (const GroundTruthObject& o : f.objects) {
       if (!ids.insert(o.id).second) {
         return InvalidInput(fmt::format("{}: frame {}: objects[].id: expected ids unique within a frame, found {} twice",
-                                        path.string(), f.frame, o.id));
+                                        source, f.frame, o.id));
       }
     }
   }
@@ -83,28 +83,15 @@ void WalkNotes(const char* file, const FrameWalk& walk, const EvalOptions& optio
   }
 }
 
-}  // namespace
-
-Result<EvaluationReport> EvaluateRun(const fs::path& dataset_dir, const fs::path& run_dir, const EvalOptions& options) {
-  Context serial(1);  // the calling thread only: no worker threads
-  return EvaluateRun(dataset_dir, run_dir, options, serial);
-}
-
-Result<EvaluationReport> EvaluateRun(const fs::path& dataset_dir, const fs::path& run_dir, const EvalOptions& options,
-                                     Context& ctx) {
-  OCCMAP_RETURN_IF_ERROR(options.Validate());
+// The run against `gt`; the reference rasters (occupancy, change masks) are read from
+// dataset_dir when it is given.
+Result<EvaluationReport> EvaluateRunImpl(const std::vector<GroundTruthFrame>& gt, std::string dataset_name,
+                                         const fs::path* dataset_dir, const fs::path& run_dir, const EvalOptions& options,
+                                         Context& ctx) {
   EvaluationReport report;
-  report.dataset = dataset_dir.string();
+  report.dataset = std::move(dataset_name);
   report.run = run_dir.string();
   report.match_threshold_m = options.match_threshold_m;
-
-  fs::path gt_path = dataset_dir / "ground_truth.jsonl";
-  if (!IsFile(gt_path) && IsFile(dataset_dir / "gt" / "ground_truth.jsonl")) gt_path = dataset_dir / "gt" / "ground_truth.jsonl";
-  if (!IsFile(gt_path)) {
-    return NotFound(fmt::format("{}: no ground truth: expected ground_truth.jsonl or gt/ground_truth.jsonl", dataset_dir.string()));
-  }
-  OCCMAP_ASSIGN_OR_RETURN(const std::vector<GroundTruthFrame> gt, ReadGroundTruth(gt_path));
-  OCCMAP_RETURN_IF_ERROR(CheckUniqueObjectIds(gt, gt_path));
   report.gt_frames = static_cast<int64_t>(gt.size());
 
   const fs::path detections_path = run_dir / "detections.jsonl";
@@ -149,6 +136,15 @@ Result<EvaluationReport> EvaluateRun(const fs::path& dataset_dir, const fs::path
     report.notes.push_back("no tracks.jsonl in the run: tracking not evaluated");
   }
 
+  if (dataset_dir == nullptr) {
+    report.notes.push_back("the ground truth is positions only: occupancy and change masks not evaluated");
+    if (!anything) {
+      return NotFound(fmt::format("{}: nothing to evaluate against {}: expected detections.jsonl or tracks.jsonl",
+                                  run_dir.string(), report.dataset));
+    }
+    return report;
+  }
+
   std::vector<std::pair<int64_t, fs::path>> maps;
   if (IsDirectory(occupancy_dir)) {
     OCCMAP_ASSIGN_OR_RETURN(maps, ListFramePngs(occupancy_dir, "map"));
@@ -165,8 +161,8 @@ Result<EvaluationReport> EvaluateRun(const fs::path& dataset_dir, const fs::path
       OccupancyEvaluator evaluator;
       int64_t missing = 0;
     };
-    Reference refs[] = {{"footprint", dataset_dir / "gt" / "footprint", options.footprint_codes, &report.footprint, {}, 0},
-                        {"hull", dataset_dir / "gt" / "hull", options.hull_codes, &report.hull, {}, 0}};
+    Reference refs[] = {{"footprint", *dataset_dir / "gt" / "footprint", options.footprint_codes, &report.footprint, {}, 0},
+                        {"hull", *dataset_dir / "gt" / "hull", options.hull_codes, &report.hull, {}, 0}};
     for (Reference& ref : refs) {
       if (!IsDirectory(ref.dir)) {
         report.notes.push_back(fmt::format("no gt/{} folder in the dataset: occupancy against it not evaluated", ref.name));
@@ -207,10 +203,10 @@ Result<EvaluationReport> EvaluateRun(const fs::path& dataset_dir, const fs::path
   const fs::path changes_dir = run_dir / "changes";
   if (IsDirectory(changes_dir)) {
     anything = true;
-    if (!IsDirectory(dataset_dir / "gt" / "changes")) {
+    if (!IsDirectory(*dataset_dir / "gt" / "changes")) {
       report.notes.push_back("no gt/changes folder in the dataset: change masks not evaluated");
     } else {
-      OCCMAP_ASSIGN_OR_RETURN(report.changes, EvaluateChangeMasks(changes_dir, dataset_dir / "gt", ctx, report.notes));
+      OCCMAP_ASSIGN_OR_RETURN(report.changes, EvaluateChangeMasks(changes_dir, *dataset_dir / "gt", ctx, report.notes));
     }
   }
 
@@ -220,6 +216,39 @@ Result<EvaluationReport> EvaluateRun(const fs::path& dataset_dir, const fs::path
                                 run_dir.string()));
   }
   return report;
+}
+
+}  // namespace
+
+Result<EvaluationReport> EvaluateRun(const fs::path& dataset_dir, const fs::path& run_dir, const EvalOptions& options) {
+  Context serial(1);  // the calling thread only: no worker threads
+  return EvaluateRun(dataset_dir, run_dir, options, serial);
+}
+
+Result<EvaluationReport> EvaluateRun(const fs::path& dataset_dir, const fs::path& run_dir, const EvalOptions& options,
+                                     Context& ctx) {
+  OCCMAP_RETURN_IF_ERROR(options.Validate());
+  fs::path gt_path = dataset_dir / "ground_truth.jsonl";
+  if (!IsFile(gt_path) && IsFile(dataset_dir / "gt" / "ground_truth.jsonl")) gt_path = dataset_dir / "gt" / "ground_truth.jsonl";
+  if (!IsFile(gt_path)) {
+    return NotFound(fmt::format("{}: no ground truth: expected ground_truth.jsonl or gt/ground_truth.jsonl", dataset_dir.string()));
+  }
+  OCCMAP_ASSIGN_OR_RETURN(const std::vector<GroundTruthFrame> gt, ReadGroundTruth(gt_path));
+  OCCMAP_RETURN_IF_ERROR(CheckUniqueObjectIds(gt, gt_path.string()));
+  return EvaluateRunImpl(gt, dataset_dir.string(), &dataset_dir, run_dir, options, ctx);
+}
+
+Result<EvaluationReport> EvaluateRunAgainst(const std::vector<GroundTruthFrame>& gt, std::string_view dataset_name,
+                                            const fs::path& run_dir, const EvalOptions& options, Context& ctx) {
+  OCCMAP_RETURN_IF_ERROR(options.Validate());
+  for (size_t k = 1; k < gt.size(); ++k) {
+    if (gt[k].frame <= gt[k - 1].frame) {
+      return InvalidInput(fmt::format("{}: frames: expected increasing frame numbers, found {} after {}", dataset_name,
+                                      gt[k].frame, gt[k - 1].frame));
+    }
+  }
+  OCCMAP_RETURN_IF_ERROR(CheckUniqueObjectIds(gt, dataset_name));
+  return EvaluateRunImpl(gt, std::string(dataset_name), nullptr, run_dir, options, ctx);
 }
 
 }  // namespace occmap

@@ -31,9 +31,12 @@
 #pragma once
 
 #include <filesystem>
+#include <string_view>
+#include <vector>
 
 #include "occmap/eval/eval_options.h"
 #include "occmap/eval/report.h"
+#include "occmap/sim/ground_truth.h"
 #include "occmap/util/status.h"
 #include "occmap/util/thread_pool.h"
 
@@ -45,5 +48,14 @@ Result<EvaluationReport> EvaluateRun(const std::filesystem::path& dataset_dir, c
                                      const EvalOptions& options, Context& ctx);
 Result<EvaluationReport> EvaluateRun(const std::filesystem::path& dataset_dir, const std::filesystem::path& run_dir,
                                      const EvalOptions& options = {});
+
+// The same against ground truth given in memory (a benchmark's annotations:
+// eval/benchmark_annotations.h), which `dataset_name` names in the report and in messages.
+// Frames must increase and ids be unique within a frame (an error otherwise). Without reference
+// rasters, the run's occupancy maps and change masks are not evaluated (a note says so), and
+// the run must have detections.jsonl or tracks.jsonl.
+Result<EvaluationReport> EvaluateRunAgainst(const std::vector<GroundTruthFrame>& gt, std::string_view dataset_name,
+                                            const std::filesystem::path& run_dir, const EvalOptions& options,
+                                            Context& ctx);
 
 }  // namespace occmap

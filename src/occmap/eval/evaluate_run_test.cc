@@ -321,5 +321,37 @@ TEST_F(EvaluateRunTest, InvalidOptionsAreRejectedBeforeAnyWork) {
   EXPECT_EQ(report.status().message(), "match_threshold_m: expected a distance > 0 m, found -1");
 }
 
+// The same run against ground truth given in memory: the same detection and tracking figures
+// (the dataset's frames), no occupancy (positions have no rasters), a name in the report.
+TEST_F(EvaluateRunTest, GroundTruthGivenInMemoryScoresDetectionsAndTracksOnly) {
+  const Result<std::vector<GroundTruthFrame>> gt = ReadGroundTruth(dataset_ / "ground_truth.jsonl");
+  ASSERT_TRUE(gt.ok()) << gt.status().message();
+  Context serial(1);
+  const Result<EvaluationReport> report = EvaluateRunAgainst(*gt, "annotations", run_, {}, serial);
+  ASSERT_TRUE(report.ok()) << report.status().message();
+  EXPECT_EQ(report->dataset, "annotations");
+  EXPECT_DOUBLE_EQ(report->detection->moda, 0.4);
+  EXPECT_DOUBLE_EQ(report->tracking->mota, 1.0);
+  EXPECT_FALSE(report->footprint.has_value());
+  EXPECT_FALSE(report->hull.has_value());
+  EXPECT_TRUE(HasNote(*report, "the ground truth is positions only: occupancy and change masks not evaluated"));
+
+  std::vector<GroundTruthFrame> swapped = *gt;
+  std::swap(swapped[0], swapped[1]);
+  EXPECT_EQ(EvaluateRunAgainst(swapped, "annotations", run_, {}, serial).status().message(),
+            "annotations: frames: expected increasing frame numbers, found 0 after 1");
+  std::vector<GroundTruthFrame> twice = *gt;
+  twice[1].objects[1].id = 1;
+  EXPECT_EQ(EvaluateRunAgainst(twice, "annotations", run_, {}, serial).status().message(),
+            "annotations: frame 1: objects[].id: expected ids unique within a frame, found 1 twice");
+  const fs::path maps_only = dir_ / "maps-only";
+  fs::create_directories(maps_only / "occupancy");
+  fs::copy(run_ / "occupancy" / "000000.png", maps_only / "occupancy" / "000000.png");
+  const Result<EvaluationReport> nothing = EvaluateRunAgainst(*gt, "annotations", maps_only, {}, serial);
+  EXPECT_EQ(nothing.status().code(), StatusCode::kNotFound);
+  EXPECT_EQ(nothing.status().message(),
+            maps_only.string() + ": nothing to evaluate against annotations: expected detections.jsonl or tracks.jsonl");
+}
+
 }  // namespace
 }  // namespace occmap

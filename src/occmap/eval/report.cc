@@ -15,10 +15,13 @@ json Ratio(double v) {
   return std::round(v * 1e6) / 1e6;
 }
 
-json DetectionJson(const DetectionMetrics& m, const std::vector<FrameDetectionCounts>& frames) {
+json DetectionJson(const DetectionMetrics& m, const std::vector<FrameDetectionCounts>& frames,
+                   const std::optional<AnnotationSummary>& annotations) {
   json per_frame = json::array();
   for (const FrameDetectionCounts& c : frames) {
-    per_frame.push_back({{"frame", c.frame}, {"gt", c.gt}, {"detections", c.detections}, {"tp", c.tp}, {"fp", c.fp}, {"fn", c.fn}});
+    json f = {{"frame", c.frame}, {"gt", c.gt}, {"detections", c.detections}, {"tp", c.tp}, {"fp", c.fp}, {"fn", c.fn}};
+    if (annotations) f["annotation_file"] = annotations->NumberOf(c.frame);
+    per_frame.push_back(std::move(f));
   }
   return {{"frames", m.frames},
           {"gt", m.gt},
@@ -61,6 +64,26 @@ json TrackingJson(const TrackingMetrics& m) {
           {"idr", Ratio(m.idr)},
           {"gt_frames_missing_from_run", m.gt_frames_missing_from_run},
           {"run_frames_without_gt", m.run_frames_without_gt}};
+}
+
+std::string StepText(const AnnotationSummary& a) {
+  return a.step_den == 1 ? fmt::format("{}", a.step_num) : fmt::format("{}/{}", a.step_num, a.step_den);
+}
+
+json AnnotationsJson(const AnnotationSummary& a) {
+  return {{"format", a.format},
+          {"folder", a.folder},
+          {"files", a.files},
+          {"first_file", a.first_file},
+          {"last_file", a.last_file},
+          {"first_frame", a.first_frame},
+          {"frame_step", StepText(a)},
+          {"range", a.range_last < a.range_first ? json(nullptr) : json::array({a.range_first, a.range_last})},
+          {"range_from", a.range_given ? "option" : "run"},
+          {"files_evaluated", a.files_evaluated},
+          {"people_evaluated", a.people_evaluated},
+          {"files_outside_range", a.files_outside_range},
+          {"files_between_frames", a.files_between_frames}};
 }
 
 json OccupancyJson(const std::optional<OccupancyMetrics>& o) {
@@ -182,11 +205,13 @@ nlohmann::json EvaluationReportJson(const EvaluationReport& report) {
           {"run", report.run},
           {"match_threshold_m", report.match_threshold_m},
           {"gt_frames", report.gt_frames},
-          {"detection", report.detection ? DetectionJson(*report.detection, report.detection_frames) : json(nullptr)},
+          {"detection", report.detection ? DetectionJson(*report.detection, report.detection_frames, report.annotations)
+                                         : json(nullptr)},
           {"tracking", report.tracking ? TrackingJson(*report.tracking) : json(nullptr)},
           {"occupancy", {{"footprint", OccupancyJson(report.footprint)}, {"hull", OccupancyJson(report.hull)}}},
           {"notes", EvaluationNotes(report)}};
   if (report.changes) j["changes"] = ChangesJson(*report.changes);
+  if (report.annotations) j["annotations"] = AnnotationsJson(*report.annotations);
   return j;
 }
 
@@ -194,6 +219,17 @@ std::string EvaluationReportText(const EvaluationReport& report) {
   std::string out = "occmap evaluation\n";
   if (!report.dataset.empty()) out += fmt::format("  dataset  {}\n", report.dataset);
   if (!report.run.empty()) out += fmt::format("  run      {}\n", report.run);
+  if (const auto& a = report.annotations) {
+    out += fmt::format("  ground truth: {} annotations, {} files ({}..{}); file = {} + {} x run frame\n", a->format,
+                       a->files, a->first_file, a->last_file, a->first_frame, StepText(*a));
+    if (a->range_last < a->range_first) {
+      out += "  evaluated: no annotation file (the run has no frames)\n";
+    } else {
+      out += fmt::format("  evaluated: {} files, {} people, numbers {}..{} ({})\n", a->files_evaluated,
+                         a->people_evaluated, a->range_first, a->range_last,
+                         a->range_given ? "the range given" : "the run's frames");
+    }
+  }
   out += fmt::format("  match when distance <= {:.3f} m; {} frames of ground truth\n", report.match_threshold_m,
                      report.gt_frames);
 
