@@ -6,8 +6,9 @@
 //      min_area_m2 are dropped;
 //   3. with split, a group too large for one object is split at the necks of its shape
 //      (split.h, on the grown map, with the person size grown by the grouping radius);
-//   4. with support_heights_m, flat detections are dropped (the elevated check: the planes
-//      above the floor, read through each camera's changes at the footprint, show nothing);
+//   4. with support_heights_m, flat detections are dropped (the elevated check,
+//      elevated_check.h: the planes above the floor, read through each camera's changes at
+//      the footprint, show nothing);
 //   5. with remove_ghosts, detections that every camera seeing them sees only through other,
 //      certainly real detections are dropped (ghosts.h).
 // A detection is placed at the centroid of its footprint (of its part of the group when its
@@ -30,10 +31,11 @@
 #include "occmap/fusion/occupancy_map.h"
 #include "occmap/geometry/camera_model.h"
 #include "occmap/objects/detection.h"
+#include "occmap/objects/elevated_check.h"
 #include "occmap/objects/ghosts.h"
 #include "occmap/objects/object_frame.h"
 #include "occmap/objects/object_options.h"
-#include "occmap/objects/split.h"
+#include "occmap/objects/split_fast.h"
 #include "occmap/util/image.h"
 
 namespace occmap {
@@ -57,18 +59,9 @@ class ObjectDetector {
   // grown by 2 group_radius_m, as the groups are.
   ObjectDetector(const ObjectOptions& options, double plane_height_m, std::vector<CameraView> cameras);
 
-  // Whether camera n's pixel (column x, row y) shows a change in the current frame.
-  using ChangeLookup = std::function<bool(int camera, int x, int y)>;
-
-  // The same changes as a buffer: camera n's pixel (x, y) changed when pixels[y * stride + x]
-  // is not 0; or, with unchanged_bits, when bit x % 64 of unchanged_bits[y * row_words + x / 64]
-  // is 0 (ChangeBits' layout).
-  struct ChangeBuffer {
-    const uint8_t* pixels = nullptr;
-    size_t stride = 0;
-    const uint64_t* unchanged_bits = nullptr;
-    size_t row_words = 0;
-  };
+  // The elevated check's changes (elevated_check.h): a lookup (the reference) or buffers.
+  using ChangeLookup = ElevatedCheck::ChangeLookup;
+  using ChangeBuffer = ElevatedCheck::ChangeBuffer;
 
   // active[n]: camera n contributed to this map (size = cameras). `changed` (may be empty)
   // answers the elevated check. `buffers` (empty, or one per camera) holds the same changes
@@ -82,32 +75,6 @@ class ObjectDetector {
   }
 
  private:
-  void PrepareSupport(const FloorGrid& grid);
-  // The plane-h occupancy of a cell: 1 occupied (every active camera seeing it changed), 0
-  // free, -1 no active camera sees it. Reads `buffers` when not empty, else `changed`; kept
-  // (in the cell's last entry of SupportPixels) for the rest of the frame.
-  int SupportAt(size_t h, int64_t cell, const ChangeLookup& changed, std::span<const ChangeBuffer> buffers);
-  // SupportAt without the memo: the cameras' pixels asked.
-  int SupportState(size_t h, int64_t cell, int32_t* pixels, const ChangeLookup& changed,
-                   std::span<const ChangeBuffer> buffers);
-  // The cameras' pixels (PackPixel: (row << 16) | column) where the cell's centre at plane h projects
-  // (entry n for camera n; -1 when it does not see it, kNotProjected until first used), then
-  // the memo of SupportAt (generation * 4 + state + 1, or kNotProjected).
-  int32_t* SupportPixels(size_t h, int64_t cell);
-  // Camera n's entry of `pixels` (SupportPixels), projected on first use.
-  int32_t SupportPixel(size_t h, size_t n, int64_t cell, int32_t* pixels);
-  // A projection's pixel as SupportPixels holds it: (y << 16) | x, so the test reads x and y
-  // without a division (images up to 65536 x 32768, checked by the constructor).
-  static int32_t PackPixel(int x, int y) {
-    return static_cast<int32_t>((static_cast<uint32_t>(y) << 16) | static_cast<uint32_t>(x));
-  }
-  static size_t PixelX(int32_t p) { return static_cast<uint32_t>(p) & 0xffffu; }
-  static size_t PixelY(int32_t p) { return static_cast<uint32_t>(p) >> 16; }
-  // Drops out.detections that the planes above do not support. Their groups index kept_index.
-  void RemoveUnsupported(const OccupancyMap& map, const ChangeLookup& changed, std::span<const ChangeBuffer> buffers,
-                         const std::vector<int>& kept_index, const std::vector<Blob>& kept_groups,
-                         DetectedObjects& out);
-
   ObjectOptions settings_;
   ObjectOptions split_options_;           // settings_ with the person grown as the groups are
   double plane_height_m_ = 0;
@@ -122,16 +89,7 @@ class ObjectDetector {
   std::vector<Eigen::Matrix2d> footprint_spreads_;
   std::vector<BlobSplit> splits_;         // per kept group, this frame
   SplitScratch split_scratch_;            // SplitBlob's buffers, kept
-  // The elevated check's projections (SupportPixel), kNotProjected until first used.
-  static constexpr int32_t kNotProjected = -2;
-  static constexpr int64_t kTileCells = 4096;
-  std::optional<FloorGrid> support_grid_;
-  size_t support_tiles_ = 0;                 // tiles of the grid
-  std::vector<int64_t> support_tile_start_;  // [height * tiles + tile]: its start in support_pixel_, -1 none yet
-  std::vector<int32_t> support_pixel_;       // per tile: [cell in tile * (cameras + 1) + camera or memo]
-  int32_t support_generation_ = 0;           // Detect calls with an elevated check, the memos' stamp
-  std::vector<size_t> active_cameras_;       // this frame's active cameras, in order
-  std::vector<std::vector<std::pair<int, int>>> footprint_;  // per detection, its footprint cells (reused)
+  ElevatedCheck elevated_;                // after cameras_: made from them
 };
 
 }  // namespace occmap

@@ -149,19 +149,34 @@ TEST_F(ObjectDetectorTest, WithoutSplitTheTrackerMeasuresTheDetectionsAsTheyAre)
 }
 
 TEST_F(ObjectDetectorTest, ChangeBuffersGiveTheSameDetectionsAsTheLookup) {
-  // The fast path (change buffers) against the reference (the lookup), with rows as wide as
-  // the image and with padded rows, for several planes and sets of active cameras.
-  for (const size_t pad : {size_t{0}, size_t{5}}) {
+  // The fast path (change buffers) against the reference (the lookup): byte images with rows
+  // as wide as the image and with padded rows, and ChangeBits' unchanged bits, for several
+  // planes and sets of active cameras.
+  for (int layout = 0; layout < 3; ++layout) {
+    const size_t pad = layout == 1 ? 5 : 0;
     std::vector<std::vector<uint8_t>> pixels(room_.cameras.size());
+    std::vector<std::vector<uint64_t>> bits(room_.cameras.size());
     std::vector<ObjectDetector::ChangeBuffer> buffers;
     for (size_t n = 0; n < room_.cameras.size(); ++n) {
       const ImageSize size = room_.cameras[n].image_size();
       const size_t stride = static_cast<size_t>(size.width) + pad;
+      const size_t row_words = (static_cast<size_t>(size.width) + 63) / 64;
       pixels[n].assign(stride * static_cast<size_t>(size.height), 0);
+      bits[n].assign(row_words * static_cast<size_t>(size.height), ~uint64_t{0});  // all unchanged
       for (const auto& [x, y] : changed_[n]) {
-        if (x >= 0 && y >= 0 && x < size.width && y < size.height) pixels[n][static_cast<size_t>(y) * stride + x] = 1;
+        if (x < 0 || y < 0 || x >= size.width || y >= size.height) continue;
+        pixels[n][static_cast<size_t>(y) * stride + x] = 1;
+        bits[n][static_cast<size_t>(y) * row_words + static_cast<size_t>(x) / 64] &= ~(uint64_t{1} << (x % 64));
       }
-      buffers.push_back({pixels[n].data(), stride});
+      ObjectDetector::ChangeBuffer b;
+      if (layout == 2) {
+        b.unchanged_bits = bits[n].data();
+        b.row_words = row_words;
+      } else {
+        b.pixels = pixels[n].data();
+        b.stride = stride;
+      }
+      buffers.push_back(b);
     }
     for (const std::vector<double>& heights : {std::vector<double>{0.35, 1.0}, {2.0}, {2.0, 0.5}, {0.35}}) {
       // One fast detector for all sets of cameras: what it kept from a frame must not leak
@@ -174,7 +189,7 @@ TEST_F(ObjectDetectorTest, ChangeBuffersGiveTheSameDetectionsAsTheLookup) {
         DetectedObjects expected, got;
         reference.Detect(map_, active, Lookup(), expected);
         fast.Detect(map_, active, {}, got, buffers);
-        ASSERT_EQ(got.detections.size(), expected.detections.size()) << "mask " << mask;
+        ASSERT_EQ(got.detections.size(), expected.detections.size()) << "layout " << layout << ", mask " << mask;
         for (size_t k = 0; k < got.detections.size(); ++k) {
           EXPECT_EQ(got.detections[k].x_m, expected.detections[k].x_m);
           EXPECT_EQ(got.detections[k].y_m, expected.detections[k].y_m);

@@ -49,6 +49,9 @@ namespace occmap {
 // come from this map (checked).
 std::vector<int64_t> BlobCells(const OccupancyMap& map, const Blob& blob);
 
+// The detection of a set of cells: centroid and covariance of their centres, area, count.
+Detection DetectionFromCells(const FloorGrid& grid, const std::vector<int64_t>& cells);
+
 // The most people a blob of this area may hold (step 3 above), >= 1.
 int MaxPeopleInArea(double area_m2, const ObjectOptions& options);
 
@@ -77,33 +80,9 @@ struct BlobSplit {
   size_t peaks = 0;                    // distance peaks kept (at most max_people; 0 if max_people < 2)
   std::vector<Detection> detections;   // without predictions, blob_index 0
 };
+// The plain split, the oracle of the fast one (split_fast.h: SplitBlob with a SplitScratch).
 BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const ObjectOptions& options);
 
-// Buffers SplitBlob reuses from one call to the next (the distance transform, the peaks'
-// union-find, the k-means points and labels): with one per caller, a frame's splits allocate
-// little more than their results. Not shared between threads.
-struct SplitScratch {
-  std::vector<uint8_t> inside;
-  std::vector<int> g, v, locals, start, sorted, parent, peak, rank_of, significant, label;
-  std::vector<uint32_t> recompute;
-  std::vector<int64_t> ci, cj, sum_i, sum_j, counts, z_num, z_den;
-  std::vector<int> previous;
-  std::vector<double> d2, f, z, xs, ys, centre_x, centre_y, shift;
-  std::vector<float> gap, shift_f;
-  std::vector<Eigen::Vector2d> peaks;
-  std::vector<std::vector<int64_t>> parts;
-};
-// The same split as SplitBlob (equal, tested), with scratch buffers reused and the k-means on
-// flat arrays.
-BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, const ObjectOptions& options, SplitScratch& scratch);
-// The same split of a blob found by a BlobFinder (or FindBlobs) on `map`: its cells are those
-// of its label, read from the box (no search of the map, no relabelling where other blobs
-// reach into the box; the same cells as BlobCells, tested).
-BlobSplit SplitBlob(const Blob& blob, const OccupancyMap& map, std::span<const int32_t> labels, int32_t label,
-                    const ObjectOptions& options, SplitScratch& scratch);
-// The split from the blob's cells as BlobCells gives them (sorted, one component).
-BlobSplit SplitBlobCells(const Blob& blob, const FloorGrid& grid, std::vector<int64_t> blob_cells,
-                         const ObjectOptions& options, SplitScratch& scratch);
 // Step 5's two halves, shared with GuidedDetections (object_frame.h): the predictions within
 // radius_m of the blob's cells (split.cells; none when it may hold fewer than two), at most
 // split.max_people, in the order given ...
