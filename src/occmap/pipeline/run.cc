@@ -18,6 +18,9 @@
 #include "occmap/detect/change_detection.h"
 #include "occmap/fusion/fast_fusion.h"
 #include "occmap/fusion/fusion.h"
+#include "occmap/fusion/column_fusion.h"
+#include "occmap/fusion/view_explainer.h"
+#include "occmap/lut/column_lut.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/io/video_writer.h"
 #include "occmap/pipeline/background_maintenance.h"
@@ -328,6 +331,38 @@ class AnyTracker {
   std::vector<Blob> groups_;  // the window tracker's input, buffer kept
 };
 
+// The people the views' explanation chose, as the frame's detections: no groups (the tracker
+// measures exactly these); area and spread those of one person's disc, class hint "person".
+void PeopleDetections(const std::vector<ExplainedPerson>& people, const TrackerOptions& tracking,
+                      DetectedObjects& objects) {
+  objects.detections.clear();
+  objects.groups.clear();
+  const double r = tracking.person_radius_m();
+  for (const ExplainedPerson& p : people) {
+    Detection d;
+    d.x_m = p.x_m;
+    d.y_m = p.y_m;
+    d.area_m2 = 3.14159265358979 * r * r;
+    d.spread_m2 = Eigen::Matrix2d::Identity() * (r * r / 4);
+    d.class_hint = "person";
+    objects.detections.push_back(d);
+  }
+}
+
+// The column map's blobs as the frame's detections (no groups).
+void ColumnDetections(const OccupancyMap& column_map, DetectedObjects& objects) {
+  objects.detections.clear();
+  objects.groups.clear();
+  for (const Blob& b : FindBlobs(column_map)) {
+    Detection d;
+    d.x_m = b.x_m;
+    d.y_m = b.y_m;
+    d.area_m2 = b.area_m2;
+    d.cells = b.cells;
+    objects.detections.push_back(d);
+  }
+}
+
 json BlobJson(const Detection& b) {
   return {{"x_m", std::round(b.x_m * 1e4) / 1e4}, {"y_m", std::round(b.y_m * 1e4) / 1e4},
           {"area_m2", std::round(b.area_m2 * 1e5) / 1e5}, {"cells", b.cells}};
@@ -359,6 +394,8 @@ struct FrameSet {
   ChangeBits change_bits;        // FastFusion::FuseTolerant's changes after the tolerance, as bits
   bool bits_ready = false;       // `change_bits` holds this instant's changes
   std::vector<Image<uint8_t>> change_pictures;  // --change-pngs: per camera, 255 changed (before the tolerance)
+  OccupancyMap column_map;
+  std::vector<ExplainedPerson> people;
 };
 
 // What the writer stage writes for one frame, in frame order.
@@ -471,7 +508,23 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   // AND on grey frames, no mask sources, no mosaic video (the mosaic picture of the best frame
   // gets its changes computed when it is drawn); without tolerance (Fuse) or with a small one
   // folded in (FuseTolerant: the changes exist only as bits, which the elevated check reads).
-  const bool fusable = paper_and && !colour && !adaptive && !any_mask_source && !options.mosaic_video &&
+  // People (the site's `people:` section): the column fusion, and the explanation of the views,
+  // on the change buffer after the floor AND.
+  const PeopleOptions& people = site.people;
+  const bool people_detector = people.enabled && people.detector != PeopleDetector::kFloor;
+  std::optional<ColumnLut> column_lut;
+  std::optional<ColumnFusion> column_fusion;
+  std::optional<ViewExplainer> explainer;
+  std::vector<ChangeRowSums> change_counts(site.cameras.size());
+  std::vector<ImageView<const uint8_t>> change_views(site.cameras.size());
+  if (people_detector) {
+    OCCMAP_ASSIGN_OR_RETURN(ColumnLut columns, BuildColumnLut(site.LutInputs(), site.grid, site.plane_height_m,
+                                                              people.columns, site.statics, ctx));
+    column_lut = std::move(columns);
+    column_fusion.emplace(*column_lut);
+    if (people.detector == PeopleDetector::kExplain) explainer.emplace(*column_lut);
+  }
+  const bool fusable = !people_detector && paper_and && !colour && !adaptive && !any_mask_source && !options.mosaic_video &&
                        !options.change_pngs;
   const bool fully_fused = fusable && site.detection.tolerance_px == 0;
   const bool tolerant_fused = fusable && site.detection.tolerance_px >= 1 &&
@@ -830,7 +883,17 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
           }
           post_changes.push_back(b);
         }
-        detector.Detect(map, active, changed, objects, post_changes);
+        // With a people detector the floor's objects are not needed (the paper's window tracker
+        // still reads the floor's groups).
+        if (!people_detector || site.tracking.algorithm == TrackerAlgorithm::kWindow) {
+          detector.Detect(map, active, changed, objects, post_changes);
+        }
+        // People (the site's `people:` section): the explained people, or the column map's blobs.
+        if (explainer) {
+          PeopleDetections(set.people, site.tracking, objects);
+        } else if (column_fusion) {
+          ColumnDetections(set.column_map, objects);
+        }
         const std::vector<Detection>& blobs = objects.detections;
         summary.blobs_s += Since(t0);
         const int64_t frame_index = set.frame_index;
@@ -1012,6 +1075,21 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       fusion.Fuse(set.changes, active, site.fusion, set.map);
     }
     summary.fuse_s += Since(t0);
+    if (column_fusion) {
+      t0 = Clock::now();
+      for (size_t n = 0; n < cams.size(); ++n) {
+        const ImageSize size = cams[n].cam->camera->image_size();
+        change_views[n] = ImageView<const uint8_t>(set.changes.data() + lut.pixel_offset(static_cast<int>(n)), size.width,
+                                                   size.height, size.width);
+      }
+      ParallelFor(ctx, 0, static_cast<int64_t>(cams.size()), [&](int64_t b, int64_t e, int) {
+        for (int64_t n = b; n < e; ++n)
+          if (active[n]) change_counts[n].Build(change_views[n]);
+      });
+      column_fusion->Fuse(change_counts, active, people.column, ctx, set.column_map);
+      if (explainer) explainer->Explain(change_views, change_counts, active, set.column_map, people.explain, ctx, set.people);
+      summary.people_s += Since(t0);
+    }
     // The adaptive backgrounds follow the frame where the map says nothing stands.
     if (adaptive) {
       t0 = Clock::now();
@@ -1101,7 +1179,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                        {"frames_per_second", summary.steady_fps}};
   j["stage_seconds"] = {{"decode", summary.decode_s}, {"detect", summary.detect_s}, {"fuse", summary.fuse_s},
                         {"blobs", summary.blobs_s}, {"track", summary.track_s}, {"output", summary.output_s},
-                        {"background", summary.background_s},
+                        {"background", summary.background_s}, {"people", summary.people_s},
                         {"tables", summary.lut_seconds}};
   if (options.track) {
     j["tracking"] = {{"algorithm", std::string(ToString(site.tracking.algorithm))},

@@ -103,6 +103,7 @@ struct RunSummary {
   // blobs, track: the post stage; output: formatting (post) and writing (writer).
   double decode_s = 0, detect_s = 0, fuse_s = 0, blobs_s = 0, track_s = 0, output_s = 0;
   double background_s = 0;  // the adaptive backgrounds' update (the fusion stage)
+  double people_s = 0;      // column fusion and the explanation of the views (the fusion stage)
   // Learned backgrounds checked across cameras (pipeline/background_maintenance.h).
   int64_t consensus_pixels_checked = 0, consensus_pixels_swapped = 0;
   int max_queued_outputs = 0;  // the most frames whose outputs waited for the writer at once

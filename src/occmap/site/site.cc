@@ -405,7 +405,7 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
   OCCMAP_ASSIGN_OR_RETURN(YamlField root, ParseYaml(yaml_text, path.string()));
   if (!root.IsMap()) return root.Error("expected a site description (a map with floor and cameras)");
   OCCMAP_RETURN_IF_ERROR(
-      root.CheckKeys({"version", "name", "data_root", "floor", "cameras", "detection", "backgrounds", "fusion", "blobs", "lut",
+      root.CheckKeys({"version", "name", "data_root", "floor", "cameras", "detection", "backgrounds", "fusion", "blobs", "lut", "people", "statics",
                       "tracking"}));
   OCCMAP_ASSIGN_OR_RETURN(int64_t version, root.GetInt("version", 1));
   if (version != 1) return root.Find("version")->Error(fmt::format("expected site format version 1, found {}", version));
@@ -445,6 +445,12 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
   }
   if (auto f = root.Find("detection")) OCCMAP_RETURN_IF_ERROR(ParseDetection(*f, site.detection));
   if (auto f = root.Find("backgrounds")) OCCMAP_RETURN_IF_ERROR(ParseBackgrounds(*f, site.backgrounds));
+  if (auto f = root.Find("people")) {
+    OCCMAP_RETURN_IF_ERROR(ParsePeopleOptions(*f, static_cast<int>(site.cameras.size()), site.people));
+  }
+  if (auto f = root.Find("statics")) {
+    OCCMAP_ASSIGN_OR_RETURN(site.statics, ParseOccluders(*f));
+  }
   if (auto f = root.Find("fusion")) OCCMAP_RETURN_IF_ERROR(ParseFusion(*f, site.cameras.size(), site.fusion));
   if (auto f = root.Find("blobs")) OCCMAP_RETURN_IF_ERROR(ParseObjectOptions(*f, site.objects));
   if (auto f = root.Find("tracking")) {

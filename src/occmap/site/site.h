@@ -37,6 +37,7 @@
 #include "occmap/detect/background_model.h"
 #include "occmap/detect/change_detection.h"
 #include "occmap/fusion/fusion.h"
+#include "occmap/fusion/people_options.h"
 #include "occmap/geometry/camera_model.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/lut/floor_grid.h"
@@ -74,6 +75,8 @@ struct Site {
   ObjectOptions objects;
   // The rest of `tracking:`: trackers, zones, trails (track/tracker_options.h, parsed there).
   TrackerOptions tracking;
+  PeopleOptions people;           // the `people:` section (fusion/people_options.h)
+  std::vector<Occluder> statics;  // the `statics:` section: structures that hide people (lut/column_lut.h)
 
   std::vector<LutCameraInput> LutInputs() const;
 };

@@ -1,0 +1,274 @@
+#include "occmap/fusion/view_explainer.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+#include <queue>
+
+namespace occmap {
+
+Status ExplainOptions::Validate() const {
+  if (!(radius_m > 0 && radius_m <= 1))
+    return InvalidInput(fmt::format("radius_m: expected a radius in (0, 1] m, found {}", radius_m));
+  if (!(unchanged_weight >= 0 && unchanged_weight <= 10))
+    return InvalidInput(fmt::format("unchanged_weight: expected 0 to 10, found {}", unchanged_weight));
+  if (!(min_gain > 0 && std::isfinite(min_gain)))
+    return InvalidInput(fmt::format("min_gain: expected a positive number, found {}", min_gain));
+  if (!(min_separation_m >= 0 && min_separation_m <= 2))
+    return InvalidInput(fmt::format("min_separation_m: expected 0 to 2 m, found {}", min_separation_m));
+  if (moves < 0 || moves > 10) return InvalidInput(fmt::format("moves: expected 0 to 10, found {}", moves));
+  if (!(move_radius_m >= 0 && move_radius_m <= 2))
+    return InvalidInput(fmt::format("move_radius_m: expected 0 to 2 m, found {}", move_radius_m));
+  if (max_people < 1) return InvalidInput(fmt::format("max_people: expected at least 1, found {}", max_people));
+  if (max_rows < 1) return InvalidInput(fmt::format("max_rows: expected at least 1, found {}", max_rows));
+  return Status::Ok();
+}
+
+namespace {
+// A camera's gain over the model's pixels there, as a fraction of them.
+double PerCamera(double value, int64_t pixels) { return value / static_cast<double>(pixels); }
+
+// The spans of candidate k's person model in camera c, or visible_rows 0 when c says nothing.
+ColumnSpans PersonSpans(const ColumnLut& columns, int c, int64_t k, const ExplainOptions& o) {
+  const ColumnView& v = columns.view(c, k);
+  if (!v.projected || v.blocked) return {};
+  return MakeColumnSpans(v, o.radius_m, 0.0, 1.0, columns.image_size(c));
+}
+
+// Rows of a model's image read by the gains: evenly spaced, at most max_rows (coverage is kept
+// on every row).
+int RowStep(const ColumnSpans& s, int max_rows) { return std::max(1, (s.visible_rows + max_rows - 1) / max_rows); }
+
+}  // namespace
+
+double ViewExplainer::UpperBound(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
+                                 const ExplainOptions& o) const {
+  double gain = 0;
+  for (int c = 0; c < columns_.num_cameras(); ++c) {
+    if (!active[c]) continue;
+    const ColumnSpans s = PersonSpans(columns_, c, k, o);
+    if (s.visible_rows == 0) continue;
+    int64_t changed = 0, pixels = 0;
+    const int step = RowStep(s, o.max_rows);
+    for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); y += step) {
+      int x0, x1;
+      if (!s.Span(y, x0, x1)) continue;
+      changed += counts[c].Count(y, x0, x1);
+      pixels += x1 - x0 + 1;
+    }
+    if (pixels == 0) continue;
+    gain += PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(pixels - changed), pixels);
+  }
+  return gain;
+}
+
+double ViewExplainer::Gain(int64_t k, std::span<const ImageView<const uint8_t>> changes,
+                           const std::vector<bool>& active, const ExplainOptions& o, int max_cover) const {
+  double gain = 0;
+  for (int c = 0; c < columns_.num_cameras(); ++c) {
+    if (!active[c]) continue;
+    const ColumnSpans s = PersonSpans(columns_, c, k, o);
+    if (s.visible_rows == 0) continue;
+    const bool have_coverage = coverage_.size() > static_cast<size_t>(c) && !coverage_[c].empty();
+    int64_t changed = 0, unchanged = 0, pixels = 0;
+    const int step = RowStep(s, o.max_rows);
+    for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); y += step) {
+      int x0, x1;
+      if (!s.Span(y, x0, x1)) continue;
+      pixels += x1 - x0 + 1;
+      const uint8_t* ch = changes[c].row(y);
+      const uint8_t* cov = have_coverage ? coverage_[c].row(y) : nullptr;
+      int row_changed = 0, row_free = 0;
+      for (int x = x0; x <= x1; ++x) {
+        const bool free = cov == nullptr || cov[x] <= max_cover;
+        row_free += free ? 1 : 0;
+        row_changed += (free && ch[x] != 0) ? 1 : 0;
+      }
+      changed += row_changed;
+      unchanged += row_free - row_changed;
+    }
+    if (pixels == 0) continue;
+    gain += PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(unchanged), pixels);
+  }
+  return gain;
+}
+
+void ViewExplainer::Cover(int64_t k, const std::vector<bool>& active, const ExplainOptions& o, int delta) {
+  for (int c = 0; c < columns_.num_cameras(); ++c) {
+    if (!active[c]) continue;
+    const ColumnSpans s = PersonSpans(columns_, c, k, o);
+    if (s.visible_rows == 0) continue;
+    for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); ++y) {
+      int x0, x1;
+      if (!s.Span(y, x0, x1)) continue;
+      uint8_t* cov = coverage_[c].row(y);
+      for (int x = x0; x <= x1; ++x) cov[x] = static_cast<uint8_t>(cov[x] + delta);
+    }
+  }
+}
+
+void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, std::span<const ChangeRowSums> counts,
+                            const std::vector<bool>& active, const OccupancyMap& column_map,
+                            const ExplainOptions& o, Context& ctx, std::vector<ExplainedPerson>& people) {
+  people.clear();
+  const FloorGrid& grid = columns_.candidates();
+  if (coverage_.size() != static_cast<size_t>(columns_.num_cameras())) {
+    coverage_.clear();
+    for (int c = 0; c < columns_.num_cameras(); ++c) {
+      const ImageSize size = columns_.image_size(c);
+      coverage_.emplace_back(size.width, size.height);
+      for (int y = 0; y < size.height; ++y) std::fill_n(coverage_.back().row(y), size.width, uint8_t{0});
+    }
+  }
+  // 1. Candidates and their bounds.
+  std::vector<int64_t> candidates;
+  for (int64_t k = 0; k < grid.num_cells(); ++k)
+    if (column_map.state(k) == CellState::kOccupied) candidates.push_back(k);
+  std::vector<double> bound(candidates.size());
+  ParallelFor(
+      ctx, 0, static_cast<int64_t>(candidates.size()),
+      [&](int64_t b, int64_t e, int) {
+        for (int64_t i = b; i < e; ++i) bound[i] = UpperBound(candidates[i], counts, active, o);
+      },
+      64);
+  // 2. Forward, lazily: (gain, candidate index); ties go to the lower index.
+  using Entry = std::pair<double, int64_t>;
+  const auto less = [](const Entry& a, const Entry& b) {
+    return a.first < b.first || (a.first == b.first && a.second > b.second);
+  };
+  std::priority_queue<Entry, std::vector<Entry>, decltype(less)> queue(less);
+  // The forward pass starts from the bounds' local maxima (3 x 3 on the candidate grid): the
+  // moves (step 4) reach every candidate.
+  std::vector<int32_t> index_of(static_cast<size_t>(grid.num_cells()), -1);
+  for (size_t i = 0; i < candidates.size(); ++i) index_of[candidates[i]] = static_cast<int32_t>(i);
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    if (bound[i] < o.min_gain) continue;
+    const int64_t ci = candidates[i] % grid.cells_x, cj = candidates[i] / grid.cells_x;
+    bool peak = true;
+    for (int64_t dj = -1; dj <= 1 && peak; ++dj) {
+      for (int64_t di = -1; di <= 1; ++di) {
+        const int64_t ni = ci + di, nj = cj + dj;
+        if ((di == 0 && dj == 0) || ni < 0 || nj < 0 || ni >= grid.cells_x || nj >= grid.cells_y) continue;
+        const int32_t n = index_of[nj * grid.cells_x + ni];
+        if (n >= 0 && (bound[n] > bound[i] || (bound[n] == bound[i] && n < static_cast<int32_t>(i)))) {
+          peak = false;
+          break;
+        }
+      }
+    }
+    if (peak) queue.push({bound[i], static_cast<int64_t>(i)});
+  }
+  // Each candidate's image box per camera: adding a person changes only the gains of the
+  // candidates whose image meets its image in some camera.
+  const int cams = columns_.num_cameras();
+  boxes_.assign(candidates.size() * static_cast<size_t>(cams), Box{});
+  ParallelFor(
+      ctx, 0, static_cast<int64_t>(candidates.size()),
+      [&](int64_t b, int64_t e, int) {
+        for (int64_t i = b; i < e; ++i) {
+          for (int c = 0; c < cams; ++c) {
+            if (!active[c]) continue;
+            const ColumnSpans sp = PersonSpans(columns_, c, candidates[i], o);
+            if (sp.visible_rows == 0) continue;
+            Box& box = boxes_[static_cast<size_t>(i) * cams + c];
+            for (int y : {std::max(sp.first_row, 0), std::min(sp.last_row, sp.height - 1)}) {
+              int x0, x1;
+              if (!sp.Span(y, x0, x1)) continue;
+              box.x0 = std::min(box.x0, x0);
+              box.x1 = std::max(box.x1, x1);
+            }
+            box.y0 = std::max(sp.first_row, 0);
+            box.y1 = std::min(sp.last_row, sp.height - 1);
+          }
+        }
+      },
+      64);
+  const auto overlaps = [&](size_t i, size_t j) {
+    for (int c = 0; c < cams; ++c) {
+      const Box& a = boxes_[i * cams + c];
+      const Box& b = boxes_[j * cams + c];
+      if (a.x0 <= b.x1 && b.x0 <= a.x1 && a.y0 <= b.y1 && b.y0 <= a.y1) return true;
+    }
+    return false;
+  };
+  std::vector<uint8_t> fresh(candidates.size(), 0);  // gain in the queue is exact for the current set
+  const double min_sep2 = o.min_separation_m * o.min_separation_m;
+  while (!queue.empty() && static_cast<int>(people.size()) < o.max_people) {
+    const auto [value, i] = queue.top();
+    queue.pop();
+    if (value < o.min_gain) break;
+    const int64_t k = candidates[i];
+    const Eigen::Vector2d xy = grid.CellCenter(k);
+    bool too_close = false;
+    for (const ExplainedPerson& p : people)
+      if ((Eigen::Vector2d(p.x_m, p.y_m) - xy).squaredNorm() < min_sep2) too_close = true;
+    if (too_close) continue;
+    if (!fresh[i]) {
+      const double g = Gain(k, changes, active, o, 0);
+      fresh[i] = 1;
+      if (g >= o.min_gain) queue.push({g, i});
+      continue;
+    }
+    ExplainedPerson p;
+    p.candidate = k;
+    p.x_m = xy.x();
+    p.y_m = xy.y();
+    p.gain = value;
+    for (int c = 0; c < columns_.num_cameras(); ++c)
+      if (active[c] && columns_.view(c, k).projected && !columns_.view(c, k).blocked) ++p.views;
+    people.push_back(p);
+    Cover(k, active, o, +1);
+    for (size_t j = 0; j < candidates.size(); ++j)
+      if (fresh[j] && overlaps(static_cast<size_t>(i), j)) fresh[j] = 0;
+  }
+  // 3. Backward: drop the weakest member while its exclusive gain is below min_gain.
+  while (!people.empty()) {
+    size_t worst = 0;
+    double worst_gain = 0;
+    for (size_t m = 0; m < people.size(); ++m) {
+      const double g = Gain(people[m].candidate, changes, active, o, 1);
+      people[m].gain = g;
+      if (m == 0 || g < worst_gain) {
+        worst = m;
+        worst_gain = g;
+      }
+    }
+    if (worst_gain >= o.min_gain) break;
+    Cover(people[worst].candidate, active, o, -1);
+    people.erase(people.begin() + static_cast<ptrdiff_t>(worst));
+  }
+  // 4. Moves: each member in turn is taken out and put back at the candidate near it that gains most.
+  const double move_r = o.move_radius_m;
+  for (int sweep = 0; sweep < o.moves; ++sweep) {
+    int moved = 0;
+    for (size_t m = 0; m < people.size(); ++m) {
+      Cover(people[m].candidate, active, o, -1);
+      const Eigen::Vector2d at(people[m].x_m, people[m].y_m);
+      int64_t best = people[m].candidate;
+      double best_gain = Gain(best, changes, active, o, 0);
+      for (size_t i = 0; i < candidates.size(); ++i) {
+        if (bound[i] < o.min_gain) continue;
+        const int64_t k = candidates[i];
+        const Eigen::Vector2d xy = grid.CellCenter(k);
+        if ((xy - at).squaredNorm() > move_r * move_r || k == people[m].candidate) continue;
+        bool close = false;
+        for (size_t q = 0; q < people.size(); ++q)
+          if (q != m && (Eigen::Vector2d(people[q].x_m, people[q].y_m) - xy).squaredNorm() < min_sep2) close = true;
+        if (close) continue;
+        const double g = Gain(k, changes, active, o, 0);
+        if (g > best_gain + 1e-9) { best_gain = g; best = k; }
+      }
+      if (best != people[m].candidate) ++moved;
+      people[m].candidate = best;
+      const Eigen::Vector2d xy = grid.CellCenter(best);
+      people[m].x_m = xy.x();
+      people[m].y_m = xy.y();
+      Cover(best, active, o, +1);
+    }
+    if (moved == 0) break;
+  }
+  for (const ExplainedPerson& p : people) Cover(p.candidate, active, o, -1);  // coverage back to zero
+}
+
+}  // namespace occmap

@@ -1,0 +1,101 @@
+// ViewExplainer: the set of people that best explains every camera's change mask.
+//
+// Model. A person standing at a candidate position appears in camera c as the image of an
+// upright cylinder (ColumnLut: radius radius_m, the column's height). A set S of people
+// predicts, in every camera, "changed" on the union of their images and "unchanged" elsewhere;
+// its cost is the number of pixels where the prediction is wrong, unchanged pixels predicted
+// changed counting unchanged_weight (a silhouette does not fill its cylinder). Adding person k
+// to S lowers the cost, in camera c, by
+//     gain_c(k | S) = (changed - unchanged_weight * unchanged) over k's pixels no member of S covers,
+// and each camera's gain is divided by the area of k's image there, so that every camera that
+// sees k counts alike, near or far: gain(k | S) = sum_c gain_c / area_c, in "views' worth".
+//
+// Search (after Alahi et al. 2011's greedy sparsity and Fleuret et al. 2008's occlusion
+// reasoning, on our tables):
+//  1. candidates: the occupied positions of the column map (column_fusion.h), nothing else;
+//  2. forward: repeatedly add the candidate of largest gain (lazily: gains are first bounded
+//     from the row sums, recomputed against the coverage when they reach the top), while it is
+//     at least min_gain and no member stands within min_separation_m;
+//  3. backward: repeatedly drop the member whose exclusive gain (over the pixels no other member
+//     covers) is lowest, while it is below min_gain. A ghost (the intersection of the shadows of
+//     people the other cameras see elsewhere) lies, in every view, inside people already chosen:
+//     its exclusive gain is near zero and it goes, wherever the forward pass ranked it;
+//  4. moves: each member in turn is taken out and put back at the candidate within
+//     move_radius_m that gains most (moves sweeps, or until none moves): the forward pass
+//     tends to place a person of a dense group where the model fits inside the group's
+//     silhouettes, a little away from where the person stands.
+// A camera takes part for a candidate wherever the model's image meets its image (the foot
+// may be out of frame: a person close to a camera leaves a large changed region that only
+// the right candidate should explain).
+// Inactive cameras, cameras that do not see a candidate (ColumnView::seen) and those an
+// occluder hides (blocked) say nothing about it. Equal results with 1 or 2 threads (the
+// search is sequential; only the bounds are computed in parallel).
+//
+//   ViewExplainer explainer(columns);
+//   explainer.Explain(changes, counts, active, column_map, options, ctx, people);
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "occmap/fusion/column_fusion.h"
+#include "occmap/fusion/occupancy_map.h"
+#include "occmap/lut/column_lut.h"
+#include "occmap/util/image.h"
+#include "occmap/util/status.h"
+#include "occmap/util/thread_pool.h"
+
+namespace occmap {
+
+struct ExplainOptions {
+  double radius_m = 0.15;           // the person model's radius (a silhouette's core, not its arms)
+  double unchanged_weight = 0.9;    // cost of an unchanged pixel predicted changed
+  double min_gain = 0.7;            // views' worth a person must explain to be kept
+  double min_separation_m = 0.35;   // two people are never closer
+  int moves = 2;                    // sweeps of step 4
+  double move_radius_m = 0.5;       // how far step 4 looks
+  int max_people = 1000;
+  int max_rows = 48;                // rows of a model's image read per camera (evenly spaced)
+  Status Validate() const;
+};
+
+struct ExplainedPerson {
+  int64_t candidate = -1;  // on the column table's candidate grid
+  double x_m = 0, y_m = 0;
+  double gain = 0;         // its exclusive gain at the end, in views' worth
+  int views = 0;           // cameras that see it
+};
+
+class ViewExplainer {
+ public:
+  explicit ViewExplainer(const ColumnLut& columns) : columns_(columns) {}
+
+  // changes[c] (non-zero = changed) and counts[c] (its ChangeRowSums) per camera; those of
+  // inactive cameras are not read. column_map: the column fusion's map on the candidate grid.
+  // people: the chosen set, in the order chosen. Not thread-safe (keeps its buffers).
+  void Explain(std::span<const ImageView<const uint8_t>> changes, std::span<const ChangeRowSums> counts,
+               const std::vector<bool>& active, const OccupancyMap& column_map, const ExplainOptions& options,
+               Context& ctx, std::vector<ExplainedPerson>& people);
+
+  // The gain of candidate k over the pixels that `coverage` (per camera, the number of chosen
+  // people covering each pixel) shows at most `max_cover` on, pixel by pixel: for tests.
+  double Gain(int64_t k, std::span<const ImageView<const uint8_t>> changes, const std::vector<bool>& active,
+              const ExplainOptions& options, int max_cover) const;
+
+ private:
+  // Adds delta to the coverage of candidate k's pixels.
+  void Cover(int64_t k, const std::vector<bool>& active, const ExplainOptions& options, int delta);
+  double UpperBound(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
+                    const ExplainOptions& options) const;
+
+  const ColumnLut& columns_;
+  std::vector<Image<uint8_t>> coverage_;
+  struct Box {
+    int x0 = 1 << 30, x1 = -1, y0 = 1 << 30, y1 = -1;  // empty by default
+  };
+  std::vector<Box> boxes_;  // per candidate and camera, this frame
+  bool probed_ = false;  // per camera, kept zero between calls
+};
+
+}  // namespace occmap
