@@ -169,6 +169,19 @@ Result<ColumnLut> BuildColumnLut(const std::vector<LutCameraInput>& cameras, con
     const std::optional<Eigen::Vector3d> centre = camera.CenterInWorld();
     const ImageSize size = lut.image_sizes_[c];
     ColumnView* views = lut.views_.data() + c * static_cast<size_t>(n);
+    // Occluders a camera is mounted on (its pole, the wall it hangs on: its centre within 0.3 m
+    // of their footprint) hide nothing from it.
+    std::vector<Occluder> hiding;
+    for (const Occluder& o : occluders) {
+      if (centre) {
+        Occluder grown = o;
+        grown.size_m += Eigen::Vector2d(0.6, 0.6);
+        grown.base_m = -1e9;
+        grown.height_m = 2e9;
+        if (grown.Blocks(*centre, *centre)) continue;
+      }
+      hiding.push_back(o);
+    }
     ParallelFor(
         ctx, 0, n,
         [&](int64_t begin, int64_t end, int) {
@@ -208,11 +221,11 @@ Result<ColumnLut> BuildColumnLut(const std::vector<LutCameraInput>& cameras, con
             }
             v.seen = seen;
             v.projected = true;
-            if (centre && !occluders.empty()) {
+            if (centre && !hiding.empty()) {
               int hidden = 0;
               for (double f : kOcclusionSamples) {
                 const Eigen::Vector3d p(xy.x(), xy.y(), z0 + f * options.height_m);
-                for (const Occluder& o : occluders) {
+                for (const Occluder& o : hiding) {
                   if (o.Blocks(*centre, p)) {
                     ++hidden;
                     break;

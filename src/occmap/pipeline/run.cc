@@ -332,18 +332,22 @@ class AnyTracker {
 };
 
 // The people the views' explanation chose, as the frame's detections: no groups (the tracker
-// measures exactly these); area and spread those of one person's disc, class hint "person".
-void PeopleDetections(const std::vector<ExplainedPerson>& people, const TrackerOptions& tracking,
-                      DetectedObjects& objects) {
+// measures exactly these); area that of one person's disc, spread that disc's and the candidate
+// spacing's (the position is a candidate's centre: IDF1 0.83 -> 0.86 on rendered WILDTRACK over
+// the disc's alone), class hint "person".
+void PeopleDetections(const std::vector<ExplainedPerson>& people, const ColumnLut& columns,
+                      const TrackerOptions& tracking, DetectedObjects& objects) {
+  objects.grid = columns.candidates();
   objects.detections.clear();
   objects.groups.clear();
   const double r = tracking.person_radius_m();
+  const double step_m = objects.grid.cell_size_m;
   for (const ExplainedPerson& p : people) {
     Detection d;
     d.x_m = p.x_m;
     d.y_m = p.y_m;
     d.area_m2 = 3.14159265358979 * r * r;
-    d.spread_m2 = Eigen::Matrix2d::Identity() * (r * r / 4);
+    d.spread_m2 = Eigen::Matrix2d::Identity() * (r * r / 4 + step_m * step_m);
     d.class_hint = "person";
     objects.detections.push_back(d);
   }
@@ -351,6 +355,7 @@ void PeopleDetections(const std::vector<ExplainedPerson>& people, const TrackerO
 
 // The column map's blobs as the frame's detections (no groups).
 void ColumnDetections(const OccupancyMap& column_map, DetectedObjects& objects) {
+  objects.grid = column_map.grid();
   objects.detections.clear();
   objects.groups.clear();
   for (const Blob& b : FindBlobs(column_map)) {
@@ -890,7 +895,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         }
         // People (the site's `people:` section): the explained people, or the column map's blobs.
         if (explainer) {
-          PeopleDetections(set.people, site.tracking, objects);
+          PeopleDetections(set.people, *column_lut, site.tracking, objects);
         } else if (column_fusion) {
           ColumnDetections(set.column_map, objects);
         }

@@ -1,5 +1,7 @@
 #include "occmap/sim/dataset_writer.h"
 
+#include <algorithm>
+
 #include <fmt/core.h>
 
 #include <chrono>
@@ -293,6 +295,31 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
   } else if (!detection.ends_with('\n')) {
     detection += '\n';
   }
+  // A scene of people only (no chairs, robots or boxes) is detected by the people's model, with
+  // the scene's static structures as occluders (fusion/people_options.h, lut/column_lut.h).
+  std::string people_yaml;
+  const bool people_only = !scene.spec().objects.empty() &&
+                           std::all_of(scene.spec().objects.begin(), scene.spec().objects.end(),
+                                       [](const MovingObjectSpec& o) { return o.object_class == ObjectClass::kPerson; });
+  if (people_only) {
+    people_yaml =
+        "# Only people move here: they are found by the set of upright people that best explains\n"
+        "# every camera's changes, the static structures hiding them from some cameras.\n"
+        "people:\n  detector: explain\n";
+    std::string statics;
+    for (const StaticObjectSpec& o : scene.spec().statics) {
+      const std::string name = o.name.empty() ? "" : fmt::format("name: \"{}\", ", o.name);
+      if (o.shape == StaticObjectSpec::Shape::kBox) {
+        statics += fmt::format("  - {{{}shape: box, centre_m: [{}, {}], size_m: [{}, {}], base_m: {}, height_m: {}, yaw_deg: {}}}\n",
+                               name, o.centre_m.x(), o.centre_m.y(), o.size_m.x(), o.size_m.y(), o.base_m, o.height_m,
+                               o.yaw_deg);
+      } else {
+        statics += fmt::format("  - {{{}shape: cylinder, centre_m: [{}, {}], diameter_m: {}, height_m: {}}}\n", name,
+                               o.centre_m.x(), o.centre_m.y(), o.size_m.x(), o.height_m);
+      }
+    }
+    if (!statics.empty()) people_yaml += "statics:\n" + statics;
+  }
   const std::string site = fmt::format(
       "# Written by occmap's scene simulator: scene '{}' (see README.txt and scene.json).\n"
       "version: 1\nname: \"{}\"\nfloor:\n  origin_m: [{}, {}]\n  cells: [{}, {}]\n  cell_size_m: {}\ncameras:\n{}{}"
@@ -301,9 +328,9 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
       "# must also stand up: on one of the planes support_heights_m, at least min_support of its\n"
       "# footprint must be occupied too (ghosts behind people are flat).\n"
       "blobs:\n  group_radius_m: 0.2\n  min_area_m2: 0.015\n  support_heights_m: [0.35, 0.7, 1.0, 1.3]\n"
-      "  min_support: 0.3\n",
+      "  min_support: 0.3\n{}",
       scene.spec().name, scene.spec().name, g.origin_x_m, g.origin_y_m, g.cells_x, g.cells_y, g.cell_size_m,
-      site_cameras, detection);
+      site_cameras, detection, people_yaml);
   summary.site_file = out / "site.yaml";
   OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(summary.site_file, site));
   summary.write_seconds += Since(t0);

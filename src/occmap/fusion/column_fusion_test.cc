@@ -1,0 +1,106 @@
+#include "occmap/fusion/column_fusion.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "occmap/fusion/test_people.h"
+
+namespace occmap {
+namespace {
+
+TEST(ChangeRowSumsTest, CountsChangedPixelsOfASpan) {
+  Image<uint8_t> im(7, 2);
+  const uint8_t rows[2][7] = {{0, 1, 1, 0, 5, 0, 1}, {1, 1, 1, 1, 1, 1, 1}};
+  for (int y = 0; y < 2; ++y)
+    for (int x = 0; x < 7; ++x) im(x, y) = rows[y][x];
+  ChangeRowSums sums;
+  sums.Build(im.view());
+  EXPECT_EQ(sums.Count(0, 0, 6), 4);
+  EXPECT_EQ(sums.Count(0, 2, 4), 2);
+  EXPECT_EQ(sums.Count(1, 3, 3), 1);
+}
+
+TEST(ColumnFusionTest, APersonsColumnIsOccupiedAndTheFloorAroundIsFree) {
+  testing::PeopleRoom scene;
+  scene.Paint(2.0, 1.5);
+  ColumnFusion fusion(scene.columns);
+  Context ctx(1);
+  OccupancyMap map;
+  const std::vector<bool> active(4, true);
+  fusion.Fuse(scene.Sums(), active, ColumnFusionOptions{}, ctx, map);
+  const FloorGrid& g = scene.columns.candidates();
+  EXPECT_EQ(map.state(g.CellAt(2.0, 1.5)), CellState::kOccupied);
+  EXPECT_EQ(map.state(g.CellAt(0.5, 0.5)), CellState::kFree);
+  EXPECT_EQ(map.state(g.CellAt(3.5, 2.5)), CellState::kFree);
+  // Nothing but the person's neighbourhood is occupied.
+  for (int64_t k = 0; k < g.num_cells(); ++k) {
+    if (map.state(k) != CellState::kOccupied) continue;
+    EXPECT_LT((g.CellCenter(k) - Eigen::Vector2d(2.05, 1.55)).norm(), 0.35) << k;
+  }
+}
+
+TEST(ColumnFusionTest, ACameraHiddenByAnOccluderAbstains) {
+  Occluder pillar;
+  pillar.shape = Occluder::Shape::kCylinder;
+  pillar.centre_m = {1.0, 0.7};
+  pillar.size_m = {0.4, 0.4};
+  pillar.height_m = 3;
+  const std::vector<Occluder> occluders = {pillar};
+  for (bool with_occluder : {false, true}) {
+    testing::PeopleRoom scene(with_occluder ? std::span<const Occluder>(occluders) : std::span<const Occluder>());
+    scene.Paint(2.0, 1.5);
+    // Camera 0 sees the pillar, not the person: nothing changed there.
+    for (int y = 0; y < 240; ++y) std::fill_n(scene.changes[0].row(y), 320, uint8_t{0});
+    ColumnFusion fusion(scene.columns);
+    Context ctx(1);
+    OccupancyMap map;
+    fusion.Fuse(scene.Sums(), std::vector<bool>(4, true), ColumnFusionOptions{}, ctx, map);
+    EXPECT_EQ(map.state(scene.columns.candidates().CellAt(2.0, 1.5)),
+              with_occluder ? CellState::kOccupied : CellState::kFree);
+  }
+}
+
+TEST(ColumnFusionTest, FastEqualsReferenceAndOneThreadEqualsTwo) {
+  testing::PeopleRoom scene;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> ux(0.3, 3.7), uy(0.3, 2.7);
+  for (int p = 0; p < 6; ++p) scene.Paint(ux(rng), uy(rng), 0.15 + 0.05 * (p % 3));
+  // Noise: scattered changed pixels and holes.
+  std::uniform_int_distribution<int> px(0, 319), py(0, 239);
+  for (auto& im : scene.changes)
+    for (int n = 0; n < 3000; ++n) im(px(rng), py(rng)) ^= 1;
+  ColumnFusion fusion(scene.columns);
+  for (int max_free_views : {0, 1}) {
+    for (bool camera_off : {false, true}) {
+      std::vector<bool> active(4, true);
+      active[2] = !camera_off;
+      ColumnFusionOptions o;
+      o.max_free_views = max_free_views;
+      OccupancyMap fast1, fast2, reference;
+      Context one(1), two(2);
+      fusion.Fuse(scene.Sums(), active, o, one, fast1);
+      fusion.Fuse(scene.Sums(), active, o, two, fast2);
+      fusion.FuseReference(scene.Views(), active, o, reference);
+      EXPECT_EQ(fast1, reference);
+      EXPECT_EQ(fast1, fast2);
+      EXPECT_GT(reference.Count(CellState::kOccupied), 0);
+    }
+  }
+}
+
+TEST(ColumnFusionTest, OptionsAreChecked) {
+  ColumnFusionOptions o;
+  EXPECT_TRUE(o.Validate(1.7, 4).ok());
+  o.band_high_m = 2.0;
+  EXPECT_FALSE(o.Validate(1.7, 4).ok());
+  o = {};
+  o.min_changed = 0;
+  EXPECT_FALSE(o.Validate(1.7, 4).ok());
+  o = {};
+  o.max_free_views = 4;
+  EXPECT_FALSE(o.Validate(1.7, 4).ok());
+}
+
+}  // namespace
+}  // namespace occmap

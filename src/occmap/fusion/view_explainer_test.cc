@@ -1,0 +1,106 @@
+#include "occmap/fusion/view_explainer.h"
+
+#include <gtest/gtest.h>
+
+#include "occmap/fusion/test_people.h"
+
+namespace occmap {
+namespace {
+
+struct Found {
+  std::vector<ExplainedPerson> people;
+  OccupancyMap column_map;
+};
+
+Found Explain(testing::PeopleRoom& scene, const ExplainOptions& options = {}, int threads = 1,
+              std::vector<bool> active = std::vector<bool>(4, true)) {
+  Found f;
+  Context ctx(threads);
+  ColumnFusionOptions column;
+  column.band_low_m = 0.8;
+  ColumnFusion(scene.columns).Fuse(scene.Sums(), active, column, ctx, f.column_map);
+  ViewExplainer explainer(scene.columns);
+  explainer.Explain(scene.Views(), scene.Sums(), active, f.column_map, options, ctx, f.people);
+  return f;
+}
+
+double Nearest(const std::vector<ExplainedPerson>& people, double x, double y) {
+  double best = 1e9;
+  for (const auto& p : people) best = std::min(best, std::hypot(p.x_m - x, p.y_m - y));
+  return best;
+}
+
+TEST(ViewExplainerTest, FindsEachPersonOnceAndNoGhost) {
+  testing::PeopleRoom scene;
+  const std::vector<Eigen::Vector2d> truth = {{1.0, 1.0}, {2.6, 1.2}, {1.8, 2.3}, {3.2, 2.4}};
+  for (const auto& p : truth) scene.Paint(p.x(), p.y());
+  const Found f = Explain(scene);
+  ASSERT_EQ(f.people.size(), truth.size());
+  for (const auto& p : truth) EXPECT_LT(Nearest(f.people, p.x(), p.y()), 0.15) << p.transpose();
+  for (const auto& p : f.people) {
+    EXPECT_GE(p.gain, ExplainOptions{}.min_gain);
+    EXPECT_EQ(p.views, 4);
+  }
+}
+
+TEST(ViewExplainerTest, PeopleCloseTogetherStayTwo) {
+  testing::PeopleRoom scene;
+  scene.Paint(1.8, 1.5);
+  scene.Paint(2.3, 1.5);
+  const Found f = Explain(scene);
+  ASSERT_EQ(f.people.size(), 2u);
+  EXPECT_LT(Nearest(f.people, 1.8, 1.5), 0.15);
+  EXPECT_LT(Nearest(f.people, 2.3, 1.5), 0.15);
+}
+
+TEST(ViewExplainerTest, EmptyViewsExplainNobody) {
+  testing::PeopleRoom scene;
+  EXPECT_TRUE(Explain(scene).people.empty());
+}
+
+TEST(ViewExplainerTest, OneThreadEqualsTwoAndACameraMayBeMissing) {
+  testing::PeopleRoom scene;
+  for (const auto& p : {Eigen::Vector2d(0.8, 0.9), Eigen::Vector2d(1.5, 1.6), Eigen::Vector2d(2.2, 0.7),
+                        Eigen::Vector2d(2.9, 2.0), Eigen::Vector2d(3.4, 1.0)})
+    scene.Paint(p.x(), p.y());
+  std::vector<bool> active(4, true);
+  active[1] = false;
+  const Found one = Explain(scene, {}, 1, active), two = Explain(scene, {}, 2, active);
+  ASSERT_EQ(one.people.size(), two.people.size());
+  for (size_t i = 0; i < one.people.size(); ++i) {
+    EXPECT_EQ(one.people[i].candidate, two.people[i].candidate);
+    EXPECT_EQ(one.people[i].gain, two.people[i].gain);
+    EXPECT_EQ(one.people[i].views, 3);
+  }
+  EXPECT_EQ(one.people.size(), 5u);
+}
+
+TEST(ViewExplainerTest, GainCountsOnlyWhatNobodyCoversYet) {
+  testing::PeopleRoom scene;
+  scene.Paint(2.0, 1.5);
+  ViewExplainer explainer(scene.columns);
+  const int64_t k = scene.columns.candidates().CellAt(2.0, 1.5);
+  const std::vector<bool> active(4, true);
+  // A model inside a painted silhouette that is wider: every pixel changed, one view's worth each.
+  EXPECT_NEAR(explainer.Gain(k, scene.Views(), active, ExplainOptions{}, 0), 4.0, 1e-9);
+  scene.Clear();
+  ExplainOptions o;
+  o.unchanged_weight = 0.5;
+  EXPECT_NEAR(explainer.Gain(k, scene.Views(), active, o, 0), -2.0, 1e-9);
+}
+
+TEST(ViewExplainerTest, OptionsAreChecked) {
+  ExplainOptions o;
+  EXPECT_TRUE(o.Validate().ok());
+  o.radius_m = 0;
+  EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.min_gain = -1;
+  EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.moves = 11;
+  EXPECT_FALSE(o.Validate().ok());
+}
+
+}  // namespace
+}  // namespace occmap
