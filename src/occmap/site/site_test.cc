@@ -241,7 +241,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadSite{"support_slack", "support_slack_m: 0.04", "support_slack_m: -0.1",
                 ":35: blobs.support_slack_m: expected >= 0 m, found -0.1"},
         BadSite{"no_cameras", "cameras:\n  - id: a", "cameras: []\nx:\n  - id: a",
-                ":8: unknown field 'x' (expected one of: version, name, data_root, floor, cameras, detection, backgrounds, fusion, blobs, lut, tracking)"},
+                ":8: unknown field 'x' (expected one of: version, name, data_root, floor, cameras, detection, backgrounds, fusion, blobs, lut, people, statics, tracking)"},
         BadSite{"yaml_syntax", "origin_m: [0, 0]", "origin_m: [0, 0",
                 ":5:9: YAML syntax error: end of sequence flow not found"}),
     [](const ::testing::TestParamInfo<BadSite>& param_info) { return std::string(param_info.param.name); });
