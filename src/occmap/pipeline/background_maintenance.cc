@@ -137,6 +137,50 @@ BackgroundProtection::BackgroundProtection(std::vector<const CameraModel*> camer
   }
 }
 
+void BackgroundProtection::Protect(double cx, double cy, double radius, uint8_t value) {
+  // The box's projection: its bounding rectangle in each camera.
+  for (size_t n = 0; n < cameras_.size(); ++n) {
+    const ImageSize size = cameras_[n]->image_size();
+    double u0 = 1e18, v0 = 1e18, u1 = -1e18, v1 = -1e18;
+    bool all = true;
+    for (int k = 0; k < kRingPoints && all; ++k) {
+      const double a = 2 * std::numbers::pi * k / kRingPoints;
+      for (double z : {0.0, options_.height_m}) {
+        const auto px = cameras_[n]->Project({cx + radius * std::cos(a), cy + radius * std::sin(a), plane_height_m_ + z});
+        if (!px) {
+          all = false;  // the box reaches behind the camera: protect its whole image
+          break;
+        }
+        u0 = std::min(u0, px->x());
+        u1 = std::max(u1, px->x());
+        v0 = std::min(v0, px->y());
+        v1 = std::max(v1, px->y());
+      }
+    }
+    if (!all) {
+      u0 = v0 = 0;
+      u1 = size.width;
+      v1 = size.height;
+    }
+    const int c0 = std::clamp(static_cast<int>(std::floor(u0)), 0, size.width);
+    const int c1 = std::clamp(static_cast<int>(std::ceil(u1)) + 1, 0, size.width);
+    const int r0 = std::clamp(static_cast<int>(std::floor(v0)), 0, size.height);
+    const int r1 = std::clamp(static_cast<int>(std::ceil(v1)) + 1, 0, size.height);
+    Image<uint8_t>& im = images_[n];
+    for (int y = r0; y < r1; ++y) {
+      uint8_t* row = im.row(y);
+      for (int x = c0; x < c1; ++x) row[x] = std::max(row[x], value);
+    }
+  }
+}
+
+void BackgroundProtection::AddPeople(const std::vector<Eigen::Vector2d>& positions_m, double radius_m) {
+  for (const Eigen::Vector2d& p : positions_m) {
+    ++persons_;
+    Protect(p.x(), p.y(), radius_m + options_.margin_m, BackgroundModel::kPerson);
+  }
+}
+
 void BackgroundProtection::Compute(const OccupancyMap& map, const std::vector<ImageView<const uint8_t>>& changes) {
   OCCMAP_CHECK(changes.size() == cameras_.size(), "protection: one change mask per camera");
   for (Image<uint8_t>& im : images_) {
@@ -167,40 +211,7 @@ void BackgroundProtection::Compute(const OccupancyMap& map, const std::vector<Im
     const bool person = seen > 0 && 2 * changed >= seen + (seen > 1 ? 1 : 0);
     persons_ += person;
     const uint8_t value = person ? BackgroundModel::kPerson : BackgroundModel::kObject;
-    // The box's projection: its bounding rectangle in each camera.
-    for (size_t n = 0; n < cameras_.size(); ++n) {
-      const ImageSize size = cameras_[n]->image_size();
-      double u0 = 1e18, v0 = 1e18, u1 = -1e18, v1 = -1e18;
-      bool all = true;
-      for (int k = 0; k < kRingPoints && all; ++k) {
-        const double a = 2 * std::numbers::pi * k / kRingPoints;
-        for (double z : {0.0, options_.height_m}) {
-          const auto px = cameras_[n]->Project({cx + radius * std::cos(a), cy + radius * std::sin(a), plane_height_m_ + z});
-          if (!px) {
-            all = false;  // the box reaches behind the camera: protect its whole image
-            break;
-          }
-          u0 = std::min(u0, px->x());
-          u1 = std::max(u1, px->x());
-          v0 = std::min(v0, px->y());
-          v1 = std::max(v1, px->y());
-        }
-      }
-      if (!all) {
-        u0 = v0 = 0;
-        u1 = size.width;
-        v1 = size.height;
-      }
-      const int c0 = std::clamp(static_cast<int>(std::floor(u0)), 0, size.width);
-      const int c1 = std::clamp(static_cast<int>(std::ceil(u1)) + 1, 0, size.width);
-      const int r0 = std::clamp(static_cast<int>(std::floor(v0)), 0, size.height);
-      const int r1 = std::clamp(static_cast<int>(std::ceil(v1)) + 1, 0, size.height);
-      Image<uint8_t>& im = images_[n];
-      for (int y = r0; y < r1; ++y) {
-        uint8_t* row = im.row(y);
-        for (int x = c0; x < c1; ++x) row[x] = std::max(row[x], value);
-      }
-    }
+    Protect(cx, cy, radius, value);
   }
 }
 

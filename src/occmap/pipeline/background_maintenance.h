@@ -61,11 +61,18 @@ class BackgroundProtection {
   // camera is not active (then its image is all kFree, and it does not vote on persons).
   void Compute(const OccupancyMap& map, const std::vector<ImageView<const uint8_t>>& changes);
 
+  // After Compute: people found by another detector (the views' explanation) are protected as
+  // persons, a box of radius_m (plus the margin) around each.
+  void AddPeople(const std::vector<Eigen::Vector2d>& positions_m, double radius_m);
+
   const Image<uint8_t>& image(size_t camera) const { return images_[camera]; }
   int objects() const { return objects_; }
   int persons() const { return persons_; }
 
  private:
+  // Marks the image of the upright box of `radius` around (cx, cy) with value in every camera.
+  void Protect(double cx, double cy, double radius, uint8_t value);
+
   std::vector<const CameraModel*> cameras_;
   double plane_height_m_;
   ProtectionOptions options_;

@@ -221,3 +221,39 @@ TEST_F(StillScene, WithoutAbsorptionTheBoxStays) {
 
 }  // namespace
 }  // namespace occmap
+
+namespace occmap {
+namespace {
+
+TEST(BackgroundProtection, PeopleFromAnotherDetectorAreProtectedAsPersons) {
+  testing::SmallRoom room(160, 120);
+  std::vector<const CameraModel*> cameras;
+  for (const auto& c : room.cameras) cameras.push_back(&c);
+  BackgroundProtection protection(cameras, 0.0, ProtectionOptions{});
+  OccupancyMap empty(room.grid);
+  for (auto& s : empty.states()) s = CellState::kFree;
+  std::vector<Image<uint8_t>> changes;
+  std::vector<ImageView<const uint8_t>> views;
+  for (int n = 0; n < 4; ++n) changes.emplace_back(160, 120);
+  for (auto& c : changes) {
+    for (int y = 0; y < 120; ++y) std::fill_n(c.row(y), 160, uint8_t{0});
+    views.push_back(c.view());
+  }
+  protection.Compute(empty, views);
+  EXPECT_EQ(protection.persons(), 0);
+  protection.AddPeople({Eigen::Vector2d(2.0, 1.5)}, 0.25);
+  EXPECT_EQ(protection.persons(), 1);
+  for (size_t n = 0; n < 4; ++n) {
+    const auto head = room.cameras[n].Project({2.0, 1.5, 1.6});
+    const auto foot = room.cameras[n].Project({2.0, 1.5, 0.0});
+    ASSERT_TRUE(head && foot);
+    EXPECT_EQ(protection.image(n)(static_cast<int>(std::lround(head->x())), static_cast<int>(std::lround(head->y()))),
+              BackgroundModel::kPerson);
+    EXPECT_EQ(protection.image(n)(static_cast<int>(std::lround(foot->x())), static_cast<int>(std::lround(foot->y()))),
+              BackgroundModel::kPerson);
+    EXPECT_EQ(protection.image(n)(0, 0), BackgroundModel::kFree);
+  }
+}
+
+}  // namespace
+}  // namespace occmap

@@ -521,6 +521,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   std::optional<ColumnFusion> column_fusion;
   std::optional<ViewExplainer> explainer;
   std::vector<ChangeRowSums> change_counts(site.cameras.size());
+  std::vector<Eigen::Vector2d> people_positions;
   std::vector<ImageView<const uint8_t>> change_views(site.cameras.size());
   if (people_detector) {
     OCCMAP_ASSIGN_OR_RETURN(ColumnLut columns, BuildColumnLut(site.LutInputs(), site.grid, site.plane_height_m,
@@ -1105,6 +1106,11 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                                           : ImageView<const uint8_t>();
       }
       protection->Compute(set.map, protection_changes);
+      if (explainer) {  // the people the views explain, though their feet may leave the floor unchanged
+        people_positions.clear();
+        for (const ExplainedPerson& p : set.people) people_positions.emplace_back(p.x_m, p.y_m);
+        protection->AddPeople(people_positions, site.tracking.person_radius_m());
+      }
       ParallelFor(ctx, 0, static_cast<int64_t>(cams.size()), [&](int64_t b, int64_t e, int) {
         for (int64_t n = b; n < e; ++n) {
           if (active[n] && cams[n].model) {
