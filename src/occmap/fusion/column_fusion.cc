@@ -67,6 +67,8 @@ int RowStride(const ColumnSpans& s, int max_rows) {
   return std::max(1, (rows + max_rows - 1) / max_rows);
 }
 
+constexpr int kCoarseRows = 4;
+
 CellState Decide(int tested, int free_votes, int k) {
   if (tested == 0) return CellState::kUnseen;
   return free_votes <= k && free_votes < tested ? CellState::kOccupied : CellState::kFree;
@@ -84,8 +86,23 @@ CellState CandidateState(const ColumnLut& columns, int64_t k, const std::vector<
     if (!v.seen || v.blocked) continue;
     const ColumnSpans s = MakeColumnSpans(v, o.radius_m, o.band_low_m / h, o.band_high_m / h, columns.image_size(c));
     if (2 * s.visible_rows < s.last_row - s.first_row + 1) continue;  // mostly off the image
-    const int stride = RowStride(s, o.max_rows);
+    // A first look at a few rows: a column less than half as changed as asked there is free
+    // without reading the rest (most columns are empty).
     int64_t changed = 0, pixels = 0;
+    const int coarse = RowStride(s, kCoarseRows);
+    for (int y = s.first_row + coarse / 2; y <= s.last_row; y += coarse) {
+      int x0, x1;
+      if (!s.Span(y, x0, x1)) continue;
+      changed += count(c, y, x0, x1);
+      pixels += x1 - x0 + 1;
+    }
+    if (pixels > 0 && 2 * static_cast<double>(changed) < o.min_changed * static_cast<double>(pixels)) {
+      ++tested;
+      if (++free_votes > o.max_free_views) return CellState::kFree;
+      continue;
+    }
+    const int stride = RowStride(s, o.max_rows);
+    changed = pixels = 0;
     for (int y = s.first_row; y <= s.last_row; y += stride) {
       int x0, x1;
       if (!s.Span(y, x0, x1)) continue;

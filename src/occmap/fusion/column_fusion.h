@@ -12,7 +12,9 @@
 //
 // Counting: each camera's changes are summed along rows once per frame (ChangeRowSums), so a
 // row of a span costs two reads; at most max_rows rows of the band are read per camera (evenly
-// spaced). ColumnFusion::FuseReference counts the same rows pixel by pixel (equal, tested).
+// spaced), after a first look at 4 of them: a camera that sees less than half of min_changed
+// there votes free at once (most columns are empty). ColumnFusion::FuseReference counts the
+// same rows pixel by pixel (equal, tested).
 //
 //   ChangeRowSums counts[n]; counts[n].Build(changes_n);
 //   ColumnFusion fusion(columns);

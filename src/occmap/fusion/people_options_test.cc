@@ -23,7 +23,7 @@ TEST(PeopleOptionsTest, DefaultsAndEveryKey) {
       "detector: column\nheight_m: 1.8\nstep_m: 0.05\n"
       "column: {band_m: [0.5, 1.6], radius_m: 0.12, min_changed: 0.6, max_free_views: 1, max_rows: 10}\n"
       "explain: {radius_m: 0.2, unchanged_weight: 0.5, min_gain: 1.0, min_separation_m: 0.4, moves: 0, "
-      "move_radius_m: 0.3, max_people: 50}\n",
+      "move_radius_m: 0.3, max_people: 50, max_rows: 20}\n",
       p);
   ASSERT_TRUE(s.ok()) << s.message();
   EXPECT_EQ(p.detector, PeopleDetector::kColumn);
@@ -32,6 +32,7 @@ TEST(PeopleOptionsTest, DefaultsAndEveryKey) {
   EXPECT_EQ(p.column.max_free_views, 1);
   EXPECT_EQ(p.explain.moves, 0);
   EXPECT_EQ(p.explain.max_people, 50);
+  EXPECT_EQ(p.explain.max_rows, 20);
 }
 
 TEST(PeopleOptionsTest, BadValuesNameTheirField) {
