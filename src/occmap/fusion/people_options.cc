@@ -55,7 +55,7 @@ Status ParsePeopleOptions(const YamlField& f, int num_cameras, PeopleOptions& o)
   if (auto e = f.Find("explain")) {
     OCCMAP_RETURN_IF_ERROR(e->CheckKeys(
         {"radius_m", "unchanged_weight", "min_gain", "min_separation_m", "moves", "move_radius_m", "max_people",
-         "max_rows"}));
+         "max_rows", "ground_band", "ground_weight"}));
     OCCMAP_ASSIGN_OR_RETURN(o.explain.radius_m, e->GetDouble("radius_m", o.explain.radius_m));
     OCCMAP_ASSIGN_OR_RETURN(o.explain.unchanged_weight, e->GetDouble("unchanged_weight", o.explain.unchanged_weight));
     OCCMAP_ASSIGN_OR_RETURN(o.explain.min_gain, e->GetDouble("min_gain", o.explain.min_gain));
@@ -65,6 +65,8 @@ Status ParsePeopleOptions(const YamlField& f, int num_cameras, PeopleOptions& o)
     OCCMAP_ASSIGN_OR_RETURN(o.explain.move_radius_m, e->GetDouble("move_radius_m", o.explain.move_radius_m));
     OCCMAP_ASSIGN_OR_RETURN(int64_t most, e->GetInt("max_people", o.explain.max_people));
     o.explain.max_people = static_cast<int>(std::clamp<int64_t>(most, -1, 1000000));
+    OCCMAP_ASSIGN_OR_RETURN(o.explain.ground_band, e->GetDouble("ground_band", o.explain.ground_band));
+    OCCMAP_ASSIGN_OR_RETURN(o.explain.ground_weight, e->GetDouble("ground_weight", o.explain.ground_weight));
     OCCMAP_ASSIGN_OR_RETURN(int64_t rows, e->GetInt("max_rows", o.explain.max_rows));
     o.explain.max_rows = static_cast<int>(std::clamp<int64_t>(rows, -1, 100000));
     if (Status s = o.explain.Validate(); !s.ok()) return e->Error(s.message());

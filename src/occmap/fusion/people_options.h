@@ -15,7 +15,7 @@
 //     step_m: 0.1            # candidate spacing
 //     column: {band_m: [0.8, 1.5], radius_m: 0.1, min_changed: 0.5, max_free_views: 0}
 //     explain: {radius_m: 0.15, unchanged_weight: 0.9, min_gain: 0.7, min_separation_m: 0.35,
-//               moves: 2, move_radius_m: 0.5}
+//               moves: 2, move_radius_m: 0.5, ground_band: 0.2, ground_weight: 2}
 #pragma once
 
 #include "occmap/fusion/column_fusion.h"

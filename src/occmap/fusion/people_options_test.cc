@@ -23,7 +23,7 @@ TEST(PeopleOptionsTest, DefaultsAndEveryKey) {
       "detector: column\nheight_m: 1.8\nstep_m: 0.05\n"
       "column: {band_m: [0.5, 1.6], radius_m: 0.12, min_changed: 0.6, max_free_views: 1, max_rows: 10}\n"
       "explain: {radius_m: 0.2, unchanged_weight: 0.5, min_gain: 1.0, min_separation_m: 0.4, moves: 0, "
-      "move_radius_m: 0.3, max_people: 50, max_rows: 20}\n",
+      "move_radius_m: 0.3, max_people: 50, max_rows: 20, ground_band: 0.1, ground_weight: 0.5}\n",
       p);
   ASSERT_TRUE(s.ok()) << s.message();
   EXPECT_EQ(p.detector, PeopleDetector::kColumn);
@@ -33,11 +33,13 @@ TEST(PeopleOptionsTest, DefaultsAndEveryKey) {
   EXPECT_EQ(p.explain.moves, 0);
   EXPECT_EQ(p.explain.max_people, 50);
   EXPECT_EQ(p.explain.max_rows, 20);
+  EXPECT_DOUBLE_EQ(p.explain.ground_band, 0.1);
+  EXPECT_DOUBLE_EQ(p.explain.ground_weight, 0.5);
 }
 
 TEST(PeopleOptionsTest, BadValuesNameTheirField) {
   for (const char* bad : {"detector: pom", "column: {band_m: [1.2, 0.4]}", "column: {band_m: [0.5, 2.5]}",
-                          "explain: {radius_m: 0}", "explain: {moves: -1}", "height_m: 0", "step_m: 3",
+                          "explain: {radius_m: 0}", "explain: {ground_band: 2}", "explain: {moves: -1}", "height_m: 0", "step_m: 3",
                           "column: {max_free_views: 4}", "colum: {}"}) {
     PeopleOptions o;
     const Status s = Parse(bad, o);

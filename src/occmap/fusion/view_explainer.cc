@@ -21,6 +21,10 @@ Status ExplainOptions::Validate() const {
   if (!(move_radius_m >= 0 && move_radius_m <= 2))
     return InvalidInput(fmt::format("move_radius_m: expected 0 to 2 m, found {}", move_radius_m));
   if (max_people < 1) return InvalidInput(fmt::format("max_people: expected at least 1, found {}", max_people));
+  if (!(ground_band >= 0 && ground_band <= 1))
+    return InvalidInput(fmt::format("ground_band: expected 0 to 1, found {}", ground_band));
+  if (!(ground_weight >= 0 && ground_weight <= 10))
+    return InvalidInput(fmt::format("ground_weight: expected 0 to 10, found {}", ground_weight));
   if (max_rows < 1) return InvalidInput(fmt::format("max_rows: expected at least 1, found {}", max_rows));
   return Status::Ok();
 }
@@ -40,6 +44,13 @@ ColumnSpans PersonSpans(const ColumnLut& columns, int c, int64_t k, const Explai
 // on every row).
 int RowStep(const ColumnSpans& s, int max_rows) { return std::max(1, (s.visible_rows + max_rows - 1) / max_rows); }
 
+// The last image row of the ground band below a model's foot row (last_row when there is none).
+int GroundBandEnd(const ColumnSpans& s, const ExplainOptions& o) {
+  if (o.ground_band <= 0 || o.ground_weight <= 0) return s.last_row;
+  const int rows = std::max(1, static_cast<int>(std::lround(o.ground_band * (s.last_row - s.first_row + 1))));
+  return std::min(s.last_row + rows, s.height - 1);
+}
+
 }  // namespace
 
 double ViewExplainer::UpperBound(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
@@ -58,7 +69,15 @@ double ViewExplainer::UpperBound(int64_t k, std::span<const ChangeRowSums> count
       pixels += x1 - x0 + 1;
     }
     if (pixels == 0) continue;
-    gain += PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(pixels - changed), pixels);
+    int64_t ground = 0;
+    const int band_end = GroundBandEnd(s, o);
+    for (int y = s.last_row + 1; y <= band_end; y += step) {
+      int x0, x1;
+      if (s.Span(y, x0, x1)) ground += counts[c].Count(y, x0, x1);
+    }
+    gain += PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(pixels - changed) -
+                          o.ground_weight * static_cast<double>(ground),
+                      pixels);
   }
   return gain;
 }
@@ -96,7 +115,20 @@ double ViewExplainer::Gain(int64_t k, std::span<const ImageView<const uint8_t>> 
       unchanged += row_free - row_changed;
     }
     if (pixels == 0) continue;
-    gain += PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(unchanged), pixels);
+    // The floor just in front of the feet: changed there and explained by nobody, a person
+    // standing here would hide it.
+    int64_t ground = 0;
+    const int band_end = GroundBandEnd(s, o);
+    for (int y = s.last_row + 1; y <= band_end; y += step) {
+      int x0, x1;
+      if (!s.Span(y, x0, x1)) continue;
+      const uint8_t* ch = changes[c].row(y);
+      const uint8_t* cov = have_coverage ? coverage_[c].row(y) : nullptr;
+      for (int x = x0; x <= x1; ++x) ground += (ch[x] != 0 && (cov == nullptr || cov[x] == 0)) ? 1 : 0;
+    }
+    gain += PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(unchanged) -
+                          o.ground_weight * static_cast<double>(ground),
+                      pixels);
   }
   return gain;
 }

@@ -6,7 +6,9 @@
 // its cost is the number of pixels where the prediction is wrong, unchanged pixels predicted
 // changed counting unchanged_weight (a silhouette does not fill its cylinder). Adding person k
 // to S lowers the cost, in camera c, by
-//     gain_c(k | S) = (changed - unchanged_weight * unchanged) over k's pixels no member of S covers,
+//     gain_c(k | S) = (changed - unchanged_weight * unchanged) over k's pixels no member of S covers
+//                     - ground_weight * (changed pixels no member covers in the band of floor
+//                       just below k's feet, which a person standing at k would leave visible),
 // and each camera's gain is divided by the area of k's image there, so that every camera that
 // sees k counts alike, near or far: gain(k | S) = sum_c gain_c / area_c, in "views' worth".
 //
@@ -57,6 +59,11 @@ struct ExplainOptions {
   double move_radius_m = 0.5;       // how far step 4 looks
   int max_people = 1000;
   int max_rows = 48;                // rows of a model's image read per camera (evenly spaced)
+  // The floor in front of the feet: a band of ground_band times the model's rows below its foot
+  // row, whose changed pixels nobody explains cost ground_weight each (0: off).
+  // The depth cue: a model placed behind a person sees that person's legs in its band.
+  double ground_band = 0.2;
+  double ground_weight = 2.0;
   Status Validate() const;
 };
 

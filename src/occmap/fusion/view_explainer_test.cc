@@ -89,6 +89,28 @@ TEST(ViewExplainerTest, GainCountsOnlyWhatNobodyCoversYet) {
   EXPECT_NEAR(explainer.Gain(k, scene.Views(), active, o, 0), -2.0, 1e-9);
 }
 
+TEST(ViewExplainerTest, ChangedFloorInFrontOfTheFeetCountsAgainst) {
+  testing::PeopleRoom scene;
+  const int64_t k = scene.columns.candidates().CellAt(2.0, 1.5);
+  // Camera 0's rows just below the model's foot row, changed (another person's legs, say).
+  const ColumnSpans s = MakeColumnSpans(scene.columns.view(0, k), 0.15, 0.0, 1.0, scene.columns.image_size(0));
+  for (int y = s.last_row + 1; y <= s.last_row + 10 && y < 240; ++y)
+    for (int x = 0; x < 320; ++x) scene.changes[0](x, y) = 1;
+  ViewExplainer explainer(scene.columns);
+  const std::vector<bool> active(4, true);
+  ExplainOptions without;
+  without.ground_weight = 0;
+  ExplainOptions with;
+  const double g0 = explainer.Gain(k, scene.Views(), active, without, 0);
+  const double g1 = explainer.Gain(k, scene.Views(), active, with, 0);
+  EXPECT_LT(g1, g0 - 0.1);
+  // A person standing there is still found: the other views carry them.
+  scene.Paint(2.0, 1.5, 0.2);
+  const Found f = Explain(scene);
+  ASSERT_EQ(f.people.size(), 1u);
+  EXPECT_LT(Nearest(f.people, 2.0, 1.5), 0.15);
+}
+
 TEST(ViewExplainerTest, OptionsAreChecked) {
   ExplainOptions o;
   EXPECT_TRUE(o.Validate().ok());
