@@ -20,6 +20,7 @@
 #include "occmap/fusion/fusion.h"
 #include "occmap/fusion/column_fusion.h"
 #include "occmap/fusion/view_explainer.h"
+#include "occmap/objects/people_detections.h"
 #include "occmap/lut/column_lut.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/io/video_writer.h"
@@ -330,43 +331,6 @@ class AnyTracker {
   std::unique_ptr<MultiTargetTracker> multi_;
   std::vector<Blob> groups_;  // the window tracker's input, buffer kept
 };
-
-// The people the views' explanation chose, as the frame's detections: no groups (the tracker
-// measures exactly these); area that of one person's disc, spread that disc's and the candidate
-// spacing's (the position is a candidate's centre: IDF1 0.83 -> 0.86 on rendered WILDTRACK over
-// the disc's alone), class hint "person".
-void PeopleDetections(const std::vector<ExplainedPerson>& people, const ColumnLut& columns,
-                      const TrackerOptions& tracking, DetectedObjects& objects) {
-  objects.grid = columns.candidates();
-  objects.detections.clear();
-  objects.groups.clear();
-  const double r = tracking.person_radius_m();
-  const double step_m = objects.grid.cell_size_m;
-  for (const ExplainedPerson& p : people) {
-    Detection d;
-    d.x_m = p.x_m;
-    d.y_m = p.y_m;
-    d.area_m2 = 3.14159265358979 * r * r;
-    d.spread_m2 = Eigen::Matrix2d::Identity() * (r * r / 4 + step_m * step_m);
-    d.class_hint = "person";
-    objects.detections.push_back(d);
-  }
-}
-
-// The column map's blobs as the frame's detections (no groups).
-void ColumnDetections(const OccupancyMap& column_map, DetectedObjects& objects) {
-  objects.grid = column_map.grid();
-  objects.detections.clear();
-  objects.groups.clear();
-  for (const Blob& b : FindBlobs(column_map)) {
-    Detection d;
-    d.x_m = b.x_m;
-    d.y_m = b.y_m;
-    d.area_m2 = b.area_m2;
-    d.cells = b.cells;
-    objects.detections.push_back(d);
-  }
-}
 
 json BlobJson(const Detection& b) {
   return {{"x_m", std::round(b.x_m * 1e4) / 1e4}, {"y_m", std::round(b.y_m * 1e4) / 1e4},
@@ -896,9 +860,9 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         }
         // People (the site's `people:` section): the explained people, or the column map's blobs.
         if (explainer) {
-          PeopleDetections(set.people, *column_lut, site.tracking, objects);
+          PeopleDetections(set.people, column_lut->candidates(), site.tracking.person_radius_m(), objects);
         } else if (column_fusion) {
-          ColumnDetections(set.column_map, objects);
+          ColumnMapDetections(set.column_map, objects);
         }
         const std::vector<Detection>& blobs = objects.detections;
         summary.blobs_s += Since(t0);
