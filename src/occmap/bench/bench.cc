@@ -18,7 +18,9 @@
 #include "occmap/detect/background_model.h"
 #include "occmap/detect/change_detection.h"
 #include "occmap/geometry/rotation.h"
+#include "occmap/fusion/column_fusion.h"
 #include "occmap/fusion/fast_fusion.h"
+#include "occmap/fusion/view_explainer.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/pipeline/run.h"
 #include "occmap/sim/builtin_scenes.h"
@@ -413,6 +415,14 @@ Result<WorkloadResult> RunWorkload(Workload& w, const BenchOptions& options, Con
     rendered.primary_tested_fraction = rates.primary_tested_fraction;
     rendered.secondary_probes_per_frame = rates.secondary_probes_per_frame;
     rendered.streamed_frame_fraction = rates.streamed_frame_fraction;
+    // (j)-(l): the people path as `occmap synth --scene wildtrack` sets it up (people: {detector:
+    // explain}, the scene's statics), on the same frames and backgrounds.
+    PeopleOptions people;
+    people.enabled = true;
+    people.detector = PeopleDetector::kExplain;
+    OCCMAP_ASSIGN_OR_RETURN(rendered.people, MeasurePeople(inputs, w.grid, w.plane_height_m, frames->statics, people,
+                                                           rendered_views, rendered_backgrounds, options.threshold,
+                                                           options.repetitions, ctx));
   }
   return result;
 }
@@ -421,6 +431,122 @@ double Ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
 double Mega(int64_t n) { return static_cast<double>(n) / 1e6; }
 
 }  // namespace
+
+Result<PeopleRates> MeasurePeople(const std::vector<LutCameraInput>& cameras, const FloorGrid& grid,
+                                  double plane_height_m, std::span<const Occluder> statics,
+                                  const PeopleOptions& people,
+                                  const std::vector<std::vector<ImageView<const uint8_t>>>& frames,
+                                  std::span<const ImageView<const uint8_t>> backgrounds, int threshold,
+                                  int repetitions, Context& ctx) {
+  const size_t num_cameras = cameras.size();
+  if (people.detector != PeopleDetector::kExplain) {
+    return InvalidInput(fmt::format("people bench: detector explain expected, found {}", ToString(people.detector)));
+  }
+  OCCMAP_RETURN_IF_ERROR(people.Validate(static_cast<int>(num_cameras)));
+  if (frames.empty() || backgrounds.size() != num_cameras || repetitions < 1) {
+    return InvalidInput(fmt::format("people bench: {} frame sets, {} backgrounds for {} cameras, {} repetitions",
+                                    frames.size(), backgrounds.size(), num_cameras, repetitions));
+  }
+  for (const auto& set : frames) {
+    if (set.size() != num_cameras) {
+      return InvalidInput(fmt::format("people bench: a frame set of {} images for {} cameras", set.size(), num_cameras));
+    }
+    for (size_t n = 0; n < num_cameras; ++n) {
+      if (set[n].width() != backgrounds[n].width() || set[n].height() != backgrounds[n].height()) {
+        return InvalidInput(fmt::format("people bench: camera {}: frame {}x{}, background {}x{}", n + 1,
+                                        set[n].width(), set[n].height(), backgrounds[n].width(),
+                                        backgrounds[n].height()));
+      }
+    }
+  }
+  PeopleRates rates;
+  auto t0 = Clock::now();
+  OCCMAP_ASSIGN_OR_RETURN(ColumnLut columns,
+                          BuildColumnLut(cameras, grid, plane_height_m, people.columns, statics, ctx));
+  rates.column_lut_build_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  rates.column_lut_bytes = columns.MemoryBytes();
+  rates.candidates = columns.candidates().num_cells();
+  rates.occluders = static_cast<int>(statics.size());
+
+  double pixels = 0;
+  for (const auto& b : backgrounds) pixels += static_cast<double>(b.width()) * b.height();
+  const int num_frames = static_cast<int>(frames.size());
+  const auto n_cams = static_cast<int64_t>(num_cameras);
+  // The change masks of every frame set, computed once: the input of (j) and (k), as the run's
+  // change buffer; and each set's row sums and column map, the input of (k).
+  std::vector<std::vector<Image<uint8_t>>> changes(frames.size());
+  std::vector<std::vector<ImageView<const uint8_t>>> change_views(frames.size());
+  std::vector<std::vector<ChangeRowSums>> counts(frames.size(), std::vector<ChangeRowSums>(num_cameras));
+  std::vector<OccupancyMap> column_maps(frames.size());
+  const std::vector<bool> active(num_cameras, true);
+  const ColumnFusion fusion(columns);
+  ViewExplainer explainer(columns);
+  std::vector<ExplainedPerson> found;
+  int64_t occupied = 0, people_found = 0;
+  for (size_t f = 0; f < frames.size(); ++f) {
+    for (size_t n = 0; n < num_cameras; ++n) {
+      changes[f].emplace_back(backgrounds[n].width(), backgrounds[n].height());
+      DetectChangesGray(frames[f][n], backgrounds[n], threshold, changes[f][n].view());
+      change_views[f].push_back(changes[f][n].view());
+      counts[f][n].Build(change_views[f][n]);
+    }
+    fusion.Fuse(counts[f], active, people.column, ctx, column_maps[f]);
+    occupied += column_maps[f].Count(CellState::kOccupied);
+    explainer.Explain(change_views[f], counts[f], active, column_maps[f], people.explain, ctx, found);
+    people_found += static_cast<int64_t>(found.size());
+  }
+  rates.occupied_candidates_per_frame = static_cast<double>(occupied) / num_frames;
+  rates.people_per_frame = static_cast<double>(people_found) / num_frames;
+
+  // Per camera in parallel, as `occmap run` builds the row sums.
+  std::vector<ChangeRowSums> scratch_counts(num_cameras);
+  auto build_counts = [&](std::span<const ImageView<const uint8_t>> views, Context& c) {
+    ParallelFor(c, 0, n_cams, [&](int64_t b, int64_t e, int) {
+      for (int64_t n = b; n < e; ++n) scratch_counts[static_cast<size_t>(n)].Build(views[static_cast<size_t>(n)]);
+    });
+  };
+  OccupancyMap map;
+  Context one(1);
+  rates.change_test_1_pps = pixels / MedianSecondsPerFrame(repetitions, num_frames, [&](int f) {
+                              for (size_t n = 0; n < num_cameras; ++n) {
+                                DetectChangesGray(frames[static_cast<size_t>(f)][n], backgrounds[n], threshold,
+                                                  changes[static_cast<size_t>(f)][n].view());
+                              }
+                            });
+  for (Context* c : {&one, &ctx}) {
+    const double column_pps = pixels / MedianSecondsPerFrame(repetitions, num_frames, [&](int f) {
+                                build_counts(change_views[static_cast<size_t>(f)], *c);
+                                fusion.Fuse(scratch_counts, active, people.column, *c, map);
+                              });
+    const double explain_pps = pixels / MedianSecondsPerFrame(repetitions, num_frames, [&](int f) {
+                                 const auto k = static_cast<size_t>(f);
+                                 explainer.Explain(change_views[k], counts[k], active, column_maps[k], people.explain,
+                                                   *c, found);
+                               });
+    // (l): the change masks (per camera in parallel), the row sums, the column map, the people.
+    const double path_pps = pixels / MedianSecondsPerFrame(repetitions, num_frames, [&](int f) {
+                              const auto k = static_cast<size_t>(f);
+                              ParallelFor(*c, 0, n_cams, [&](int64_t b, int64_t e, int) {
+                                for (int64_t n = b; n < e; ++n) {
+                                  const auto m = static_cast<size_t>(n);
+                                  DetectChangesGray(frames[k][m], backgrounds[m], threshold, changes[k][m].view());
+                                }
+                              });
+                              build_counts(change_views[k], *c);
+                              fusion.Fuse(scratch_counts, active, people.column, *c, map);
+                              explainer.Explain(change_views[k], scratch_counts, active, map, people.explain, *c,
+                                                found);
+                            });
+    (c == &one ? rates.column_1_pps : rates.column_all_pps) = column_pps;
+    (c == &one ? rates.explain_1_pps : rates.explain_all_pps) = explain_pps;
+    (c == &one ? rates.path_1_pps : rates.path_all_pps) = path_pps;
+  }
+  rates.measured = true;
+  rates.note = fmt::format("detector {}, band {}-{} m, {} candidates of {} m, {} occluders; change masks |I - B| > {}",
+                           ToString(people.detector), people.column.band_low_m, people.column.band_high_m,
+                           rates.candidates, columns.candidates().cell_size_m, rates.occluders, threshold);
+  return rates;
+}
 
 Result<RenderedFrames> RenderWildtrackFrames(const std::filesystem::path& dataset_dir, int count,
                                              const std::vector<ImageSize>& sizes, Context& ctx) {
@@ -432,6 +558,22 @@ Result<RenderedFrames> RenderWildtrackFrames(const std::filesystem::path& datase
     return InvalidInput(fmt::format("wildtrack scene: {} cameras, the site has {}", scene.num_cameras(), sizes.size()));
   }
   RenderedFrames r;
+  // As `occmap synth` writes the site's statics: boxes as they are, the rest as cylinders.
+  for (const sim::StaticObjectSpec& o : scene.spec().statics) {
+    Occluder occluder;
+    occluder.centre_m = o.centre_m;
+    occluder.height_m = o.height_m;
+    if (o.shape == sim::StaticObjectSpec::Shape::kBox) {
+      occluder.shape = Occluder::Shape::kBox;
+      occluder.size_m = o.size_m;
+      occluder.base_m = o.base_m;
+      occluder.yaw_deg = o.yaw_deg;
+    } else {
+      occluder.shape = Occluder::Shape::kCylinder;
+      occluder.size_m = Eigen::Vector2d(o.size_m.x(), o.size_m.x());
+    }
+    r.statics.push_back(occluder);
+  }
   const int64_t n = scene.num_frames();
   for (int k = 0; k < count; ++k) r.scene_frames.push_back((2 * k + 1) * n / (2 * count));
   r.frames.resize(static_cast<size_t>(count));
@@ -668,6 +810,26 @@ std::string BenchTable(const BenchResults& all) {
                        "vs 1 {:.2f}x\n",
                        Ratio(rr.fast_all_pps, rr.opencv_pps), Ratio(rr.fast_all_pps, rr.paper_pps), r.threads,
                        Ratio(rr.fast_all_pps, rr.fast_1_pps));
+      const PeopleRates& p = rr.people;
+      if (p.measured) {
+        rendered_row("(j) column fusion 1 thread", p.column_1_pps);
+        rendered_row(fmt::format("(j) column fusion {} threads", r.threads), p.column_all_pps);
+        rendered_row("(k) explanation 1 thread", p.explain_1_pps);
+        rendered_row(fmt::format("(k) explanation {} threads", r.threads), p.explain_all_pps);
+        rendered_row("(l) people path 1 thread", p.path_1_pps);
+        rendered_row(fmt::format("(l) people path {} threads", r.threads), p.path_all_pps);
+        s += fmt::format("  people ({}): column fusion (j) vs OpenCV {:.2f}x, vs FastFusion {:.2f}x; the whole path (l: "
+                         "change masks, (j), (k)) vs OpenCV {:.2f}x, vs FastFusion {:.2f}x ({} threads); change masks "
+                         "alone {:.3f} ms on 1 thread; {:.0f} occupied candidates, {:.1f} people per frame set; column "
+                         "tables built in {:.2f} s, {:.1f} MB\n",
+                         p.note, Ratio(p.column_all_pps, rr.opencv_pps), Ratio(p.column_all_pps, rr.fast_all_pps),
+                         Ratio(p.path_all_pps, rr.opencv_pps), Ratio(p.path_all_pps, rr.fast_all_pps), r.threads,
+                         p.change_test_1_pps > 0 ? 1e3 * static_cast<double>(r.camera_pixels) / p.change_test_1_pps : 0.0,
+                         p.occupied_candidates_per_frame, p.people_per_frame, p.column_lut_build_seconds,
+                         Mega(p.column_lut_bytes));
+      } else {
+        s += fmt::format("  people: {}\n", p.note);
+      }
     }
   }
   for (const EndToEndResult* e : {&all.end_to_end, &all.wildtrack_end_to_end}) {
@@ -735,7 +897,10 @@ nlohmann::json BenchJson(const BenchResults& all) {
       "end_to_end_vs_decode = RunSite steady-state frames/s / the faster pure decoding pass's steady-state "
       "frames/s over the same H.264 files (start-up reported apart: end_to_end.run_startup_seconds); the top "
       "level's and the paper workload's are the lab scene's (end_to_end), the wildtrack workload's its own scene's "
-      "(wildtrack_end_to_end; null when not measured)"};
+      "(wildtrack_end_to_end; null when not measured)",
+      "rendered.people (wildtrack): the people path on the rendered frames: column_fusion = ChangeRowSums::Build + "
+      "ColumnFusion::Fuse, explain = ViewExplainer::Explain, both from the change masks |I - B| > T; path = the "
+      "change masks, the column fusion and the explanation; *_vs_opencv and *_vs_fast_fusion on all threads"};
   nlohmann::json list = nlohmann::json::array();
   for (const WorkloadResult& r : all.workloads) {
     nlohmann::json j;
@@ -806,6 +971,36 @@ nlohmann::json BenchJson(const BenchResults& all) {
                        {"primary_tested_fraction", rr.primary_tested_fraction},
                        {"secondary_probes_per_frame", rr.secondary_probes_per_frame},
                        {"streamed_frame_fraction", rr.streamed_frame_fraction}};
+      const PeopleRates& p = rr.people;
+      const double pixels = static_cast<double>(r.camera_pixels);
+      auto ms = [&](double pps) { return pps > 0 ? 1e3 * pixels / pps : 0.0; };
+      j["rendered"]["people"] =
+          p.measured ? nlohmann::json{{"measured", true},
+                                      {"note", p.note},
+                                      {"candidates", p.candidates},
+                                      {"occluders", p.occluders},
+                                      {"column_lut_build_seconds", p.column_lut_build_seconds},
+                                      {"column_lut_bytes", p.column_lut_bytes},
+                                      {"change_test_1_thread_pixels_per_second", p.change_test_1_pps},
+                                      {"column_fusion_1_thread_pixels_per_second", p.column_1_pps},
+                                      {"column_fusion_all_threads_pixels_per_second", p.column_all_pps},
+                                      {"explain_1_thread_pixels_per_second", p.explain_1_pps},
+                                      {"explain_all_threads_pixels_per_second", p.explain_all_pps},
+                                      {"path_1_thread_pixels_per_second", p.path_1_pps},
+                                      {"path_all_threads_pixels_per_second", p.path_all_pps},
+                                      {"column_fusion_1_thread_ms_per_frame_set", ms(p.column_1_pps)},
+                                      {"column_fusion_all_threads_ms_per_frame_set", ms(p.column_all_pps)},
+                                      {"explain_1_thread_ms_per_frame_set", ms(p.explain_1_pps)},
+                                      {"explain_all_threads_ms_per_frame_set", ms(p.explain_all_pps)},
+                                      {"path_1_thread_ms_per_frame_set", ms(p.path_1_pps)},
+                                      {"path_all_threads_ms_per_frame_set", ms(p.path_all_pps)},
+                                      {"column_fusion_vs_opencv", Ratio(p.column_all_pps, rr.opencv_pps)},
+                                      {"column_fusion_vs_fast_fusion", Ratio(p.column_all_pps, rr.fast_all_pps)},
+                                      {"path_vs_opencv", Ratio(p.path_all_pps, rr.opencv_pps)},
+                                      {"path_vs_fast_fusion", Ratio(p.path_all_pps, rr.fast_all_pps)},
+                                      {"occupied_candidates_per_frame", p.occupied_candidates_per_frame},
+                                      {"people_per_frame", p.people_per_frame}}
+                     : nlohmann::json{{"measured", false}, {"note", p.note}};
     } else if (r.name == "wildtrack") {
       j["rendered"] = {{"skipped", true}, {"note", rr.note}};
     }

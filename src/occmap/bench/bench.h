@@ -14,6 +14,14 @@
 //                  background XOR 0x80): the cell probes fail and hand over to row streaming;
 //   (g)-(i)        the change test alone on one thread: plain, the adaptive model's (shadows),
 //                  and the adaptive model's update.
+//   (j)-(l)        the people path (fusion/people_options.h: the site's `people:` section with the
+//                  defaults `occmap synth --scene wildtrack` writes: detector explain, the scene's
+//                  statics as occluders) on the rendered frames, on one and all threads: (j) the
+//                  column fusion (ChangeRowSums::Build per camera + ColumnFusion::Fuse), (k) the
+//                  views' explanation (ViewExplainer::Explain on (j)'s map), both from the change
+//                  masks |I - B| > T of the same frames and backgrounds the floor rows fuse; (l) the
+//                  whole path as `occmap run` does it: those change masks (DetectChangesGray per
+//                  camera), (j) and (k). PeopleRates, RenderedResult::people.
 // Figures: camera pixels per second (all cameras' pixels / median time per frame over the
 // repetitions) and ratios; table build time and table bytes.
 //
@@ -43,7 +51,9 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include "occmap/fusion/people_options.h"
 #include "occmap/geometry/camera_model.h"
+#include "occmap/lut/column_lut.h"
 #include "occmap/lut/ground_lut.h"
 #include "occmap/util/image.h"
 #include "occmap/util/status.h"
@@ -72,6 +82,23 @@ struct BenchOptions {
   Status Validate() const;
 };
 
+// The people path (j)-(l) on one set of frames: camera pixels per second (all cameras' pixels /
+// median time per frame set) on one thread and on the context's threads.
+struct PeopleRates {
+  bool measured = false;
+  std::string note;                  // the detector and its settings, or why not measured
+  int64_t candidates = 0;            // the column table's candidate grid
+  int occluders = 0;                 // the statics the table was built with
+  double column_lut_build_seconds = 0;
+  int64_t column_lut_bytes = 0;      // ColumnLut::MemoryBytes
+  double change_test_1_pps = 0;      // DetectChangesGray into the change masks, 1 thread (the input of (j), (k))
+  double column_1_pps = 0, column_all_pps = 0;    // (j) ChangeRowSums::Build + ColumnFusion::Fuse
+  double explain_1_pps = 0, explain_all_pps = 0;  // (k) ViewExplainer::Explain
+  double path_1_pps = 0, path_all_pps = 0;        // (l) change masks + (j) + (k)
+  double occupied_candidates_per_frame = 0;       // (j)'s map
+  double people_per_frame = 0;                    // (k)'s people
+};
+
 // The same measurements on frames rendered by the simulator (the wildtrack workload: the
 // dataset's calibrations and annotated trajectories, people clustered where they walk): a few
 // frames spread over the sequence, rendered once per bench run at full size and kept in memory,
@@ -92,6 +119,7 @@ struct RenderedResult {
   double primary_tested_fraction = 0;   // primary probes tested (their first pixel changed) / primary probes
   double secondary_probes_per_frame = 0;  // secondary probes tested per frame (1 thread)
   double streamed_frame_fraction = 0;   // frames handed to row streaming (1 thread)
+  PeopleRates people;                   // (j)-(l) on the same frames
 };
 
 struct WorkloadResult {
@@ -174,6 +202,17 @@ std::string BenchTable(const BenchResults& results);
 nlohmann::json BenchJson(const BenchResults& results);
 std::string MachineName();  // /proc/cpuinfo's model name
 
+// (j)-(l) on frames[f][camera] against backgrounds[camera]: the column table built from
+// `cameras` (their masks: the floor AND's notion of seeing), `grid` and `statics` with
+// `people`'s settings (its detector must be explain), the change masks |I - B| > threshold.
+// repetitions: the median over these is reported (each a pass over every frame).
+Result<PeopleRates> MeasurePeople(const std::vector<LutCameraInput>& cameras, const FloorGrid& grid,
+                                  double plane_height_m, std::span<const Occluder> statics,
+                                  const PeopleOptions& people,
+                                  const std::vector<std::vector<ImageView<const uint8_t>>>& frames,
+                                  std::span<const ImageView<const uint8_t>> backgrounds, int threshold,
+                                  int repetitions, Context& ctx);
+
 // Frames rendered by the simulator's wildtrack scene (sim::MakeWildtrackSceneSpec on
 // dataset_dir: the real calibrations and annotated trajectories): `count` frames spread over the
 // sequence, every camera at full size, grey (BT.601 luma, rounded), and the empty scene's render
@@ -182,6 +221,7 @@ struct RenderedFrames {
   std::vector<Image<uint8_t>> backgrounds;
   std::vector<std::vector<Image<uint8_t>>> frames;
   std::vector<int64_t> scene_frames;
+  std::vector<Occluder> statics;  // the scene's static structures, as `occmap synth` writes them
 };
 Result<RenderedFrames> RenderWildtrackFrames(const std::filesystem::path& dataset_dir, int count,
                                              const std::vector<ImageSize>& sizes, Context& ctx);

@@ -8,6 +8,8 @@
 #include "occmap/detect/change_detection.h"
 #include "occmap/fusion/fast_fusion.h"
 #include "occmap/fusion/fusion.h"
+#include "occmap/fusion/people_options.h"
+#include "occmap/lut/column_lut.h"
 #include "occmap/lut/test_scene.h"
 #include "occmap/site/site.h"
 #include "occmap/util/testing.h"
@@ -294,6 +296,118 @@ TEST(Bench, JsonHasTheRenderedFramesRecord) {
   EXPECT_DOUBLE_EQ(r["fast_all_threads_vs_1_thread"].get<double>(), 2.0);
   EXPECT_TRUE(j["workloads"][1]["rendered"]["skipped"].get<bool>());
   EXPECT_NE(BenchTable(all).find("rendered frames"), std::string::npos);
+}
+
+// Two people standing in the small room: every camera's frame shows their columns (the column
+// table's trapezoids, 0.2 m wide) changed against a flat background, nothing else.
+struct PeopleScene {
+  std::vector<LutCameraInput> inputs;
+  std::vector<Image<uint8_t>> frames, backgrounds;
+  std::vector<std::vector<ImageView<const uint8_t>>> frame_views;  // [set][camera]
+  std::vector<ImageView<const uint8_t>> background_views;
+};
+
+PeopleScene TwoPeople(const testing::SmallRoom& room, const PeopleOptions& people, Context& ctx) {
+  PeopleScene p;
+  for (const auto& cam : room.cameras) p.inputs.push_back({&cam, {}});
+  const ColumnLut columns = BuildColumnLut(p.inputs, room.grid, 0.0, people.columns, {}, ctx).value();
+  const FloorGrid& candidates = columns.candidates();
+  const int64_t standing[] = {candidates.CellAt(1.2, 1.0), candidates.CellAt(2.8, 2.0)};
+  for (int n = 0; n < columns.num_cameras(); ++n) {
+    const ImageSize size = columns.image_size(n);
+    Image<uint8_t> b(size.width, size.height, 60), f(size.width, size.height, 60);
+    for (const int64_t k : standing) {
+      const ColumnView& v = columns.view(n, k);
+      if (!v.seen) continue;
+      for (int y = std::max(0, static_cast<int>(v.top_row)); y <= std::min(size.height - 1, static_cast<int>(v.bottom_row));
+           ++y) {
+        const float t = v.bottom_row > v.top_row ? (static_cast<float>(y) - v.top_row) / (v.bottom_row - v.top_row) : 0;
+        const float axis = v.axis_x_top + t * (v.axis_x_bottom - v.axis_x_top);
+        const float half = 0.2f * (v.half_width_top + t * (v.half_width_bottom - v.half_width_top));
+        for (int x = std::max(0, static_cast<int>(axis - half)); x <= std::min(size.width - 1, static_cast<int>(axis + half));
+             ++x) {
+          f(x, y) = 200;
+        }
+      }
+    }
+    p.frames.push_back(std::move(f));
+    p.backgrounds.push_back(std::move(b));
+  }
+  p.frame_views.resize(2);  // the same set twice: two frames per repetition
+  for (size_t n = 0; n < p.frames.size(); ++n) {
+    for (auto& set : p.frame_views) set.push_back(p.frames[n].view());
+    p.background_views.push_back(p.backgrounds[n].view());
+  }
+  return p;
+}
+
+TEST(Bench, PeopleRowsAreMeasuredOnATinyRoom) {
+  testing::SmallRoom room(96, 72);
+  PeopleOptions people;
+  people.enabled = true;
+  Context ctx(2);
+  const PeopleScene scene = TwoPeople(room, people, ctx);
+  auto rates = MeasurePeople(scene.inputs, room.grid, 0.0, {}, people, scene.frame_views, scene.background_views,
+                             /*threshold=*/30, /*repetitions=*/1, ctx);
+  ASSERT_TRUE(rates.ok()) << rates.status().ToString();
+  EXPECT_TRUE(rates->measured);
+  EXPECT_FALSE(rates->note.empty());
+  EXPECT_GT(rates->candidates, 0);
+  EXPECT_GT(rates->column_lut_bytes, 0);
+  for (const double pps : {rates->change_test_1_pps, rates->column_1_pps, rates->column_all_pps, rates->explain_1_pps,
+                           rates->explain_all_pps, rates->path_1_pps, rates->path_all_pps}) {
+    EXPECT_GT(pps, 0.0);
+  }
+  EXPECT_GT(rates->occupied_candidates_per_frame, 0.0);
+  EXPECT_GE(rates->people_per_frame, 1.0);
+
+  // In the wildtrack workload's rendered record: the JSON and the table carry them.
+  BenchResults all;
+  WorkloadResult w;
+  w.name = "wildtrack";
+  w.camera_pixels = 4 * 96 * 72;
+  w.rendered.measured = true;
+  w.rendered.opencv_pps = 1e9;
+  w.rendered.fast_all_pps = 4e9;
+  w.rendered.people = *rates;
+  w.rendered.people.column_all_pps = 2e9;
+  all.workloads.push_back(w);
+  const nlohmann::json j = BenchJson(all);
+  const nlohmann::json& p = j["workloads"][0]["rendered"]["people"];
+  for (const char* key : {"note", "candidates", "column_lut_build_seconds", "change_test_1_thread_pixels_per_second",
+                          "column_fusion_1_thread_pixels_per_second", "column_fusion_all_threads_pixels_per_second",
+                          "explain_1_thread_pixels_per_second", "explain_all_threads_pixels_per_second",
+                          "path_1_thread_pixels_per_second", "path_all_threads_pixels_per_second",
+                          "column_fusion_all_threads_ms_per_frame_set", "explain_all_threads_ms_per_frame_set",
+                          "path_all_threads_ms_per_frame_set", "path_vs_opencv", "path_vs_fast_fusion",
+                          "people_per_frame"}) {
+    EXPECT_TRUE(p.contains(key)) << key;
+  }
+  EXPECT_TRUE(p["measured"].get<bool>());
+  EXPECT_DOUBLE_EQ(p["column_fusion_vs_opencv"].get<double>(), 2.0);
+  EXPECT_DOUBLE_EQ(p["column_fusion_vs_fast_fusion"].get<double>(), 0.5);
+  EXPECT_GT(p["explain_all_threads_ms_per_frame_set"].get<double>(), 0.0);
+  const std::string table = BenchTable(all);
+  for (const char* row : {"(j) column fusion 1 thread", "(k) explanation 1 thread", "(l) people path 1 thread"}) {
+    EXPECT_NE(table.find(row), std::string::npos) << row;
+  }
+}
+
+TEST(Bench, PeopleRowsNeedTheExplainDetectorAndMatchingFrames) {
+  testing::SmallRoom room(96, 72);
+  PeopleOptions people;
+  people.enabled = true;
+  Context ctx(1);
+  const PeopleScene scene = TwoPeople(room, people, ctx);
+  PeopleOptions column = people;
+  column.detector = PeopleDetector::kColumn;
+  auto r = MeasurePeople(scene.inputs, room.grid, 0.0, {}, column, scene.frame_views, scene.background_views, 30, 1, ctx);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().message(), "people bench: detector explain expected, found column");
+  const std::vector<ImageView<const uint8_t>> three(scene.background_views.begin(), scene.background_views.end() - 1);
+  r = MeasurePeople(scene.inputs, room.grid, 0.0, {}, people, scene.frame_views, three, 30, 1, ctx);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().message(), "people bench: 2 frame sets, 3 backgrounds for 4 cameras, 1 repetitions");
 }
 
 }  // namespace
