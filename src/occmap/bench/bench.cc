@@ -846,6 +846,19 @@ std::string BenchTable(const BenchResults& all) {
                        e->decode_cpu_ms_per_frame, e->run_steady_cpu_ms_per_frame, e->decode_steady_cpu_ms_per_frame,
                        e->run_steady_cpu_ms_per_frame - e->decode_steady_cpu_ms_per_frame, e->decode_s, e->detect_s, e->fuse_s, e->blobs_s, e->track_s,
                        e->output_s);
+      if (e->floor.measured) {
+        const EndToEndResult::FloorPass& f = e->floor;
+        s += fmt::format("  people detector {}: people stage {:.2f} s; occmap's own CPU {:.2f} ms per frame set = {:.2f}x "
+                         "the decoding's {:.2f} ms\n"
+                         "  floor AND (people detector off: {}): RunSite {:.1f} frames/s (ratio {:.2f}), steady CPU "
+                         "{:.2f} ms per frame set, occmap's own {:.2f} ms = {:.2f}x the decoding's; stage times: detect "
+                         "{:.2f} s, fuse {:.2f} s, blobs {:.2f} s, track {:.2f} s\n",
+                         e->people_detector, e->people_s,
+                         e->run_steady_cpu_ms_per_frame - e->decode_steady_cpu_ms_per_frame, e->OwnCpuVsDecode(),
+                         e->decode_steady_cpu_ms_per_frame, f.fusion_path, f.run_fps, Ratio(f.run_fps, e->decode_fps),
+                         f.run_steady_cpu_ms_per_frame, f.run_steady_cpu_ms_per_frame - e->decode_steady_cpu_ms_per_frame,
+                         e->FloorOwnCpuVsDecode(), f.detect_s, f.fuse_s, f.blobs_s, f.track_s);
+      }
     } else {
       s += fmt::format("\nend to end ({}): {}\n", e->scene, e->note);
     }
@@ -860,7 +873,7 @@ nlohmann::json BenchJson(const BenchResults& all) {
   out["nproc"] = std::thread::hardware_concurrency();
   out["end_to_end_vs_decode"] = e.measured ? nlohmann::json(Ratio(e.run_fps, e.decode_fps)) : nlohmann::json(nullptr);
   auto end_to_end_json = [](const EndToEndResult& r) {
-    return nlohmann::json{{"scene", r.scene},
+    nlohmann::json j{{"scene", r.scene},
                           {"measured", r.measured},
                           {"note", r.note},
                           {"frames", r.frames},
@@ -881,7 +894,29 @@ nlohmann::json BenchJson(const BenchResults& all) {
                             {"fuse", r.fuse_s},
                             {"blobs", r.blobs_s},
                             {"track", r.track_s},
-                            {"output", r.output_s}}}};
+                            {"output", r.output_s},
+                            {"people", r.people_s}}},
+                          {"people_detector", r.people_detector},
+                          {"own_steady_cpu_ms_per_frame", r.run_steady_cpu_ms_per_frame - r.decode_steady_cpu_ms_per_frame},
+                          {"own_cpu_vs_decode", r.OwnCpuVsDecode()}};
+    const EndToEndResult::FloorPass& f = r.floor;
+    j["floor_and"] = f.measured ? nlohmann::json{{"fusion_path", f.fusion_path},
+                                                 {"run_frames_per_second", f.run_fps},
+                                                 {"run_vs_decode", Ratio(f.run_fps, r.decode_fps)},
+                                                 {"run_startup_seconds", f.run_startup_s},
+                                                 {"run_overall_frames_per_second", f.run_overall_fps},
+                                                 {"run_cpu_ms_per_frame", f.run_cpu_ms_per_frame},
+                                                 {"run_steady_cpu_ms_per_frame", f.run_steady_cpu_ms_per_frame},
+                                                 {"own_steady_cpu_ms_per_frame",
+                                                  f.run_steady_cpu_ms_per_frame - r.decode_steady_cpu_ms_per_frame},
+                                                 {"own_cpu_vs_decode", r.FloorOwnCpuVsDecode()},
+                                                 {"run_stage_seconds",
+                                                  {{"detect", f.detect_s},
+                                                   {"fuse", f.fuse_s},
+                                                   {"blobs", f.blobs_s},
+                                                   {"track", f.track_s}}}}
+                                : nlohmann::json(nullptr);
+    return j;
   };
   out["end_to_end"] = end_to_end_json(e);
   out["wildtrack_end_to_end"] = end_to_end_json(all.wildtrack_end_to_end);
@@ -898,6 +933,10 @@ nlohmann::json BenchJson(const BenchResults& all) {
       "frames/s over the same H.264 files (start-up reported apart: end_to_end.run_startup_seconds); the top "
       "level's and the paper workload's are the lab scene's (end_to_end), the wildtrack workload's its own scene's "
       "(wildtrack_end_to_end; null when not measured)",
+      "own_cpu_vs_decode = (run_steady_cpu_ms_per_frame - decode_steady_cpu_ms_per_frame) / "
+      "decode_steady_cpu_ms_per_frame: occmap's own CPU per frame set beside the decoders; with a people detector "
+      "on the site (people_detector) floor_and holds the same run without it (the floor AND and its blobs), "
+      "else null",
       "rendered.people (wildtrack): the people path on the rendered frames: column_fusion = ChangeRowSums::Build + "
       "ColumnFusion::Fuse, explain = ViewExplainer::Explain, both from the change masks |I - B| > T; path = the "
       "change masks, the column fusion and the explanation; *_vs_opencv and *_vs_fast_fusion on all threads"};

@@ -182,6 +182,23 @@ struct EndToEndResult {
   double run_steady_cpu_ms_per_frame = 0, decode_steady_cpu_ms_per_frame = 0;
   double fuse_s = 0, detect_s = 0, decode_s = 0;  // RunSite's own split
   double blobs_s = 0, track_s = 0, output_s = 0;
+  double people_s = 0;                 // RunSite's people stage (column fusion and explanation)
+  std::string people_detector = "floor";  // the site's: floor (no people: section), column or explain
+  // A site with a people detector (the WILDTRACK scene, as `occmap synth` writes it) is also run
+  // without it (people.enabled = false: the floor AND and its blobs, the fully fused path),
+  // alternated with the passes above on the same files: the figures above are the site's own,
+  // these the floor AND's, so that both stand against the same decoding.
+  struct FloorPass {
+    bool measured = false;
+    std::string fusion_path;
+    double run_fps = 0, run_overall_fps = 0, run_startup_s = 0;
+    double run_cpu_ms_per_frame = 0, run_steady_cpu_ms_per_frame = 0;
+    double fuse_s = 0, detect_s = 0, blobs_s = 0, track_s = 0;
+  };
+  FloorPass floor;
+  // occmap's own CPU per frame set (the steady state's, beside the decoders) over the decoding's.
+  double OwnCpuVsDecode() const;
+  double FloorOwnCpuVsDecode() const;
 };
 
 struct BenchResults {

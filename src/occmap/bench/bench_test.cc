@@ -410,6 +410,53 @@ TEST(Bench, PeopleRowsNeedTheExplainDetectorAndMatchingFrames) {
   EXPECT_EQ(r.status().message(), "people bench: 2 frame sets, 3 backgrounds for 4 cameras, 1 repetitions");
 }
 
+// The WILDTRACK scene as `occmap synth` writes it: the people detector on, and the floor AND
+// measured beside it on the same files.
+TEST(Bench, EndToEndOnWildtrackRunsThePeopleDetectorAndTheFloor) {
+  OCCMAP_REQUIRE_DATASETS(root);
+  Context ctx(2);
+  auto e = MeasureEndToEnd(/*frames=*/3, ctx, root / "wildtrack");
+  ASSERT_TRUE(e.ok()) << e.status().ToString();
+  EXPECT_EQ(e->scene, "wildtrack");
+  EXPECT_EQ(e->people_detector, "explain");
+  EXPECT_NE(e->note.find("ViewExplainer"), std::string::npos) << e->note;
+  EXPECT_GT(e->people_s, 0.0);
+  EXPECT_GT(e->run_steady_cpu_ms_per_frame, 0.0);
+  ASSERT_TRUE(e->floor.measured);
+  EXPECT_NE(e->floor.fusion_path.find("FuseTolerant"), std::string::npos) << e->floor.fusion_path;
+  EXPECT_GT(e->floor.run_fps, 0.0);
+  EXPECT_GT(e->floor.run_steady_cpu_ms_per_frame, 0.0);
+}
+
+// The end-to-end record with a people detector: both runs, and occmap's own CPU over the
+// decoding's for each.
+TEST(Bench, EndToEndJsonCarriesThePeopleAndFloorRuns) {
+  BenchResults all;
+  EndToEndResult& e = all.wildtrack_end_to_end;
+  e.measured = true;
+  e.scene = "wildtrack";
+  e.people_detector = "explain";
+  e.decode_steady_cpu_ms_per_frame = 80;
+  e.run_steady_cpu_ms_per_frame = 128;
+  e.people_s = 1.5;
+  e.floor.measured = true;
+  e.floor.run_steady_cpu_ms_per_frame = 120;
+  e.floor.run_fps = 10;
+  e.decode_fps = 20;
+  const nlohmann::json j = BenchJson(all);
+  const nlohmann::json& w = j["wildtrack_end_to_end"];
+  EXPECT_EQ(w["people_detector"], "explain");
+  EXPECT_DOUBLE_EQ(w["own_steady_cpu_ms_per_frame"].get<double>(), 48.0);
+  EXPECT_DOUBLE_EQ(w["own_cpu_vs_decode"].get<double>(), 0.6);
+  EXPECT_DOUBLE_EQ(w["run_stage_seconds"]["people"].get<double>(), 1.5);
+  ASSERT_TRUE(w["floor_and"].is_object());
+  EXPECT_DOUBLE_EQ(w["floor_and"]["own_steady_cpu_ms_per_frame"].get<double>(), 40.0);
+  EXPECT_DOUBLE_EQ(w["floor_and"]["own_cpu_vs_decode"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(w["floor_and"]["run_vs_decode"].get<double>(), 0.5);
+  EXPECT_TRUE(j["end_to_end"]["floor_and"].is_null());  // the lab: no people detector
+  EXPECT_NE(BenchTable(all).find("floor AND (people detector off"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace occmap::bench
 

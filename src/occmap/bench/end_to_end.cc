@@ -11,6 +11,12 @@
 // frame-threaded decoders (every thread each). On a machine shared with other work the passes
 // alternate (decode, decode, run; repeated) and the rates are medians; the CPU time per frame
 // set of the process is reported beside them, as it depends less on other load.
+//
+// A site with a people detector (the WILDTRACK scene: `occmap synth` writes people: {detector:
+// explain} and the scene's statics for a scene of people only) is run as written, the new
+// default, and also without it (people.enabled = false: the floor AND and its blobs), the two
+// runs alternating in each repeat (decode, decode, people, floor; then floor first), so that
+// both stand against the same decoding passes.
 #include <fmt/core.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -121,24 +127,52 @@ Result<DecodePass> Decode(const Site& site, const FrameSourceOptions& options, b
 // How RunSite computes changes and fuses on this site without video outputs (its own test, in
 // pipeline/run.cc): fully fused for the paper's AND on grey frames without mask sources and a
 // tolerance of at most FastFusion::kMaxFusedTolerancePx; otherwise change buffers first.
+bool PeopleDetectorOn(const Site& site) {
+  return site.people.enabled && site.people.detector != PeopleDetector::kFloor;
+}
+
 std::string FusionPath(const Site& site) {
   const bool paper_and = site.fusion.method == FusionMethod::kImageBased && site.fusion.max_free_views == 0;
+  const bool people = PeopleDetectorOn(site);
   bool any_mask_source = false;
   for (const SiteCamera& c : site.cameras) any_mask_source |= c.source.kind == FrameSourceSpec::Kind::kMasks;
   const int r = site.detection.tolerance_px;
-  if (paper_and && !site.detection.colour && r == 0 && !any_mask_source) {
+  const std::string people_path =
+      people ? fmt::format("; people: {} (row sums, ColumnFusion{})", ToString(site.people.detector),
+                           site.people.detector == PeopleDetector::kExplain ? ", ViewExplainer" : "")
+             : std::string();
+  if (!people && paper_and && !site.detection.colour && r == 0 && !any_mask_source) {
     return "fully fused FastFusion::Fuse, no change buffer";
   }
-  if (paper_and && !site.detection.colour && r <= FastFusion::kMaxFusedTolerancePx && !any_mask_source) {
+  if (!people && paper_and && !site.detection.colour && r <= FastFusion::kMaxFusedTolerancePx && !any_mask_source) {
     return fmt::format("fully fused FastFusion::FuseTolerant (tolerance_px {} folded in as bits), no change buffer", r);
   }
   const std::string changes =
       fmt::format("{} change detection{} into change buffers", site.detection.colour ? "colour" : "grey",
                   r > 0 ? fmt::format(" dilated by tolerance_px {}", r) : std::string());
-  if (paper_and) return changes + ", FastFusion::FuseChanges";
-  return fmt::format("{}, Fusion::Fuse ({}, max_free_views {})", changes,
+  if (paper_and) return changes + ", FastFusion::FuseChanges" + people_path;
+  return fmt::format("{}, Fusion::Fuse ({}, max_free_views {}){}", changes,
                      site.fusion.method == FusionMethod::kImageBased ? "image-based" : "map-based",
-                     site.fusion.max_free_views);
+                     site.fusion.max_free_views, people_path);
+}
+
+struct RunPass {
+  RunSummary summary;
+  double cpu_ms_per_set = 0, steady_cpu_ms_per_set = 0;
+};
+
+Result<RunPass> TimedRun(const Site& site, const RunOptions& options, Context& ctx) {
+  RunPass pass;
+  const double cpu0 = CpuSeconds();
+  // The process's CPU time at the frame sets RunSite's steady rate is timed between (its
+  // progress is reported after each frame set's post stage).
+  SteadyCpu steady_cpu;
+  const ProgressCallback progress = [&](const RunProgress& p) { steady_cpu.At(p.frames_done); };
+  OCCMAP_ASSIGN_OR_RETURN(pass.summary, RunSite(site, options, ctx, progress));
+  pass.steady_cpu_ms_per_set = steady_cpu.MsPerSet();
+  pass.cpu_ms_per_set =
+      pass.summary.frames > 0 ? 1e3 * (CpuSeconds() - cpu0) / static_cast<double>(pass.summary.frames) : 0;
+  return pass;
 }
 
 }  // namespace
@@ -190,7 +224,15 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
   r.mosaic_video = false;
   std::vector<double> parallel_fps, interleaved_fps, decode_cpu, run_fps, run_cpu, startup, overall;
   std::vector<double> decode_steady_cpu, run_steady_cpu;
-  RunSummary run;
+  std::vector<double> floor_fps, floor_cpu, floor_steady_cpu, floor_startup, floor_overall;
+  RunSummary run, floor_run;
+  const bool people = PeopleDetectorOn(site);
+  e.people_detector = people ? ToString(site.people.detector) : "floor";
+  if (people) {
+    site.people.enabled = false;
+    e.floor.fusion_path = FusionPath(site);
+    site.people.enabled = true;
+  }
   for (int k = 0; k < kRepeats; ++k) {
     OCCMAP_ASSIGN_OR_RETURN(DecodePass par, Decode(site, parallel_options, /*parallel=*/true));
     OCCMAP_ASSIGN_OR_RETURN(DecodePass inter, Decode(site, interleaved_options, /*parallel=*/false));
@@ -199,17 +241,29 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
     decode_cpu.push_back(par.steady_fps >= inter.steady_fps ? par.cpu_ms_per_set : inter.cpu_ms_per_set);
     decode_steady_cpu.push_back(par.steady_fps >= inter.steady_fps ? par.steady_cpu_ms_per_set
                                                                    : inter.steady_cpu_ms_per_set);
-    const double cpu0 = CpuSeconds();
-    // The process's CPU time at the frame sets RunSite's steady rate is timed between (its
-    // progress is reported after each frame set's post stage).
-    SteadyCpu steady_cpu;
-    const ProgressCallback progress = [&](const RunProgress& p) { steady_cpu.At(p.frames_done); };
-    OCCMAP_ASSIGN_OR_RETURN(run, RunSite(site, r, ctx, progress));
-    run_steady_cpu.push_back(steady_cpu.MsPerSet());
-    run_cpu.push_back(run.frames > 0 ? 1e3 * (CpuSeconds() - cpu0) / static_cast<double>(run.frames) : 0);
-    run_fps.push_back(run.steady_fps);
-    startup.push_back(run.startup_s);
-    overall.push_back(run.frames_per_second);
+    // The site as written, and without its people detector (odd repeats: the floor first).
+    for (const bool floor_pass : {k % 2 == 1, k % 2 == 0}) {
+      if (floor_pass && !people) continue;
+      site.people.enabled = people && !floor_pass;
+      auto pass = TimedRun(site, r, ctx);
+      site.people.enabled = people;
+      OCCMAP_RETURN_IF_ERROR(pass.status());
+      if (floor_pass) {
+        floor_run = pass->summary;
+        floor_steady_cpu.push_back(pass->steady_cpu_ms_per_set);
+        floor_cpu.push_back(pass->cpu_ms_per_set);
+        floor_fps.push_back(floor_run.steady_fps);
+        floor_startup.push_back(floor_run.startup_s);
+        floor_overall.push_back(floor_run.frames_per_second);
+      } else {
+        run = pass->summary;
+        run_steady_cpu.push_back(pass->steady_cpu_ms_per_set);
+        run_cpu.push_back(pass->cpu_ms_per_set);
+        run_fps.push_back(run.steady_fps);
+        startup.push_back(run.startup_s);
+        overall.push_back(run.frames_per_second);
+      }
+    }
   }
   e.repeats = kRepeats;
   e.decode_parallel_fps = Median(parallel_fps);
@@ -229,14 +283,42 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
   e.blobs_s = run.blobs_s;
   e.track_s = run.track_s;
   e.output_s = run.output_s;
+  e.people_s = run.people_s;
+  if (people) {
+    EndToEndResult::FloorPass& f = e.floor;
+    f.measured = true;
+    f.run_fps = Median(floor_fps);
+    f.run_overall_fps = Median(floor_overall);
+    f.run_startup_s = Median(floor_startup);
+    f.run_cpu_ms_per_frame = Median(floor_cpu);
+    f.run_steady_cpu_ms_per_frame = Median(floor_steady_cpu);
+    f.fuse_s = floor_run.fuse_s;
+    f.detect_s = floor_run.detect_s;
+    f.blobs_s = floor_run.blobs_s;
+    f.track_s = floor_run.track_s;
+  }
   e.measured = true;
   const ImageSize size = site.cameras.front().camera->image_size();
   e.note = fmt::format("{} scene, {} cameras {}x{} H.264, {} frames, {} threads; steady state (after {} frames), "
                        "medians of {} alternated passes; RunSite without video outputs ({}, detections, tracking, "
-                       "text outputs); decoding: the faster of one thread per camera and the cameras in turn",
+                       "text outputs); decoding: the faster of one thread per camera and the cameras in turn{}",
                        e.scene, e.cameras, size.width, size.height, e.frames, ctx.num_threads(), kWarmUp, kRepeats,
-                       FusionPath(site));
+                       FusionPath(site),
+                       people ? fmt::format("; also without the people detector ({})", e.floor.fusion_path)
+                              : std::string());
   return e;
+}
+
+double EndToEndResult::OwnCpuVsDecode() const {
+  return decode_steady_cpu_ms_per_frame > 0
+             ? (run_steady_cpu_ms_per_frame - decode_steady_cpu_ms_per_frame) / decode_steady_cpu_ms_per_frame
+             : 0.0;
+}
+
+double EndToEndResult::FloorOwnCpuVsDecode() const {
+  return floor.measured && decode_steady_cpu_ms_per_frame > 0
+             ? (floor.run_steady_cpu_ms_per_frame - decode_steady_cpu_ms_per_frame) / decode_steady_cpu_ms_per_frame
+             : 0.0;
 }
 
 }  // namespace occmap::bench
