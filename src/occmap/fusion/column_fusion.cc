@@ -23,16 +23,17 @@ Status ColumnFusionOptions::Validate(double column_height_m, int num_cameras) co
 }
 
 void ChangeRowSums::Build(ImageView<const uint8_t> changes) {
+  OCCMAP_CHECK(changes.width() < 65536, "ChangeRowSums: images up to 65535 pixels wide");
   width_ = changes.width();
   height_ = changes.height();
   sums_.resize(static_cast<size_t>(width_ + 1) * static_cast<size_t>(height_));
   for (int y = 0; y < height_; ++y) {
     const uint8_t* in = changes.row(y);
-    uint32_t* out = sums_.data() + static_cast<size_t>(y) * static_cast<size_t>(width_ + 1);
-    uint32_t sum = 0;
+    uint16_t* out = sums_.data() + static_cast<size_t>(y) * static_cast<size_t>(width_ + 1);
+    uint16_t sum = 0;
     out[0] = 0;
     for (int x = 0; x < width_; ++x) {
-      sum += in[x] != 0 ? 1u : 0u;
+      sum = static_cast<uint16_t>(sum + (in[x] != 0 ? 1 : 0));
       out[x + 1] = sum;
     }
   }
