@@ -179,7 +179,9 @@ void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, s
   std::priority_queue<Entry, std::vector<Entry>, decltype(less)> queue(less);
   // The forward pass starts from the bounds' local maxima (3 x 3 on the candidate grid): the
   // moves (step 4) reach every candidate.
-  std::vector<int32_t> index_of(static_cast<size_t>(grid.num_cells()), -1);
+  // index_of_ is kept at -1 between calls: only this frame's candidates are set, then reset.
+  std::vector<int32_t>& index_of = index_of_;
+  if (index_of.size() != static_cast<size_t>(grid.num_cells())) index_of.assign(static_cast<size_t>(grid.num_cells()), -1);
   for (size_t i = 0; i < candidates.size(); ++i) index_of[candidates[i]] = static_cast<int32_t>(i);
   for (size_t i = 0; i < candidates.size(); ++i) {
     if (bound[i] < o.min_gain) continue;
@@ -308,6 +310,7 @@ void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, s
     if (moved == 0) break;
   }
   for (const ExplainedPerson& p : people) Cover(p.candidate, active, o, -1);  // coverage back to zero
+  for (int64_t k : candidates) index_of[k] = -1;
 }
 
 }  // namespace occmap

@@ -102,6 +102,7 @@ class ViewExplainer {
     int x0 = 1 << 30, x1 = -1, y0 = 1 << 30, y1 = -1;  // empty by default
   };
   std::vector<Box> boxes_;  // per candidate and camera, this frame
+  std::vector<int32_t> index_of_;  // per candidate cell: its index among this frame's candidates, else -1
   bool probed_ = false;  // per camera, kept zero between calls
 };
 
