@@ -53,6 +53,12 @@ std::string ZoneEventJsonLine(const ZoneEvent& event) {
                      ToString(event.kind), event.count);
 }
 
+std::string LineEventJsonLine(const LineEvent& event) {
+  return fmt::format(R"({{"frame":{},"time_s":{},"line":{},"track_id":{},"event":"cross","direction":"{}","in":{},"out":{}}})",
+                     event.frame, Rounded(event.time_s, 1e6), JsonQuote(event.line), event.track_id,
+                     ToString(event.direction), event.counts.in, event.counts.out);
+}
+
 std::string MotGroundPlaneRow(int64_t frame, const Track& track) {
   return fmt::format("{},{},-1,-1,-1,-1,1,{:.4f},{:.4f},-1", frame + 1, track.id, Rounded(track.x_m, 1e4),
                      Rounded(track.y_m, 1e4));

@@ -6,6 +6,8 @@
 //   {"frame":12,"time_s":1.2,"tracks":[{"id":3,"x_m":1.5,"y_m":2.0,"vx_mps":0.8,"vy_mps":-0.1,"class":"person"}]}
 // events.jsonl, one line per event (ZoneEvent; "track_id" is null for "count" events):
 //   {"frame":12,"time_s":1.2,"zone":"door","track_id":3,"event":"enter","count":1}
+// and one per line crossing (LineEvent; "in"/"out": the line's counts, this crossing included):
+//   {"frame":12,"time_s":1.2,"line":"gate","track_id":3,"event":"cross","direction":"in","in":5,"out":2}
 // MOTChallenge ground-plane rows: the MOT 3D convention, 10 columns, world metres:
 //   frame,id,-1,-1,-1,-1,conf,x,y,z
 //   frame  = occmap frame + 1 (MOTChallenge frames count from 1)
@@ -29,6 +31,7 @@
 #include <string_view>
 #include <vector>
 
+#include "occmap/track/count_lines.h"
 #include "occmap/track/track.h"
 #include "occmap/track/zones.h"
 
@@ -38,6 +41,8 @@ namespace occmap {
 std::string TracksJsonLine(int64_t frame, double time_s, const std::vector<Track>& tracks);
 // One line of events.jsonl, without the newline.
 std::string ZoneEventJsonLine(const ZoneEvent& event);
+// One line of events.jsonl for a line crossing, without the newline.
+std::string LineEventJsonLine(const LineEvent& event);
 // `text` as a JSON string literal, quotes included.
 std::string JsonQuote(std::string_view text);
 

@@ -25,6 +25,11 @@ TEST(TracksJsonLine, WritesOneLinePerFrameWithRoundedValues) {
   EXPECT_EQ(TracksJsonLine(0, 0, {}), R"({"frame":0,"time_s":0,"tracks":[]})");
 }
 
+TEST(LineEventJsonLine, WritesTheDirectionAndTheLinesCounts) {
+  EXPECT_EQ(LineEventJsonLine({12, 1.2, "gate \"A\"", 3, LineDirection::kOut, {5, 2}}),
+            R"({"frame":12,"time_s":1.2,"line":"gate \"A\"","track_id":3,"event":"cross","direction":"out","in":5,"out":2})");
+}
+
 TEST(ZoneEventJsonLine, WritesTheEventAndNullTrackForCounts) {
   EXPECT_EQ(ZoneEventJsonLine({5, 0.5, "door", 1, ZoneEventKind::kEnter, 2}),
             R"({"frame":5,"time_s":0.5,"zone":"door","track_id":1,"event":"enter","count":2})");

@@ -108,6 +108,22 @@ std::optional<Problem> CheckZoneName(const std::vector<ZoneOptions>& zones, size
   return std::nullopt;
 }
 
+std::optional<Problem> CheckLine(const std::vector<LineOptions>& lines, size_t k) {
+  const LineOptions& line = lines[k];
+  if (line.name.empty()) return Problem{"name", "expected a non-empty name"};
+  for (size_t m = 0; m < k; ++m) {
+    if (lines[m].name == line.name) return Problem{"name", fmt::format("duplicate line name '{}'", line.name)};
+  }
+  if (!line.from_m.allFinite()) return Problem{"from", "expected finite coordinates"};
+  if (!line.to_m.allFinite()) return Problem{"to", "expected finite coordinates"};
+  // 1 mm: a shorter line has no direction worth the name.
+  if (!((line.to_m - line.from_m).norm() >= 1e-3)) {
+    return Problem{"to", fmt::format("expected a point at least 1 mm from 'from', found {} m from it",
+                                     (line.to_m - line.from_m).norm())};
+  }
+  return std::nullopt;
+}
+
 std::string ElementPath(std::string_view list, size_t k, const std::string& key) {
   return key.empty() ? fmt::format("tracking.{}[{}]", list, k) : fmt::format("tracking.{}[{}].{}", list, k, key);
 }
@@ -157,12 +173,15 @@ Status TrackerOptions::Validate() const {
     if (!p) p = CheckZoneName(zones, k);
     if (p) return InvalidInput(fmt::format("{}: {}", ElementPath("zones", k, p->key), p->what));
   }
+  for (size_t k = 0; k < lines.size(); ++k) {
+    if (auto p = CheckLine(lines, k)) return InvalidInput(fmt::format("{}: {}", ElementPath("lines", k, p->key), p->what));
+  }
   return Status::Ok();
 }
 
 Status ParseTrackerOptions(const YamlField& field, TrackerOptions& options, std::span<const std::string_view> other_keys) {
   if (field.IsNull()) return Status::Ok();
-  std::vector<std::string> keys = {"algorithm", "classes", "zones", "zone_count_every_frame"};
+  std::vector<std::string> keys = {"algorithm", "classes", "zones", "zone_count_every_frame", "lines"};
   VisitNumbers(options, [&](std::string_view key, auto&, const Range&) { keys.emplace_back(key); });
   for (std::string_view key : other_keys) keys.emplace_back(key);
   OCCMAP_RETURN_IF_ERROR(field.CheckKeys(keys));
@@ -256,6 +275,23 @@ Status ParseTrackerOptions(const YamlField& field, TrackerOptions& options, std:
       auto p = CheckZone(parsed.zones.back());
       if (!p) p = CheckZoneName(parsed.zones, k);
       if (p) return SubField(element, p->key).Error(p->what);
+    }
+  }
+
+  if (auto list = field.Find("lines")) {
+    if (!list->IsSequence()) return list->Error("expected a list of {name, from, to}");
+    parsed.lines.clear();
+    for (size_t k = 0; k < list->size(); ++k) {
+      OCCMAP_ASSIGN_OR_RETURN(YamlField element, list->At(k));
+      OCCMAP_RETURN_IF_ERROR(element.CheckKeys({"name", "from", "to"}));
+      LineOptions line;
+      OCCMAP_ASSIGN_OR_RETURN(line.name, element.GetString("name"));
+      OCCMAP_ASSIGN_OR_RETURN(std::vector<double> from, element.GetDoubles("from", 2));
+      OCCMAP_ASSIGN_OR_RETURN(std::vector<double> to, element.GetDoubles("to", 2));
+      line.from_m = {from[0], from[1]};
+      line.to_m = {to[0], to[1]};
+      parsed.lines.push_back(std::move(line));
+      if (auto p = CheckLine(parsed.lines, k)) return SubField(element, p->key).Error(p->what);
     }
   }
 

@@ -4,7 +4,8 @@
 // every default suits people walking on a floor mapped with cells of 2-10 cm.
 //
 // Validate() checks every field (ranges, confirm_hits <= confirm_frames, class areas in
-// increasing order, zone polygons with >= 3 vertices and a non-zero area, unique names).
+// increasing order, zone polygons with >= 3 vertices and a non-zero area, unique names; lines
+// of non-zero length with unique names).
 // ParseTrackerOptions reads the YAML section over the defaults (absent keys keep them); an
 // unknown key, a wrong type or a value out of range is an error naming file, line and field:
 //   site.yaml:31: tracking.max_speed_mps: expected a number > 0, found -1
@@ -37,6 +38,7 @@
 //     window_min_new_area_m2: 0.05
 //     zones: []                        # e.g. [{name: door, polygon: [[0,0],[1,0],[1,1]], dwell_s: 5}]
 //     zone_count_every_frame: false
+//     lines: []                        # e.g. [{name: door, from: [0, 0], to: [0, 2]}]
 //     trail_length: 50
 #pragma once
 
@@ -76,6 +78,15 @@ struct ZoneOptions {
   std::vector<Eigen::Vector2d> polygon_m;
   // A "dwell" event once per visit when a track has been inside this long; none: no events.
   std::optional<double> dwell_s;
+};
+
+// A counting line on the floor (LineCounter in count_lines.h): tracks crossing the segment from
+// `from_m` to `to_m` are counted in each direction. "in" is a crossing from the right of the
+// segment (looking from `from_m` towards `to_m`) to its left, "out" the other way.
+struct LineOptions {
+  std::string name;
+  Eigen::Vector2d from_m = Eigen::Vector2d::Zero();  // world metres, finite, >= 1 mm apart
+  Eigen::Vector2d to_m = Eigen::Vector2d::Zero();
 };
 
 struct TrackerOptions {
@@ -148,6 +159,9 @@ struct TrackerOptions {
   std::vector<ZoneOptions> zones;
   // true: a "count" event for every zone every frame; false: only when its count changes.
   bool zone_count_every_frame = false;
+
+  // --- Counting lines (LineCounter): crossings in each direction, names unique.
+  std::vector<LineOptions> lines;
 
   // --- Outputs.
   // Positions kept per track for drawing its trail (TrailHistory).

@@ -58,6 +58,8 @@ tracking:
     - {name: door, polygon: [[0, 0], [1.5, 0], [1.5, 1], [0, 1]], dwell_s: 5}
     - name: desk
       polygon: [[2, 2], [3, 2], [3, 3]]
+  lines:
+    - {name: gate, from: [0, -1], to: [0.5, 2]}
 )",
                               options);
   ASSERT_TRUE(status.ok()) << status.ToString();
@@ -79,6 +81,10 @@ tracking:
   EXPECT_EQ(options.zones[0].polygon_m[1], Eigen::Vector2d(1.5, 0));
   EXPECT_EQ(options.zones[0].dwell_s, 5.0);
   EXPECT_FALSE(options.zones[1].dwell_s.has_value());
+  ASSERT_EQ(options.lines.size(), 1u);
+  EXPECT_EQ(options.lines[0].name, "gate");
+  EXPECT_EQ(options.lines[0].from_m, Eigen::Vector2d(0, -1));
+  EXPECT_EQ(options.lines[0].to_m, Eigen::Vector2d(0.5, 2));
 }
 
 TEST(ParseTrackerOptions, AnEmptySectionKeepsTheDefaults) {
@@ -103,7 +109,7 @@ TEST(ParseTrackerOptions, TheObjectDetectorsKeysAreAcceptedOnlyWhenPassedAsOther
   EXPECT_TRUE(ParseTrackerOptions(*root->Find("tracking"), options, split_keys).ok());
   EXPECT_EQ(ParseTrackerOptions(*root->Find("tracking"), options).message(),
             "site.yaml:2: tracking: unknown field 'split_min_neck_m' (expected one of: algorithm, classes, zones, "
-            "zone_count_every_frame, max_speed_mps, person_diameter_m, acceleration_psd_m2ps3, measurement_sigma_m, "
+            "zone_count_every_frame, lines, max_speed_mps, person_diameter_m, acceleration_psd_m2ps3, measurement_sigma_m, "
             "spread_noise_weight, guided_split_sigma_m, initial_speed_sigma_mps, gate_chi2, confirm_hits, "
             "confirm_frames, max_coast_s, report_coasting_s, birth_min_separation_m, class_hysteresis, "
             "class_area_smoothing, window_object_radius_m, window_lost_timeout_s, window_min_new_area_m2, "
@@ -118,7 +124,7 @@ TEST(ParseTrackerOptions, MalformedInputsGiveLocatedMessagesAndLeaveTheOptionsAl
       {"tracking: 3", "site.yaml:1: tracking: expected a map, found '3'"},
       {"tracking:\n  max_sped_mps: 2", "site.yaml:2: tracking: unknown field 'max_sped_mps' (did you mean 'max_speed_mps'?)"},
       {"tracking:\n  colour: red", "site.yaml:2: tracking: unknown field 'colour' (expected one of: algorithm, classes, zones, "
-                                   "zone_count_every_frame, max_speed_mps, person_diameter_m, "
+                                   "zone_count_every_frame, lines, max_speed_mps, person_diameter_m, "
                                    "acceleration_psd_m2ps3, measurement_sigma_m, spread_noise_weight, guided_split_sigma_m, "
                                    "initial_speed_sigma_mps, gate_chi2, confirm_hits, confirm_frames, max_coast_s, "
                                    "report_coasting_s, birth_min_separation_m, class_hysteresis, class_area_smoothing, window_object_radius_m, "
@@ -158,6 +164,16 @@ TEST(ParseTrackerOptions, MalformedInputsGiveLocatedMessagesAndLeaveTheOptionsAl
        "site.yaml:3: tracking.zones[0]: unknown field 'dwel_s' (did you mean 'dwell_s'?)"},
       {"tracking:\n  zones:\n    - {name: a, polygon: [[0, 0], [1, 0], [1, 1]]}\n    - {name: a, polygon: [[0, 0], [1, 0], [1, 1]]}",
        "site.yaml:4: tracking.zones[1].name: duplicate zone name 'a'"},
+      {"tracking:\n  lines: {name: door}", "site.yaml:2: tracking.lines: expected a list of {name, from, to}"},
+      {"tracking:\n  lines:\n    - {name: door, from: [0, 0]}", "site.yaml:3: tracking.lines[0]: missing required field 'to'"},
+      {"tracking:\n  lines:\n    - {name: door, from: [0, 0], to: [1]}",
+       "site.yaml:3: tracking.lines[0].to: expected a list of 2 numbers, found 1"},
+      {"tracking:\n  lines:\n    - {name: door, from: [0, 0], to: [0, 0.0001]}",
+       "site.yaml:3: tracking.lines[0].to: expected a point at least 1 mm from 'from', found 0.0001 m from it"},
+      {"tracking:\n  lines:\n    - {name: door, from: [0, 0], to: [1, 0], width: 2}",
+       "site.yaml:3: tracking.lines[0]: unknown field 'width' (expected one of: name, from, to)"},
+      {"tracking:\n  lines:\n    - {name: a, from: [0, 0], to: [1, 0]}\n    - {name: a, from: [0, 1], to: [1, 1]}",
+       "site.yaml:4: tracking.lines[1].name: duplicate line name 'a'"},
   };
   for (const auto& c : cases) {
     SCOPED_TRACE(c.yaml);
