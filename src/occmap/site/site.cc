@@ -406,7 +406,7 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
   if (!root.IsMap()) return root.Error("expected a site description (a map with floor and cameras)");
   OCCMAP_RETURN_IF_ERROR(
       root.CheckKeys({"version", "name", "data_root", "floor", "cameras", "detection", "backgrounds", "fusion", "blobs", "lut", "people", "statics",
-                      "tracking"}));
+                      "tracking", "outputs"}));
   OCCMAP_ASSIGN_OR_RETURN(int64_t version, root.GetInt("version", 1));
   if (version != 1) return root.Find("version")->Error(fmt::format("expected site format version 1, found {}", version));
   Site site;
@@ -456,6 +456,13 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
   if (auto f = root.Find("tracking")) {
     OCCMAP_RETURN_IF_ERROR(ParseTrackerOptions(*f, site.tracking, kObjectKeysInTracking));
     OCCMAP_RETURN_IF_ERROR(ParseObjectKeysOfTracking(*f, site.objects));
+  }
+  if (auto f = root.Find("outputs"); f && !f->IsNull()) {
+    OCCMAP_RETURN_IF_ERROR(f->CheckKeys({"mqtt"}));
+    if (auto m = f->Find("mqtt")) {
+      OCCMAP_ASSIGN_OR_RETURN(site.outputs.mqtt, ParseMqttOptions(*m, ctx.site_dir));
+      ResolveMqttDefaults(site.name, *site.outputs.mqtt);
+    }
   }
   if (auto f = root.Find("lut")) {
     OCCMAP_RETURN_IF_ERROR(f->CheckKeys({"add_cell_projections"}));

@@ -18,7 +18,8 @@
 //   fusion: {algorithm: image-based, max_free_views: 0}
 //   blobs: {group_radius_m: 0.2, min_area_m2: 0.003, split: true, remove_ghosts: true}
 //   lut: {add_cell_projections: true}
-//   tracking: {algorithm: multi_target, max_speed_mps: 2.5, zones: [...]}   # track/tracker_options.h
+//   tracking: {algorithm: multi_target, max_speed_mps: 2.5, zones: [...], lines: [...]}   # track/tracker_options.h
+//   outputs: {mqtt: {url: mqtt://HOST:PORT, topic_prefix: occmap/lab}}   # publish/mqtt_options.h
 //   (blobs: and tracking:'s person size and split keys: objects/object_options.h)
 //
 // Every error names the file, line and field, what was expected and what was found:
@@ -43,6 +44,7 @@
 #include "occmap/lut/floor_grid.h"
 #include "occmap/lut/ground_lut.h"
 #include "occmap/objects/object_options.h"
+#include "occmap/publish/mqtt_options.h"
 #include "occmap/track/tracker_options.h"
 #include "occmap/util/image.h"
 #include "occmap/util/status.h"
@@ -58,6 +60,11 @@ struct SiteCamera {
   Image<uint8_t> mask;                  // empty: every pixel is floor; non-zero = floor
   FrameSourceSpec source;
   std::optional<std::filesystem::path> background;
+};
+
+// The `outputs:` section: where a run publishes besides its output folder.
+struct SiteOutputs {
+  std::optional<MqttOptions> mqtt;  // `outputs.mqtt` (publish/mqtt_options.h)
 };
 
 struct Site {
@@ -77,6 +84,7 @@ struct Site {
   TrackerOptions tracking;
   PeopleOptions people;           // the `people:` section (fusion/people_options.h)
   std::vector<Occluder> statics;  // the `statics:` section: structures that hide people (lut/column_lut.h)
+  SiteOutputs outputs;
 
   std::vector<LutCameraInput> LutInputs() const;
 };

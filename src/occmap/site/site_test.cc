@@ -122,6 +122,27 @@ TEST_F(SiteFixture, ReadsTheBackgroundsSection) {
   EXPECT_EQ(site->backgrounds.shadows.max_channel_spread, 0.05);
 }
 
+TEST_F(SiteFixture, ReadsTheOutputsSectionsMqttBlockWithDefaultsFromTheSiteName) {
+  testing::WriteText(dir_ / "mqtt.secret", "pw\n");
+  auto site = Parse(Valid() + "outputs:\n  mqtt:\n    url: mqtt://127.0.0.1:1884\n    username: occmap\n"
+                              "    password_file: mqtt.secret\n");
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  ASSERT_TRUE(site->outputs.mqtt.has_value());
+  EXPECT_EQ(site->outputs.mqtt->broker, (MqttBroker{"127.0.0.1", 1884}));
+  EXPECT_EQ(site->outputs.mqtt->topic_prefix, "occmap/room");
+  EXPECT_EQ(site->outputs.mqtt->client_id, "occmap-room");
+  EXPECT_EQ(site->outputs.mqtt->password_file, dir_ / "mqtt.secret") << "relative to the site file";
+  EXPECT_FALSE(Parse(Valid())->outputs.mqtt.has_value());
+
+  auto bad = Parse(Valid() + "outputs:\n  mqtt:\n    url: mqtt://127.0.0.1:99999\n");
+  EXPECT_EQ(ExitCodeFor(bad.status()), 2);
+  EXPECT_EQ(bad.status().message(), (dir_ / "site.yaml").string() +
+                                        ":38: outputs.mqtt.url: expected mqtt://HOST[:PORT] (a port in 1..65535), found "
+                                        "'mqtt://127.0.0.1:99999'");
+  bad = Parse(Valid() + "outputs:\n  mqt: {}\n");
+  EXPECT_EQ(bad.status().message(), (dir_ / "site.yaml").string() + ":37: outputs: unknown field 'mqt' (did you mean 'mqtt'?)");
+}
+
 TEST_F(SiteFixture, ResizedCameraProjectsToScaledPixels) {
   auto site = Parse(Valid());
   ASSERT_TRUE(site.ok()) << site.status().message();
@@ -241,7 +262,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadSite{"support_slack", "support_slack_m: 0.04", "support_slack_m: -0.1",
                 ":35: blobs.support_slack_m: expected >= 0 m, found -0.1"},
         BadSite{"no_cameras", "cameras:\n  - id: a", "cameras: []\nx:\n  - id: a",
-                ":8: unknown field 'x' (expected one of: version, name, data_root, floor, cameras, detection, backgrounds, fusion, blobs, lut, people, statics, tracking)"},
+                ":8: unknown field 'x' (expected one of: version, name, data_root, floor, cameras, detection, backgrounds, fusion, blobs, lut, people, statics, tracking, outputs)"},
         BadSite{"yaml_syntax", "origin_m: [0, 0]", "origin_m: [0, 0",
                 ":5:9: YAML syntax error: end of sequence flow not found"}),
     [](const ::testing::TestParamInfo<BadSite>& param_info) { return std::string(param_info.param.name); });
