@@ -173,16 +173,32 @@ Result<PinholeParameters> ReadOpenCvCalibration(const fs::path& intrinsic_path,
   return p;
 }
 
+Status WriteOpenCvIntrinsics(const OpenCvIntrinsics& in, const fs::path& path) {
+  try {
+    cv::FileStorage intr(".xml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
+    cv::Mat k = (cv::Mat_<double>(3, 3) << in.fx_px, in.skew_px, in.cx_px, 0, in.fy_px, in.cy_px, 0, 0, 1);
+    cv::Mat d(1, 5, CV_64F);
+    for (int i = 0; i < 5; ++i) d.at<double>(i) = in.distortion[i];
+    intr << "camera_matrix" << k << "distortion_coefficients" << d;
+    if (in.image_size) intr << "image_width" << in.image_size->width << "image_height" << in.image_size->height;
+    return WriteFileAtomic(path, intr.releaseAndGetString());
+  } catch (const cv::Exception& e) {
+    return IoError(fmt::format("'{}': cannot write intrinsics: {}", path.string(), e.err));
+  }
+}
+
 Status WriteOpenCvCalibration(const PinholeParameters& p, double metres_per_unit,
                               const fs::path& intrinsic_path, const fs::path& extrinsic_path) {
   try {
-    cv::FileStorage intr(".xml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
-    cv::Mat k = (cv::Mat_<double>(3, 3) << p.fx_px, p.skew_px, p.cx_px, 0, p.fy_px, p.cy_px, 0, 0, 1);
-    cv::Mat d(1, 5, CV_64F);
-    for (int i = 0; i < 5; ++i) d.at<double>(i) = p.distortion[i];
-    intr << "camera_matrix" << k << "distortion_coefficients" << d;
-    intr << "image_width" << p.image_size.width << "image_height" << p.image_size.height;
-    OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(intrinsic_path, intr.releaseAndGetString()));
+    OpenCvIntrinsics in;
+    in.fx_px = p.fx_px;
+    in.fy_px = p.fy_px;
+    in.cx_px = p.cx_px;
+    in.cy_px = p.cy_px;
+    in.skew_px = p.skew_px;
+    in.distortion = p.distortion;
+    in.image_size = p.image_size;
+    OCCMAP_RETURN_IF_ERROR(WriteOpenCvIntrinsics(in, intrinsic_path));
 
     const Eigen::AngleAxisd aa(p.cam_from_world_rotation);
     const Eigen::Vector3d rvec = aa.axis() * aa.angle();

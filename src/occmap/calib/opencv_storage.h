@@ -38,6 +38,9 @@ Result<PinholeParameters> ReadOpenCvCalibration(const std::filesystem::path& int
                                                 double metres_per_unit,
                                                 std::optional<ImageSize> image_size);
 
+// Writes an intrinsic file alone (camera_matrix, distortion_coefficients, image_width/height).
+Status WriteOpenCvIntrinsics(const OpenCvIntrinsics& intrinsics, const std::filesystem::path& path);
+
 // Writes the pair back (used by round-trip tests and `occmap` tools that export calibrations).
 Status WriteOpenCvCalibration(const PinholeParameters& params, double metres_per_unit,
                               const std::filesystem::path& intrinsic_path,

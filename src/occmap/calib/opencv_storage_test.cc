@@ -68,6 +68,26 @@ TEST(OpenCvStorage, WriteThenReadRoundTrips) {
   EXPECT_TRUE(back->cam_from_world_translation_m.isApprox(p.cam_from_world_translation_m, 1e-14));
 }
 
+TEST(OpenCvStorage, IntrinsicsAloneRoundTrip) {
+  testing::TempDir dir;
+  OpenCvIntrinsics in;
+  in.fx_px = 812.345678901234;
+  in.fy_px = 813.5;
+  in.cx_px = 639.25;
+  in.cy_px = 358.125;
+  in.distortion = {-0.21, 0.05, 0.0004, -0.0003, 0};
+  in.image_size = ImageSize{1280, 720};
+  ASSERT_TRUE(WriteOpenCvIntrinsics(in, dir / "intr.xml").ok());
+  auto back = ReadOpenCvIntrinsics(dir / "intr.xml");
+  ASSERT_TRUE(back.ok()) << back.status().message();
+  EXPECT_EQ(back->fx_px, in.fx_px);
+  EXPECT_EQ(back->fy_px, in.fy_px);
+  EXPECT_EQ(back->cx_px, in.cx_px);
+  EXPECT_EQ(back->cy_px, in.cy_px);
+  EXPECT_EQ(back->distortion, in.distortion);
+  EXPECT_EQ(back->image_size, in.image_size);
+}
+
 struct BadCalibration {
   const char* name;
   std::string intrinsic;

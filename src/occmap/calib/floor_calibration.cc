@@ -1,0 +1,367 @@
+#include "occmap/calib/floor_calibration.h"
+
+#include <fmt/core.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+
+#include "occmap/geometry/homography_camera.h"
+#include "occmap/geometry/rotation.h"
+#include "occmap/util/file_util.h"
+#include "occmap/util/yaml_util.h"
+
+namespace occmap {
+namespace {
+
+constexpr std::string_view kColumns = "u_px,v_px,x_m,y_m[,label]";
+
+std::string_view Trim(std::string_view s) {
+  const size_t b = s.find_first_not_of(" \t\r");
+  if (b == std::string_view::npos) return {};
+  const size_t e = s.find_last_not_of(" \t\r");
+  return s.substr(b, e - b + 1);
+}
+
+std::vector<std::string_view> SplitCommas(std::string_view line) {
+  std::vector<std::string_view> out;
+  size_t start = 0;
+  while (true) {
+    const size_t comma = line.find(',', start);
+    out.push_back(Trim(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+  return out;
+}
+
+std::string Where(const FloorPoint& p, size_t index) {
+  return p.where.empty() ? fmt::format("point {}", index + 1) : p.where;
+}
+
+// sqrt of the eigenvalues of the points' covariance: (across the best line, along it).
+std::pair<double, double> Spread(const std::vector<Eigen::Vector2d>& pts) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const auto& p : pts) mean += p;
+  mean /= static_cast<double>(pts.size());
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+  for (const auto& p : pts) cov += (p - mean) * (p - mean).transpose();
+  cov /= static_cast<double>(pts.size());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+  const Eigen::Vector2d ev = eig.eigenvalues().cwiseMax(0.0);  // ascending
+  return {std::sqrt(ev(0)), std::sqrt(ev(1))};
+}
+
+// A homography (and a planar pose) needs 4 points with no 3 on a line: true when the largest
+// set of points within tol of one line leaves at least 2 points off it. Fills `on_line`.
+bool HasGeneralPosition(const std::vector<Eigen::Vector2d>& pts, double tol, std::vector<size_t>* on_line) {
+  const size_t n = pts.size();
+  size_t best = 0;
+  std::vector<size_t> best_set;
+  for (size_t a = 0; a < n; ++a) {
+    for (size_t b = a + 1; b < n; ++b) {
+      const Eigen::Vector2d d = pts[b] - pts[a];
+      const double len = d.norm();
+      if (len <= tol) continue;
+      const Eigen::Vector2d normal(-d.y() / len, d.x() / len);
+      std::vector<size_t> set;
+      for (size_t c = 0; c < n; ++c) {
+        if (std::abs(normal.dot(pts[c] - pts[a])) <= tol) set.push_back(c);
+      }
+      if (set.size() > best) {
+        best = set.size();
+        best_set = std::move(set);
+      }
+    }
+  }
+  *on_line = best_set;
+  return n >= best + 2;
+}
+
+Status CheckSpread(std::span<const FloorPoint> points, std::string_view source, bool pixels) {
+  std::vector<Eigen::Vector2d> pts;
+  for (const auto& p : points) pts.push_back(pixels ? p.pixel : p.floor_m);
+  const auto [across, along] = Spread(pts);
+  const char* what = pixels ? "pixels" : "floor points";
+  const char* unit = pixels ? "px" : "m";
+  if (!(along > 0) || across < 0.01 * along) {
+    return InvalidInput(fmt::format(
+        "{}: the {} lie on one line ({:.3g} {} across it, {:.3g} {} along it): a floor calibration needs "
+        "points spread over an area, 4 of them with no 3 on a line",
+        source, what, across, unit, along, unit));
+  }
+  // The pair search is cubic; beyond a few hundred points the line fit above suffices.
+  if (pts.size() <= 300) {
+    std::vector<size_t> on_line;
+    const double tol = 0.01 * along;
+    if (!HasGeneralPosition(pts, tol, &on_line)) {
+      std::string list;
+      for (size_t i = 1; i < on_line.size(); ++i) list += (i > 1 ? ", " : "") + Where(points[on_line[i]], on_line[i]);
+      return InvalidInput(fmt::format(
+          "{}: this {} lies on one line with {} (within {:.3g} {}) and at most one point is off that line: a "
+          "floor calibration needs 4 points with no 3 on a line",
+          Where(points[on_line[0]], on_line[0]), pixels ? "pixel" : "floor point", list, tol, unit));
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status CameraIntrinsics::Validate() const {
+  PinholeParameters p;
+  p.image_size = image_size;
+  p.fx_px = fx_px;
+  p.fy_px = fy_px;
+  p.cx_px = cx_px;
+  p.cy_px = cy_px;
+  p.skew_px = skew_px;
+  p.distortion = distortion;
+  return p.Validate().WithContext("intrinsics");
+}
+
+CameraIntrinsics CameraIntrinsics::Resized(ImageSize new_size) const {
+  const PixelRescale s = PixelRescale::Between(image_size, new_size);
+  CameraIntrinsics r = *this;
+  r.image_size = new_size;
+  r.fx_px *= s.scale_x;
+  r.skew_px *= s.scale_x;
+  r.fy_px *= s.scale_y;
+  r.cx_px = s.MapU(cx_px);
+  r.cy_px = s.MapV(cy_px);
+  return r;
+}
+
+Result<std::vector<FloorPoint>> ParseFloorPoints(std::string_view text, const std::string& file_name) {
+  std::vector<FloorPoint> points;
+  bool seen_data = false;
+  int line_no = 0;
+  size_t pos = 0;
+  while (pos <= text.size()) {
+    size_t end = text.find('\n', pos);
+    if (end == std::string_view::npos) end = text.size();
+    std::string_view line = text.substr(pos, end - pos);
+    pos = end + 1;
+    ++line_no;
+    if (const size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
+    line = Trim(line);
+    if (line.empty()) {
+      if (end == text.size()) break;
+      continue;
+    }
+    const std::string where = fmt::format("{}:{}", file_name, line_no);
+    const std::vector<std::string_view> cols = SplitCommas(line);
+    if (!seen_data && !cols.empty() && !ParseFiniteDouble(cols[0]) && cols[0] == "u_px") {
+      // The header line: the columns' names, in order.
+      const bool ok = (cols.size() == 4 || cols.size() == 5) && cols[1] == "v_px" && cols[2] == "x_m" &&
+                      cols[3] == "y_m" && (cols.size() == 4 || cols[4] == "label");
+      if (!ok) {
+        return InvalidInput(fmt::format("{}: header: expected '{}', found '{}'", where, kColumns, line));
+      }
+      seen_data = true;
+      continue;
+    }
+    seen_data = true;
+    if (cols.size() != 4 && cols.size() != 5) {
+      return InvalidInput(fmt::format("{}: expected 4 or 5 comma-separated columns ({}), found {}", where, kColumns,
+                                      cols.size()));
+    }
+    static constexpr const char* kNames[] = {"u_px", "v_px", "x_m", "y_m"};
+    double v[4];
+    for (int i = 0; i < 4; ++i) {
+      const auto d = ParseFiniteDouble(cols[i]);
+      if (!d) {
+        return InvalidInput(fmt::format("{}: {} (column {}): expected a finite number, found '{}'", where, kNames[i],
+                                        i + 1, cols[i]));
+      }
+      v[i] = *d;
+    }
+    FloorPoint p;
+    p.pixel = {v[0], v[1]};
+    p.floor_m = {v[2], v[3]};
+    if (cols.size() == 5) p.label = std::string(cols[4]);
+    p.where = where;
+    points.push_back(std::move(p));
+    if (end == text.size()) break;
+  }
+  OCCMAP_RETURN_IF_ERROR(ValidateFloorPoints(points, file_name));
+  return points;
+}
+
+Result<std::vector<FloorPoint>> ReadFloorPoints(const std::filesystem::path& path) {
+  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
+  return ParseFloorPoints(text, path.string());
+}
+
+Status ValidateFloorPoints(std::span<const FloorPoint> points, std::string_view source) {
+  if (points.size() < 4) {
+    return InvalidInput(fmt::format("{}: expected at least 4 floor points (pixel and floor position), found {}",
+                                    source, points.size()));
+  }
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (!points[i].pixel.allFinite() || !points[i].floor_m.allFinite()) {
+      return InvalidInput(fmt::format("{}: expected finite numbers", Where(points[i], i)));
+    }
+    for (size_t j = 0; j < i; ++j) {
+      if (points[i].pixel == points[j].pixel) {
+        return InvalidInput(fmt::format("{}: pixel ({}, {}) is given twice (also {})", Where(points[i], i),
+                                        points[i].pixel.x(), points[i].pixel.y(), Where(points[j], j)));
+      }
+      if (points[i].floor_m == points[j].floor_m) {
+        return InvalidInput(fmt::format("{}: floor point ({}, {}) m is given twice (also {})", Where(points[i], i),
+                                        points[i].floor_m.x(), points[i].floor_m.y(), Where(points[j], j)));
+      }
+    }
+  }
+  OCCMAP_RETURN_IF_ERROR(CheckSpread(points, source, /*pixels=*/false));
+  return CheckSpread(points, source, /*pixels=*/true);
+}
+
+Status FloorCalibrationOptions::Validate() const {
+  if (image_size.width <= 0 || image_size.height <= 0) {
+    return InvalidInput(fmt::format("image size: expected positive, found {}x{}", image_size.width, image_size.height));
+  }
+  if (intrinsics) {
+    OCCMAP_RETURN_IF_ERROR(intrinsics->Validate());
+    const double a0 = static_cast<double>(intrinsics->image_size.width) / intrinsics->image_size.height;
+    const double a1 = static_cast<double>(image_size.width) / image_size.height;
+    if (std::abs(a0 / a1 - 1) > 0.01) {
+      return InvalidInput(fmt::format("intrinsics: calibrated for {}x{}, the image is {}x{} (another aspect ratio)",
+                                      intrinsics->image_size.width, intrinsics->image_size.height, image_size.width,
+                                      image_size.height));
+    }
+  }
+  if (!(max_outside_px >= 0)) return InvalidInput(fmt::format("max_outside_px: expected >= 0, found {}", max_outside_px));
+  return Status::Ok();
+}
+
+Result<std::unique_ptr<CameraModel>> FloorCalibration::Model() const {
+  if (pinhole) {
+    OCCMAP_ASSIGN_OR_RETURN(PinholeCamera cam, PinholeCamera::Create(*pinhole));
+    return std::unique_ptr<CameraModel>(std::make_unique<PinholeCamera>(std::move(cam)));
+  }
+  if (floor_from_image) {
+    OCCMAP_ASSIGN_OR_RETURN(HomographyCamera cam, HomographyCamera::Create(*floor_from_image, image_size));
+    return std::unique_ptr<CameraModel>(std::make_unique<HomographyCamera>(std::move(cam)));
+  }
+  return Internal("floor calibration without a model");
+}
+
+void MeasureFloorErrors(const CameraModel& camera, std::span<const FloorPoint> points, FloorCalibration& out) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  out.errors.clear();
+  double sum_px2 = 0, sum_m2 = 0;
+  out.max_reprojection_px = out.max_floor_m = 0;
+  for (const FloorPoint& p : points) {
+    FloorPointError e;
+    const auto px = camera.Project({p.floor_m.x(), p.floor_m.y(), 0.0});
+    if (px) {
+      e.reprojected_px = *px;
+      e.reprojection_px = (*px - p.pixel).norm();
+    } else {
+      e.reprojected_px = Eigen::Vector2d::Constant(std::nan(""));
+      e.reprojection_px = kInf;
+    }
+    e.floor_from_pixel_m = camera.PixelToPlane(p.pixel, 0.0);
+    e.floor_m = e.floor_from_pixel_m ? (*e.floor_from_pixel_m - p.floor_m).norm() : kInf;
+    sum_px2 += e.reprojection_px * e.reprojection_px;
+    sum_m2 += e.floor_m * e.floor_m;
+    out.max_reprojection_px = std::max(out.max_reprojection_px, e.reprojection_px);
+    out.max_floor_m = std::max(out.max_floor_m, e.floor_m);
+    out.errors.push_back(e);
+  }
+  const double n = static_cast<double>(std::max<size_t>(points.size(), 1));
+  out.rms_reprojection_px = std::sqrt(sum_px2 / n);
+  out.rms_floor_m = std::sqrt(sum_m2 / n);
+}
+
+Result<FloorCalibration> CalibrateFromFloorPoints(std::span<const FloorPoint> points,
+                                                  const FloorCalibrationOptions& options) {
+  OCCMAP_RETURN_IF_ERROR(options.Validate());
+  OCCMAP_RETURN_IF_ERROR(ValidateFloorPoints(points, "floor points"));
+  const ImageSize size = options.image_size;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector2d& px = points[i].pixel;
+    const double m = options.max_outside_px + 0.5;
+    if (px.x() < -m || px.y() < -m || px.x() > size.width - 1 + m || px.y() > size.height - 1 + m) {
+      return InvalidInput(fmt::format("{}: pixel ({}, {}) is outside the {}x{} image", Where(points[i], i), px.x(),
+                                      px.y(), size.width, size.height));
+    }
+  }
+  std::vector<cv::Point2d> image_pts;
+  std::vector<cv::Point3d> world_pts;
+  std::vector<cv::Point2d> floor_pts;
+  for (const FloorPoint& p : points) {
+    image_pts.emplace_back(p.pixel.x(), p.pixel.y());
+    world_pts.emplace_back(p.floor_m.x(), p.floor_m.y(), 0.0);
+    floor_pts.emplace_back(p.floor_m.x(), p.floor_m.y());
+  }
+  FloorCalibration cal;
+  cal.image_size = size;
+  try {
+    if (options.intrinsics) {
+      const CameraIntrinsics intr = options.intrinsics->image_size == size ? *options.intrinsics
+                                                                           : options.intrinsics->Resized(size);
+      cv::Mat k = (cv::Mat_<double>(3, 3) << intr.fx_px, intr.skew_px, intr.cx_px, 0, intr.fy_px, intr.cy_px, 0, 0, 1);
+      cv::Mat dist(1, 5, CV_64F);
+      for (int i = 0; i < 5; ++i) dist.at<double>(i) = intr.distortion[i];
+      cv::Mat rvec, tvec;
+      // IPPE: the pose of a plane, exact for 4 points; LM then minimises the pixel error.
+      if (!cv::solvePnP(world_pts, image_pts, k, dist, rvec, tvec, false, cv::SOLVEPNP_IPPE)) {
+        return InvalidInput("floor points: no camera pose fits them (solvePnP failed)");
+      }
+      cv::solvePnPRefineLM(world_pts, image_pts, k, dist, rvec, tvec);
+      PinholeParameters p;
+      p.image_size = size;
+      p.fx_px = intr.fx_px;
+      p.fy_px = intr.fy_px;
+      p.cx_px = intr.cx_px;
+      p.cy_px = intr.cy_px;
+      p.skew_px = intr.skew_px;
+      p.distortion = intr.distortion;
+      p.cam_from_world_rotation =
+          RotationFromRodrigues({rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2)});
+      p.cam_from_world_translation_m = {tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)};
+      OCCMAP_RETURN_IF_ERROR(p.Validate().WithContext("floor points: the pose found"));
+      const Eigen::Vector3d centre = -p.cam_from_world_rotation.transpose() * p.cam_from_world_translation_m;
+      if (centre.z() < 0) {
+        cal.warnings.push_back(fmt::format(
+            "the camera comes out below the floor (z = {:.2f} m): the floor points' x and y axes are left-handed "
+            "seen from above; swap x and y (or negate one) so that z points up, or planes above the floor "
+            "(people's heights) will be wrong",
+            centre.z()));
+      }
+      cal.pinhole = p;
+    } else {
+      cv::Mat h = cv::findHomography(image_pts, floor_pts, 0);
+      if (h.empty()) return InvalidInput("floor points: no homography fits them (findHomography failed)");
+      Eigen::Matrix3d hm;
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) hm(r, c) = h.at<double>(r, c);
+      }
+      if (!hm.allFinite()) return InvalidInput("floor points: the homography found is not finite");
+      cal.floor_from_image = hm;
+    }
+  } catch (const cv::Exception& e) {
+    return InvalidInput(fmt::format("floor points: OpenCV failed: {}", e.err));
+  }
+  OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<CameraModel> model, cal.Model());
+  MeasureFloorErrors(*model, points, cal);
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (!std::isfinite(cal.errors[i].floor_m) || !std::isfinite(cal.errors[i].reprojection_px)) {
+      cal.warnings.push_back(fmt::format("{}: the new model does not see this point on the floor", Where(points[i], i)));
+    }
+  }
+  return cal;
+}
+
+std::string HomographyCalibrationYaml(const Eigen::Matrix3d& h, ImageSize size) {
+  auto row = [&](int r) { return fmt::format("[{:.17g}, {:.17g}, {:.17g}]", h(r, 0), h(r, 1), h(r, 2)); };
+  return fmt::format("{{format: homography, floor_from_image: [{}, {}, {}], unit: m, image_size: [{}, {}]}}", row(0),
+                     row(1), row(2), size.width, size.height);
+}
+
+}  // namespace occmap
