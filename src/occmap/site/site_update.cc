@@ -1,0 +1,166 @@
+#include "occmap/site/site_update.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <yaml-cpp/yaml.h>
+
+#include "occmap/util/file_util.h"
+#include "occmap/util/yaml_util.h"
+
+namespace occmap {
+namespace fs = std::filesystem;
+namespace {
+
+// The index just past the flow collection that opens at text[open] ('{' or '['), skipping
+// quoted strings; npos when it does not close.
+size_t EndOfFlow(std::string_view text, size_t open) {
+  int depth = 0;
+  char quote = 0;
+  for (size_t i = open; i < text.size(); ++i) {
+    const char c = text[i];
+    if (quote) {
+      if (c == '\\' && quote == '"') {
+        ++i;
+      } else if (c == quote) {
+        quote = 0;
+      }
+      continue;
+    }
+    if (c == '"' || c == '\'') {
+      quote = c;
+    } else if (c == '{' || c == '[') {
+      ++depth;
+    } else if (c == '}' || c == ']') {
+      if (--depth == 0) return i + 1;
+    }
+  }
+  return std::string_view::npos;
+}
+
+size_t LineStart(std::string_view text, size_t pos) {
+  const size_t nl = pos == 0 ? std::string_view::npos : text.rfind('\n', pos - 1);
+  return nl == std::string_view::npos ? 0 : nl + 1;
+}
+
+}  // namespace
+
+Result<fs::path> SiteDataRoot(const fs::path& site_path, const SiteLoadOptions& options) {
+  if (options.data_root) return *options.data_root;
+  OCCMAP_ASSIGN_OR_RETURN(YamlField root, LoadYamlFile(site_path));
+  const fs::path site_dir = site_path.parent_path().empty() ? fs::path(".") : site_path.parent_path();
+  if (auto f = root.Find("data_root")) {
+    OCCMAP_ASSIGN_OR_RETURN(std::string dr, f->AsString());
+    return ResolvePath(site_dir, dr);
+  }
+  return site_dir;
+}
+
+Result<std::string> SitePathFor(const fs::path& site_path, const fs::path& path) {
+  OCCMAP_ASSIGN_OR_RETURN(fs::path root, SiteDataRoot(site_path));
+  std::error_code ec;
+  const fs::path abs_root = fs::weakly_canonical(fs::absolute(root, ec), ec);
+  const fs::path abs_path = fs::weakly_canonical(fs::absolute(path, ec), ec);
+  const fs::path rel = abs_path.lexically_relative(abs_root);
+  if (!rel.empty() && *rel.begin() != "..") return rel.generic_string();
+  return abs_path.generic_string();
+}
+
+Result<std::string> ReplaceCameraCalibration(std::string_view text, const fs::path& site_path,
+                                             std::string_view camera_id, std::string_view flow,
+                                             const SiteLoadOptions& options) {
+  const std::string name = site_path.string();
+  YAML::Node root;
+  try {
+    root = YAML::Load(std::string(text));
+  } catch (const YAML::Exception& e) {
+    return InvalidInput(fmt::format("{}:{}: not valid YAML: {}", name, e.mark.line + 1, e.msg));
+  }
+  if (!root.IsMap() || !root["cameras"] || !root["cameras"].IsSequence()) {
+    return InvalidInput(fmt::format("{}: expected a site file with a list of cameras", name));
+  }
+  std::vector<std::string> ids;
+  for (const YAML::Node& cam : root["cameras"]) {
+    if (!cam.IsMap() || !cam["id"] || !cam["id"].IsScalar()) continue;
+    const std::string id = cam["id"].as<std::string>();
+    ids.push_back(id);
+    if (id != camera_id) continue;
+    // The key's position, then its value's: a flow map is replaced between its braces, a
+    // block map from after the colon to its last more-indented line.
+    size_t key_pos = std::string_view::npos, value_pos = 0;
+    YAML::Node value;
+    for (auto it = cam.begin(); it != cam.end(); ++it) {
+      if (it->first.IsScalar() && it->first.as<std::string>() == "calibration") {
+        key_pos = static_cast<size_t>(it->first.Mark().pos);
+        value = it->second;
+        value_pos = static_cast<size_t>(it->second.Mark().pos);
+      }
+    }
+    if (key_pos == std::string_view::npos) {
+      return InvalidInput(fmt::format("{}:{}: camera '{}' has no calibration entry to replace", name,
+                                      cam.Mark().line + 1, id));
+    }
+    const size_t colon = text.find(':', key_pos);
+    if (colon == std::string_view::npos || colon > value_pos) {
+      return InvalidInput(fmt::format("{}:{}: cannot find the calibration's value", name, value.Mark().line + 1));
+    }
+    size_t replace_begin = 0, replace_end = 0;
+    if (value.IsMap() && value.Style() == YAML::EmitterStyle::Flow && value_pos < text.size() &&
+        text[value_pos] == '{') {
+      replace_begin = value_pos;
+      replace_end = EndOfFlow(text, value_pos);
+      if (replace_end == std::string_view::npos) {
+        return InvalidInput(fmt::format("{}:{}: the calibration's {{...}} does not close", name, value.Mark().line + 1));
+      }
+    } else if (value.IsMap()) {
+      const size_t indent = value_pos - LineStart(text, value_pos);
+      replace_begin = colon + 1;
+      size_t line = text.find('\n', value_pos);
+      replace_end = line == std::string_view::npos ? text.size() : line;
+      while (line != std::string_view::npos) {
+        const size_t start = line + 1;
+        size_t end = text.find('\n', start);
+        if (end == std::string_view::npos) end = text.size();
+        const std::string_view l = text.substr(start, end - start);
+        const size_t first = l.find_first_not_of(" \t\r");
+        if (first == std::string_view::npos || l[first] == '#') {
+          line = end < text.size() ? end : std::string_view::npos;
+          continue;  // blank or comment: belongs to whatever follows
+        }
+        if (first < indent) break;
+        replace_end = end;
+        line = end < text.size() ? end : std::string_view::npos;
+      }
+    } else {
+      return InvalidInput(fmt::format("{}:{}: camera '{}': calibration: expected a map", name, value.Mark().line + 1, id));
+    }
+    std::string out(text.substr(0, replace_begin));
+    if (replace_begin == colon + 1) out += " ";
+    out += flow;
+    out += text.substr(replace_end);
+    auto site = ParseSite(out, site_path, options);
+    if (!site.ok()) {
+      return Status(site.status().code(),
+                    fmt::format("the site with camera '{}''s new calibration does not load; nothing written: {}", id,
+                                site.status().message()));
+    }
+    return out;
+  }
+  std::string list;
+  for (const auto& i : ids) list += (list.empty() ? "" : ", ") + i;
+  return InvalidInput(fmt::format("{}: no camera '{}' (the site's cameras: {})", name, camera_id, list));
+}
+
+Result<SiteUpdate> UpdateSiteCameraCalibration(const fs::path& site_path, std::string_view camera_id,
+                                               std::string_view flow, const SiteLoadOptions& options) {
+  OCCMAP_ASSIGN_OR_RETURN(std::string old_text, ReadFileToString(site_path));
+  SiteUpdate u;
+  OCCMAP_ASSIGN_OR_RETURN(u.text, ReplaceCameraCalibration(old_text, site_path, camera_id, flow, options));
+  u.backup = site_path;
+  u.backup += ".bak";
+  OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(u.backup, old_text));
+  OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(site_path, u.text));
+  return u;
+}
+
+}  // namespace occmap
