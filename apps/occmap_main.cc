@@ -12,6 +12,7 @@
 #include <string>
 #include <unistd.h>
 
+#include "calibrate_command.h"
 #include "occmap/lut/visibility_image.h"
 #include "occmap/eval/benchmark_annotations.h"
 #include "occmap/eval/evaluate_run.h"
@@ -591,6 +592,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   bench_cmd->add_flag("--json", bench_opts.json_to_stdout, "print one JSON object with a record per workload");
 
+  CalibrateCommand calibrate;
+  CLI::App* calibrate_cmd = AddCalibrateCommand(app, calibrate);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -605,5 +609,6 @@ int main(int argc, char** argv) {
   if (synth_cmd->parsed()) status = RunSynth(common, synth);
   if (eval_cmd->parsed()) status = RunEval(common, eval);
   if (bench_cmd->parsed()) status = RunBenchCommand(common, bench_opts);
+  if (calibrate_cmd->parsed()) status = RunCalibrate(calibrate, common.data_root);
   return status.ok() ? 0 : Fail(status);
 }

@@ -171,5 +171,49 @@ else
   echo "shared datasets not found beside the checkout; dataset CLI checks skipped"
 fi
 
+# occmap calibrate: malformed floor-point files are bad input (exit 2) named by file and line.
+printf 'u_px,v_px,x_m,y_m\n100,400,0,0\n540,410,4\n' >"$work/pts_missing.csv"
+check calibrate_missing_column 2 "pts_missing.csv:3: expected 4 or 5 comma-separated columns \(u_px,v_px,x_m,y_m\[,label\]\), found 3" -- \
+  "$occmap" calibrate --points "$work/pts_missing.csv" --image-size 640x480 --out "$work/cal"
+printf '100,400,0,0\n540,410,NaN,0\n500,120,4,6\n130,100,0,6\n' >"$work/pts_nan.csv"
+check calibrate_nan 2 "pts_nan.csv:2: x_m \(column 3\): expected a finite number, found 'NaN'" -- \
+  "$occmap" calibrate --points "$work/pts_nan.csv" --image-size 640x480 --out "$work/cal"
+printf '# three\n100,400,0,0\n540,410,4,0\n500,120,4,6\n' >"$work/pts_few.csv"
+check calibrate_few 2 "pts_few.csv: expected at least 4 floor points \(pixel and floor position\), found 3" -- \
+  "$occmap" calibrate --points "$work/pts_few.csv" --image-size 640x480 --out "$work/cal"
+printf '100,400,0,0\n200,380,1,1\n300,360,2,2\n400,340,3,3\n' >"$work/pts_line.csv"
+check calibrate_collinear 2 "pts_line.csv: the floor points lie on one line" -- \
+  "$occmap" calibrate --points "$work/pts_line.csv" --image-size 640x480 --out "$work/cal"
+printf '100,400,0,0\n200,380,1,0\n300,360,2,0\n130,100,0,6\n' >"$work/pts_three.csv"
+check calibrate_three_on_a_line 2 "pts_three.csv:1: this floor point lies on one line with .*pts_three.csv:2, .*pts_three.csv:3" -- \
+  "$occmap" calibrate --points "$work/pts_three.csv" --image-size 640x480 --out "$work/cal"
+check calibrate_nothing 2 "give board views" -- "$occmap" calibrate --out "$work/cal"
+check calibrate_print_board 0 "the board, 1100x800 px" -- "$occmap" calibrate --print-board "$work/board.png" --square-m 0.03
+
+# A rendered lab camera: 8 floor points projected through its calibration with 0.5 px noise;
+# the camera from them (pinhole with the intrinsics, homography without), written into the
+# site, which must still load.
+"$occmap" synth --scene lab --frames 1 --scale 0.5 --no-change-masks --out "$work/lab" >/dev/null 2>&1
+python3 "$src/tests/project_floor_points.py" "$work/lab/calib/intr_cam1.xml" "$work/lab/calib/extr_cam1.xml" \
+  2,1.5 4,1.5 6,1.5 8,1.5 2,5 4,5 6,5 8,5 --noise-px 0.5 --seed 3 >"$work/lab/cam1.csv"
+check calibrate_lab_pinhole 0 "^reprojection RMS 0\.[0-9]+ px .*floor RMS 0\.0[0-4][0-9] m" -- \
+  "$occmap" calibrate --camera cam1 --intrinsics "$work/lab/calib/intr_cam1.xml" --points "$work/lab/cam1.csv" \
+  --image "$work/lab/frames/cam1/000000.png" --out "$work/lab/newcalib" --update-site "$work/lab/site.yaml" \
+  --overlay "$work/lab/cam1-overlay.png"
+check calibrate_lab_site_updated 0 "intrinsic: newcalib/intr_cam1.xml, extrinsic: newcalib/extr_cam1.xml, unit: m" -- \
+  grep -F "calibration:" "$work/lab/site.yaml"
+check calibrate_lab_site_loads 0 "valid site 'lab' with 4 cameras" -- "$occmap" check "$work/lab/site.yaml"
+check calibrate_lab_backup 0 "intrinsic: calib/intr_cam1.xml" -- grep -F "cam1" "$work/lab/site.yaml.bak"
+check calibrate_lab_overlay 0 "PNG image data, 320 x 240" -- file "$work/lab/cam1-overlay.png"
+check calibrate_lab_homography 0 "cam1's calibration replaced" -- \
+  "$occmap" calibrate --camera cam1 --points "$work/lab/cam1.csv" --image-size 320x240 --out "$work/lab/newcalib" \
+  --update-site "$work/lab/site.yaml"
+check calibrate_lab_homography_loads 0 "cam1 +homography +320x240" -- "$occmap" check "$work/lab/site.yaml"
+check calibrate_lab_json 0 '"rms_reprojection_px"' -- \
+  "$occmap" calibrate --camera cam1 --points "$work/lab/cam1.csv" --image-size 320x240 --out "$work/lab/newcalib" --json
+check calibrate_unknown_camera 2 "no camera 'cam9' \(the site's cameras: cam1, cam2, cam3, cam4\)" -- \
+  "$occmap" calibrate --camera cam9 --points "$work/lab/cam1.csv" --image-size 320x240 --out "$work/lab/newcalib" \
+  --update-site "$work/lab/site.yaml"
+
 echo "$passed passed, $failures failed"
 [ "$failures" -eq 0 ]
