@@ -190,6 +190,13 @@ check calibrate_three_on_a_line 2 "pts_three.csv:1: this floor point lies on one
 check calibrate_nothing 2 "give board views" -- "$occmap" calibrate --out "$work/cal"
 check calibrate_print_board 0 "the board, 1100x800 px" -- "$occmap" calibrate --print-board "$work/board.png" --square-m 0.03
 
+# A board video read every 15th frame (here the lab, which shows no board: every view rejected).
+"$occmap" synth --scene lab --frames 31 --scale 0.25 --video --no-change-masks --out "$work/labv" >/dev/null 2>&1
+check calibrate_board_video 2 "board views: 0 of 3 usable, at least 3 needed" -- \
+  "$occmap" calibrate --board-video "$work/labv/frames/cam1.mp4" --frame-step 15 --square-m 0.03 --out "$work/cal"
+check calibrate_board_video_names 2 "cam1.mp4 frame 30: no 9x6 checkerboard found" -- \
+  "$occmap" calibrate --board-video "$work/labv/frames/cam1.mp4" --frame-step 15 --square-m 0.03 --out "$work/cal"
+
 # A rendered lab camera: 8 floor points projected through its calibration with 0.5 px noise;
 # the camera from them (pinhole with the intrinsics, homography without), written into the
 # site, which must still load.

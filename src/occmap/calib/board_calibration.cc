@@ -315,6 +315,22 @@ Result<IntrinsicsCalibration> CalibrateIntrinsics(std::span<const BoardImage> im
     v.tilt_deg = std::acos(std::clamp(std::abs(r(2, 2)), 0.0, 1.0)) * 180 / std::numbers::pi;
     max_tilt = std::max(max_tilt, v.tilt_deg);
   }
+  // Distortion is only measured where corners were seen: which of 8 x 8 image tiles hold any.
+  std::vector<bool> tiles(64, false);
+  for (size_t u = 0; u < used.size(); ++u) {
+    for (const auto& c : image_points[u]) {
+      const int tx = std::clamp(static_cast<int>(c.x * 8.0 / width), 0, 7);
+      const int ty = std::clamp(static_cast<int>(c.y * 8.0 / height), 0, 7);
+      tiles[static_cast<size_t>(ty * 8 + tx)] = true;
+    }
+  }
+  const int covered = static_cast<int>(std::count(tiles.begin(), tiles.end(), true));
+  if (covered < 32) {
+    cal.warnings.push_back(fmt::format(
+        "the board's corners reach only {} of the image's 8 x 8 tiles: the lens distortion is poorly determined "
+        "where they did not go; add views with the board near the image's edges and corners",
+        covered));
+  }
   if (max_tilt < 20) {
     cal.warnings.push_back(fmt::format(
         "every view faces the camera (largest tilt {:.0f} degrees): the focal length is poorly determined; add views "

@@ -144,7 +144,9 @@ TEST(BoardCalibration, CheckerboardRecoversTheIntrinsicsAndRejectsBadViewsWithRe
   EXPECT_NEAR(cal.intrinsics.cx_px, k.cx, 4.0);
   EXPECT_NEAR(cal.intrinsics.cy_px, k.cy, 4.0);
   EXPECT_NEAR(cal.intrinsics.distortion[0], 0.0, 0.03);
-  EXPECT_TRUE(cal.warnings.empty());
+  // The poses keep the board near the middle of the picture: the edges' distortion is unmeasured.
+  ASSERT_EQ(cal.warnings.size(), 1u);
+  EXPECT_EQ(cal.warnings[0].rfind("the board's corners reach only ", 0), 0u) << cal.warnings[0];
   std::printf("checkerboard: %d of %zu views, RMS %.3f px, fx %.2f fy %.2f cx %.2f cy %.2f k1 %.4f; rejected: %s; %s\n",
               cal.views_used, cal.views.size(), cal.rms_px, cal.intrinsics.fx_px, cal.intrinsics.fy_px,
               cal.intrinsics.cx_px, cal.intrinsics.cy_px, cal.intrinsics.distortion[0], blurred.reason.c_str(),

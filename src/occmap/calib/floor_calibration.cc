@@ -137,6 +137,8 @@ CameraIntrinsics CameraIntrinsics::Resized(ImageSize new_size) const {
 
 Result<std::vector<FloorPoint>> ParseFloorPoints(std::string_view text, const std::string& file_name) {
   std::vector<FloorPoint> points;
+  // Spreadsheets write "CSV UTF-8" with a byte-order mark.
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
   bool seen_data = false;
   int line_no = 0;
   size_t pos = 0;

@@ -249,6 +249,15 @@ INSTANTIATE_TEST_SUITE_P(
                   "points spread over an area, 4 of them with no 3 on a line"}),
     [](const auto& param_info) { return std::string(param_info.param.name); });
 
+TEST(FloorPoints, AcceptsAByteOrderMarkAndWindowsLineEnds) {
+  const std::string text = "\xEF\xBB\xBFu_px,v_px,x_m,y_m\r\n100,400,0,0\r\n540,410,4,0\r\n500,120,4,6\r\n130,100,0,6\r\n";
+  auto pts = ParseFloorPoints(text, "c1.csv");
+  ASSERT_TRUE(pts.ok()) << pts.status().message();
+  ASSERT_EQ(pts->size(), 4u);
+  EXPECT_EQ((*pts)[3].floor_m, Eigen::Vector2d(0, 6));
+  EXPECT_EQ((*pts)[3].where, "c1.csv:5");
+}
+
 TEST(FloorPoints, HomographyYamlHoldsTheMatrixExactly) {
   Eigen::Matrix3d h;
   h << 0.1, 0.2, -3.3, 1e-5, 0.25, 7, 1.0 / 3, 0.001, 1;
