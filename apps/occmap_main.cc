@@ -10,7 +10,12 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <pthread.h>
+#include <signal.h>
 #include <unistd.h>
+
+#include <atomic>
+#include <thread>
 
 #include "calibrate_command.h"
 #include "occmap/lut/visibility_image.h"
@@ -169,13 +174,20 @@ Status RunCheck(const CommonOptions& common, const std::string& site_path) {
   return Status::Ok();
 }
 
-// A progress bar on a terminal (stderr), nothing when piped.
+// A progress bar on a terminal (stderr), nothing when piped. Callers that know no elapsed time
+// (demo, synth: elapsed_s 0) get the bar's own, from its first update after a Finish.
 class ProgressBar {
  public:
   ProgressBar() : enabled_(::isatty(STDERR_FILENO) == 1) {}
   ~ProgressBar() { Finish(); }
-  void Update(const RunProgress& p, const std::string& label = "") {
+  void Update(RunProgress p, const std::string& label = "") {
     if (!enabled_) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (!started_) {
+      start_ = now;
+      started_ = true;
+    }
+    if (p.elapsed_s <= 0) p.elapsed_s = std::chrono::duration<double>(now - start_).count();
     // Redrawn at most 10 times a second (a terminal write per frame costs a fast run time),
     // and always at the last frame.
     const bool last = p.frames_total && p.frames_done >= *p.frames_total;
@@ -200,12 +212,74 @@ class ProgressBar {
   void Finish() {
     if (shown_) std::fputs("\n", stderr);
     shown_ = false;
+    started_ = false;
+    drawn_s_ = 0;
   }
 
  private:
   bool enabled_;
   bool shown_ = false;
+  bool started_ = false;
+  std::chrono::steady_clock::time_point start_;
   double drawn_s_ = 0;
+};
+
+// SIGINT and SIGTERM during `occmap run`: blocked in every thread (from before the run starts
+// any) and taken by one thread with sigwait, so no handler runs inside the pipeline. The first
+// asks the run to stop (RunOptions::stop: the frame sets in flight are finished, every output
+// closed, exit 0); the second removes this process's temporary files in the output folder and
+// exits at once (128 + the signal), the outputs valid up to their last whole line.
+class StopOnSignals {
+ public:
+  explicit StopOnSignals(fs::path out_dir) : out_dir_(std::move(out_dir)) {
+    sigemptyset(&signals_);
+    sigaddset(&signals_, SIGINT);
+    sigaddset(&signals_, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &signals_, nullptr);
+    thread_ = std::thread([this] { Loop(); });
+  }
+  ~StopOnSignals() {
+    done_ = true;
+    pthread_kill(thread_.native_handle(), SIGTERM);  // wakes the sigwait; pending on that thread only
+    thread_.join();
+  }
+  StopOnSignals(const StopOnSignals&) = delete;
+  StopOnSignals& operator=(const StopOnSignals&) = delete;
+  const std::atomic<bool>* stop() const { return &stop_; }
+
+ private:
+  void Loop() {
+    int count = 0;
+    while (true) {
+      int sig = 0;
+      if (sigwait(&signals_, &sig) != 0) continue;
+      if (done_) return;
+      if (++count == 1) {
+        stop_ = true;
+        std::fputs("\noccmap: stopping: finishing the frame sets in flight (again to quit at once)\n", stderr);
+        continue;
+      }
+      RemoveOwnTemporaries();
+      std::fflush(stderr);
+      ::_exit(128 + sig);
+    }
+  }
+  // '.tmp-<name>-<pid>-<n>' files of this process (util/file_util.h, io/video_writer.h).
+  void RemoveOwnTemporaries() const {
+    const std::string mark = fmt::format("-{}-", ::getpid());
+    std::error_code ec;
+    for (auto it = fs::recursive_directory_iterator(out_dir_, ec); !ec && it != fs::recursive_directory_iterator();
+         it.increment(ec)) {
+      const std::string name = it->path().filename().string();
+      if (name.rfind(".tmp-", 0) == 0 && name.find(mark) != std::string::npos) ::unlink(it->path().c_str());
+    }
+  }
+
+  fs::path out_dir_;
+  sigset_t signals_;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> done_{false};
+  std::thread thread_;
 };
 
 struct RunCommand {
@@ -216,6 +290,7 @@ struct RunCommand {
   std::string sync = "index";
   bool continue_without_camera = false;
   bool no_video = false;
+  bool atomic_outputs = false;
   std::optional<double> min_blob_area_m2;
 };
 
@@ -227,23 +302,23 @@ Status RunRun(const CommonOptions& common, RunCommand cmd) {
     if (!(*cmd.min_blob_area_m2 >= 0)) return InvalidInput("--min-blob-area-m2: expected >= 0");
     site.objects.min_area_m2 = *cmd.min_blob_area_m2;
   }
+  // Before any thread starts (the context's pool), so that every thread inherits the mask.
+  StopOnSignals signals(cmd.options.out_dir);
   Context ctx(common.threads);
   RunOptions& o = cmd.options;
   o.cache_dir = cmd.no_cache ? fs::path() : cmd.cache_dir.empty() ? DefaultCacheDir() : fs::path(cmd.cache_dir);
   o.sync = cmd.sync == "timestamp" ? FrameSync::kTimestamp : FrameSync::kIndex;
   o.on_camera_failure = cmd.continue_without_camera ? OnCameraFailure::kContinue : OnCameraFailure::kStop;
   if (cmd.no_video) o.occupancy_video = o.mosaic_video = false;
+  o.output_mode = cmd.atomic_outputs ? OutputMode::kAtomic : OutputMode::kLive;
+  o.stop = signals.stop();
   ProgressBar bar;
   auto summary = RunSite(site, o, ctx, [&](const RunProgress& p) { bar.Update(p); });
   bar.Finish();
   if (!summary.ok()) return summary.status();
-  size_t max_blobs = 0;
-  double mean = 0;
-  for (size_t b : summary->blob_counts) {
-    max_blobs = std::max(max_blobs, b);
-    mean += static_cast<double>(b);
-  }
-  if (!summary->blob_counts.empty()) mean /= static_cast<double>(summary->blob_counts.size());
+  const int64_t max_blobs = summary->blobs_max_per_frame;
+  const double mean =
+      summary->frames > 0 ? static_cast<double>(summary->blobs_total) / static_cast<double>(summary->frames) : 0.0;
   std::fputs(fmt::format("{} frames in {:.2f} s ({:.1f} frames/s; tables {}): {} ; blobs per frame: mean {:.2f}, max {}\n",
                          summary->frames, summary->seconds, summary->frames_per_second, summary->lut_cache,
                          summary->stop_reason, mean, max_blobs)
@@ -512,6 +587,12 @@ int main(int argc, char** argv) {
   run_cmd->add_flag("--change-pngs", run.options.change_pngs,
                     "also write changes/<camera>/NNNNNN.png per frame (changed pixels, before the tolerance)");
   run_cmd->add_flag("--no-video", run.no_video, "do not write occupancy.mp4 and mosaic.mp4");
+  run_cmd->add_flag("--atomic-outputs", run.atomic_outputs,
+                    "write the outputs through temporaries renamed at the end (all or nothing) instead of "
+                    "appending whole lines per frame set");
+  run_cmd->add_option("--summary-every-s", run.options.summary_every_s,
+                      "rewrite summary.json with the running figures this often (0 = only at the end)")
+      ->capture_default_str();
   run_cmd->add_option("--background-frames", run.options.background_frames,
                       "K: frames in the median background of a camera without one")->capture_default_str();
   run_cmd->add_option("--min-blob-area-m2", run.min_blob_area_m2, "drop detections with a smaller footprint (default: the site's blobs.min_area_m2)");

@@ -30,6 +30,7 @@
 
 #include "occmap/bench/bench.h"
 #include "occmap/fusion/fast_fusion.h"
+#include "occmap/pipeline/fusion_path.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/pipeline/run.h"
 #include "occmap/sim/builtin_scenes.h"
@@ -124,37 +125,12 @@ Result<DecodePass> Decode(const Site& site, const FrameSourceOptions& options, b
   return pass;
 }
 
-// How RunSite computes changes and fuses on this site without video outputs (its own test, in
-// pipeline/run.cc): fully fused for the paper's AND on grey frames without mask sources and a
-// tolerance of at most FastFusion::kMaxFusedTolerancePx; otherwise change buffers first.
 bool PeopleDetectorOn(const Site& site) {
   return site.people.enabled && site.people.detector != PeopleDetector::kFloor;
 }
 
-std::string FusionPath(const Site& site) {
-  const bool paper_and = site.fusion.method == FusionMethod::kImageBased && site.fusion.max_free_views == 0;
-  const bool people = PeopleDetectorOn(site);
-  bool any_mask_source = false;
-  for (const SiteCamera& c : site.cameras) any_mask_source |= c.source.kind == FrameSourceSpec::Kind::kMasks;
-  const int r = site.detection.tolerance_px;
-  const std::string people_path =
-      people ? fmt::format("; people: {} (row sums, ColumnFusion{})", ToString(site.people.detector),
-                           site.people.detector == PeopleDetector::kExplain ? ", ViewExplainer" : "")
-             : std::string();
-  if (!people && paper_and && !site.detection.colour && r == 0 && !any_mask_source) {
-    return "fully fused FastFusion::Fuse, no change buffer";
-  }
-  if (!people && paper_and && !site.detection.colour && r <= FastFusion::kMaxFusedTolerancePx && !any_mask_source) {
-    return fmt::format("fully fused FastFusion::FuseTolerant (tolerance_px {} folded in as bits), no change buffer", r);
-  }
-  const std::string changes =
-      fmt::format("{} change detection{} into change buffers", site.detection.colour ? "colour" : "grey",
-                  r > 0 ? fmt::format(" dilated by tolerance_px {}", r) : std::string());
-  if (paper_and) return changes + ", FastFusion::FuseChanges" + people_path;
-  return fmt::format("{}, Fusion::Fuse ({}, max_free_views {}){}", changes,
-                     site.fusion.method == FusionMethod::kImageBased ? "image-based" : "map-based",
-                     site.fusion.max_free_views, people_path);
-}
+// How RunSite computes changes and fuses on this site without video outputs: its own choice.
+std::string FusionPathText(const Site& site) { return ChooseFusionPath(site, false).Describe(site); }
 
 struct RunPass {
   RunSummary summary;
@@ -230,7 +206,7 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
   e.people_detector = people ? ToString(site.people.detector) : "floor";
   if (people) {
     site.people.enabled = false;
-    e.floor.fusion_path = FusionPath(site);
+    e.floor.fusion_path = FusionPathText(site);
     site.people.enabled = true;
   }
   for (int k = 0; k < kRepeats; ++k) {
@@ -303,7 +279,7 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
                        "medians of {} alternated passes; RunSite without video outputs ({}, detections, tracking, "
                        "text outputs); decoding: the faster of one thread per camera and the cameras in turn{}",
                        e.scene, e.cameras, size.width, size.height, e.frames, ctx.num_threads(), kWarmUp, kRepeats,
-                       FusionPath(site),
+                       FusionPathText(site),
                        people ? fmt::format("; also without the people detector ({})", e.floor.fusion_path)
                               : std::string());
   return e;

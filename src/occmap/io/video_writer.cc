@@ -73,7 +73,7 @@ class VideoWriterImpl final : public VideoWriter {
   void Abandon() {
     codec_.reset();
     format_.reset();
-    if (!tmp_path_.empty()) {
+    if (!tmp_path_.empty() && !fragmented_) {  // a fragmented file stays: valid to its last fragment
       std::error_code ec;
       fs::remove(tmp_path_, ec);
     }
@@ -99,6 +99,7 @@ class VideoWriterImpl final : public VideoWriter {
   AVStream* stream_ = nullptr;  // owned by format_
   int64_t frames_written_ = 0;
   bool closed_ = false;
+  bool fragmented_ = false;  // VideoWriterOptions::fragmented: tmp_path_ is path_ itself
 };
 
 Status VideoWriterImpl::Open(ImageSize size, double fps, const VideoWriterOptions& options) {
@@ -136,10 +137,17 @@ Status VideoWriterImpl::Open(ImageSize size, double fps, const VideoWriterOption
   }
   codec_name_ = encoder->name;
 
+  const std::string_view container_name(container->name);
+  fragmented_ = options.fragmented;
+  if (fragmented_ && container_name != "mp4" && container_name != "mov") {
+    return InvalidInput(fmt::format("{}: fragmented output needs an .mp4 or .mov file, found the '{}' container", Where(),
+                                    container_name));
+  }
   static std::atomic<uint64_t> counter{0};
   const fs::path dir = path_.has_parent_path() ? path_.parent_path() : fs::path(".");
-  tmp_path_ =
-      dir / fmt::format(".tmp-{}-{}-{}{}", path_.stem().string(), ::getpid(), counter++, path_.extension().string());
+  tmp_path_ = fragmented_ ? path_
+                          : dir / fmt::format(".tmp-{}-{}-{}{}", path_.stem().string(), ::getpid(), counter++,
+                                              path_.extension().string());
 
   AVFormatContext* raw = nullptr;
   int error = avformat_alloc_output_context2(&raw, container, nullptr, tmp_path_.c_str());
@@ -199,7 +207,14 @@ Status VideoWriterImpl::Open(ImageSize size, double fps, const VideoWriterOption
   }
   Dictionary muxer_options;
   // MP4/MOV: the index goes in front (a second pass at Close), so that a cut file still plays.
-  av_dict_set(&muxer_options.dict, "movflags", "+faststart", 0);
+  // Fragmented: an empty index in front and a fragment per key frame, each flushed to the file
+  // as it is finished, so that the file plays up to its last fragment at any time.
+  if (fragmented_) {
+    av_dict_set(&muxer_options.dict, "movflags", "+frag_keyframe+empty_moov+default_base_moof", 0);
+    format_->flush_packets = 1;
+  } else {
+    av_dict_set(&muxer_options.dict, "movflags", "+faststart", 0);
+  }
   error = avformat_write_header(format_.get(), &muxer_options.dict);
   if (error < 0) return Fail(IoError(fmt::format("{}: cannot write the header: {}", Where(), AvErrorWithLog(error))));
 
@@ -287,6 +302,13 @@ Status VideoWriterImpl::Close() {
   if (format_->pb != nullptr) {
     error = avio_closep(&format_->pb);
     if (error < 0) return Fail(IoError(fmt::format("{}: cannot write: {}", Where(), AvErrorWithLog(error))));
+  }
+  if (fragmented_) {  // written in place: nothing to rename, and it stays
+    tmp_path_.clear();
+    codec_.reset();
+    format_.reset();
+    closed_ = true;
+    return Status::Ok();
   }
   // Flush to disk before the rename, as WriteFileAtomic does.
   const int fd = ::open(tmp_path_.c_str(), O_RDONLY | O_CLOEXEC);

@@ -7,6 +7,8 @@
 //   OCCMAP_RETURN_IF_ERROR(writer->Write(rgb.view()));
 //   OCCMAP_RETURN_IF_ERROR(writer->Close());
 //
+// With VideoWriterOptions::fragmented the file is written in place instead, playable at any time.
+//
 // The container comes from the file extension (.mp4, .mkv, .avi, .mov); MP4/MOV files have
 // their index in front ("faststart"). Pictures are stored as yuv420p, BT.601, limited range,
 // tagged as such; H.264 at constant quality (x264 crf 23, preset veryfast), MPEG-4 at a constant
@@ -29,6 +31,11 @@ struct VideoWriterOptions {
   // "" = "libx264" when FFmpeg has it and the container takes H.264, else "mpeg4".
   // "libx264" or "mpeg4" ask for that encoder (an error when it cannot be used).
   std::string encoder;
+  // Write straight into `path` as fragmented MP4 (a fragment at every key frame, every 2 s;
+  // .mp4/.mov only) instead of a temporary renamed at Close: a player reads the file up to its
+  // last whole fragment while it is written and after the process dies (kill -9). Close then
+  // only flushes the last fragment. For live runs (pipeline/output_files.h).
+  bool fragmented = false;
 };
 
 class VideoWriter {

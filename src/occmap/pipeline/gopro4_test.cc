@@ -36,7 +36,7 @@ TEST(GoPro4, ReportsFourPeopleLikeTheReferencePom) {
   ASSERT_TRUE(summary.ok()) << summary.status().message();
   ASSERT_EQ(summary->frames, 1);
   const std::string detections = *ReadFileToString(dir / "detections.jsonl");
-  EXPECT_EQ(summary->blob_counts[0], 4u) << detections;
+  EXPECT_EQ(summary->blobs_max_per_frame, 4) << detections;
   // Each detection is person-sized: 0.1 to 1 m^2 of floor.
   const auto line = nlohmann::json::parse(detections);
   for (const auto& b : line["blobs"]) {
@@ -50,7 +50,7 @@ TEST(GoPro4, AStrictAndOfTheRawMasksLosesPeople) {
   testing::TempDir dir;
   auto summary = RunGoPro4(root, dir.path(), /*tolerance_px=*/0);
   ASSERT_TRUE(summary.ok()) << summary.status().message();
-  EXPECT_LT(summary->blob_counts[0], 4u);
+  EXPECT_LT(summary->blobs_max_per_frame, 4);
 }
 
 TEST(GoPro4, ToleranceOfFourOrFivePixelsFindsTheFourPeople) {
@@ -59,7 +59,7 @@ TEST(GoPro4, ToleranceOfFourOrFivePixelsFindsTheFourPeople) {
     testing::TempDir dir;
     auto summary = RunGoPro4(root, dir.path(), t);
     ASSERT_TRUE(summary.ok()) << summary.status().message();
-    EXPECT_EQ(summary->blob_counts[0], 4u) << "tolerance " << t;
+    EXPECT_EQ(summary->blobs_max_per_frame, 4) << "tolerance " << t;
   }
 }
 

@@ -9,7 +9,11 @@
 // tracks them and draws the pictures; a writer stage writes the outputs in frame order. The
 // stages overlap, so over video files the run is limited by decoding, and memory stays flat.
 //
-// Outputs in out_dir (all written atomically; a run that stops early keeps what it finished):
+// The stages live in their own files: camera_inputs.h (sources, backgrounds), frame_reader.h
+// (the reader), fusion_path.h (the one choice of how changes are fused), and the outputs go to
+// FrameSinks (frame_sink.h), the run's own files first (output_files.h).
+//
+// Outputs in out_dir (RunOptions::output_mode; a run that stops early keeps what it finished):
 //   detections.jsonl   one line per frame: {"frame", "time_s", "blobs": [{x_m, y_m, area_m2, ...}]}
 //   tracks.jsonl       one line per frame: {"frame", "time_s", "tracks": [{id, x_m, y_m, vx_mps, ...}]}
 //   tracks_mot.csv     the tracks as MOTChallenge ground-plane rows
@@ -27,7 +31,9 @@
 //   OCCMAP_ASSIGN_OR_RETURN(RunSummary summary, RunSite(site, options, ctx, on_progress));
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <memory>
 #include <filesystem>
 #include <functional>
 #include <optional>
@@ -35,6 +41,8 @@
 #include <vector>
 
 #include "occmap/fusion/blobs.h"
+#include "occmap/pipeline/frame_sink.h"
+#include "occmap/pipeline/output_files.h"
 #include "occmap/site/site.h"
 #include "occmap/util/status.h"
 #include "occmap/util/thread_pool.h"
@@ -62,6 +70,18 @@ struct RunOptions {
   int background_step = 4;     // take every n-th frame for the median
   bool track = true;  // run the site's tracker and write tracks.jsonl, tracks_mot.csv, events.jsonl
   int mosaic_width_px = 1280;
+  // How the files are written (pipeline/output_files.h): kLive appends whole lines per frame
+  // set and keeps what was written whatever stops the run; kAtomic commits them at the end.
+  OutputMode output_mode = OutputMode::kLive;
+  // More sinks (pipeline/frame_sink.h): each gets every frame set after the run's files, on the
+  // writer thread.
+  std::vector<std::shared_ptr<FrameSink>> sinks;
+  // summary.json is rewritten (atomically) with the running figures this often; 0: only at the end.
+  double summary_every_s = 5;
+  // When set and true, the run stops reading: the frame sets in flight are finished, every
+  // output is closed, and RunSite returns the summary (stop_reason "stop requested"). Set it
+  // from a signal handler (`occmap run` does, for SIGINT and SIGTERM).
+  const std::atomic<bool>* stop = nullptr;
   Status Validate() const;
 };
 
@@ -78,12 +98,6 @@ struct CameraRunInfo {
   std::string background;  // "given: <path>", "estimated from K frames", "reused: <path>", "none (masks)"
   std::optional<int64_t> ended_at_frame;  // when its stream ended or failed before the run did
   std::string end_reason;
-};
-
-struct FrameBlobs {
-  int64_t frame = 0;
-  double time_s = 0;
-  std::vector<Blob> blobs;
 };
 
 struct RunSummary {
@@ -106,13 +120,16 @@ struct RunSummary {
   double people_s = 0;      // column fusion and the explanation of the views (the fusion stage)
   // Learned backgrounds checked across cameras (pipeline/background_maintenance.h).
   int64_t consensus_pixels_checked = 0, consensus_pixels_swapped = 0;
+  // Frame set arrival (frames decoded) to every sink done (the files written), over the run.
+  LatencyFigures latency;
   int max_queued_outputs = 0;  // the most frames whose outputs waited for the writer at once
   std::string stop_reason;  // "end of streams", "frame limit", "camera C2 ended", ...
   std::vector<CameraRunInfo> cameras;
   std::string lut_cache;    // ToString(LutCacheOutcome)
   double lut_seconds = 0;
-  std::vector<size_t> blob_counts;  // per frame
-  int64_t tracks = 0;                // distinct confirmed track ids
+  int64_t blobs_total = 0;          // detections over all frame sets
+  int64_t blobs_max_per_frame = 0;  // the most in one frame set
+  int64_t tracks = 0;                // distinct reported track ids
   int64_t zone_events = 0;
   std::vector<std::string> outputs;  // files written
 };

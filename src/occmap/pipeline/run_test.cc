@@ -403,6 +403,7 @@ TEST_F(RunFixture, AFailedWriteStopsTheRunWithItsErrorAndCommitsNothing) {
   const Site site = LoadSiteText(SiteText());
   Context ctx(2);
   RunOptions o = Options("fail");
+  o.output_mode = OutputMode::kAtomic;
   o.occupancy_pngs = true;
   fs::create_directories(dir_ / "fail" / "occupancy" / "000003.png");
   auto r = RunSite(site, o, ctx);
@@ -416,6 +417,91 @@ TEST_F(RunFixture, AFailedWriteStopsTheRunWithItsErrorAndCommitsNothing) {
   EXPECT_FALSE(fs::exists(dir_ / "fail" / "occupancy" / "000004.png"));  // nothing after the failed one
   for (const auto& e : fs::recursive_directory_iterator(dir_ / "fail")) {
     EXPECT_NE(e.path().filename().string().rfind(".tmp-", 0), 0u) << e.path();
+  }
+}
+
+// Live outputs (the default): the same failed write stops the run with its error; the frame
+// sets before it stay in the files, whole lines, and no temporary is left.
+TEST_F(RunFixture, AFailedLiveWriteKeepsTheWholeLinesBeforeIt) {
+  const Site site = LoadSiteText(SiteText());
+  Context ctx(2);
+  RunOptions o = Options("fail_live");
+  o.occupancy_pngs = true;
+  fs::create_directories(dir_ / "fail_live" / "occupancy" / "000003.png");
+  auto r = RunSite(site, o, ctx);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kIoError) << r.status().message();
+  const std::string text = *ReadFileToString(dir_ / "fail_live" / "detections.jsonl");
+  ASSERT_FALSE(text.empty());
+  EXPECT_EQ(text.back(), '\n');
+  const auto lines = Detections("fail_live");
+  ASSERT_GE(lines.size(), 3u);
+  EXPECT_LE(lines.size(), 4u);  // the detections of frame 3 are written before its map picture
+  for (size_t f = 0; f < lines.size(); ++f) EXPECT_EQ(lines[f]["frame"], static_cast<int>(f));
+  for (const auto& e : fs::recursive_directory_iterator(dir_ / "fail_live")) {
+    EXPECT_NE(e.path().filename().string().rfind(".tmp-", 0), 0u) << e.path();
+  }
+}
+
+// A stop request (SIGINT in `occmap run`) ends the run early with a valid summary: the frame
+// sets in flight are finished, every output is closed.
+TEST_F(RunFixture, AStopRequestEndsTheRunWithItsOutputsClosed) {
+  const Site site = LoadSiteText(SiteText());
+  Context ctx(1);
+  RunOptions o = Options("stop");
+  std::atomic<bool> stop{false};
+  o.stop = &stop;
+  auto r = RunSite(site, o, ctx, [&](const RunProgress& p) {
+    if (p.frames_done == 3) stop = true;
+  });
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_EQ(r->stop_reason, "stop requested");
+  EXPECT_GE(r->frames, 3);
+  EXPECT_LT(r->frames, kFrames);
+  EXPECT_EQ(Detections("stop").size(), static_cast<size_t>(r->frames));
+  const json summary = json::parse(*ReadFileToString(dir_ / "stop" / "summary.json"));
+  EXPECT_EQ(summary["stop_reason"], "stop requested");
+  EXPECT_EQ(summary["running"], false);
+  EXPECT_EQ(summary["latency_ms"]["frame_sets"], r->frames);
+  EXPECT_GT(summary["latency_ms"]["p99"].get<double>(), 0);
+  EXPECT_LE(summary["latency_ms"]["p50"].get<double>(), summary["latency_ms"]["p99"].get<double>());
+}
+
+// A sink added by the caller gets every frame set once, in order, between Open and Close.
+TEST_F(RunFixture, ACallersSinkSeesEveryFrameSetInOrder) {
+  struct Recorder : FrameSink {
+    std::vector<std::string> calls;
+    std::vector<int64_t> frames;
+    std::vector<size_t> detections;
+    Status Open(const SinkStart& start) override {
+      calls.push_back(fmt::format("open {}", start.camera_ids.size()));
+      return Status::Ok();
+    }
+    Status Consume(const FrameRecord& r, const RunStats& stats) override {
+      frames.push_back(r.frame);
+      detections.push_back(r.detections.size());
+      if (stats.frames != static_cast<int64_t>(frames.size())) calls.push_back("bad stats");
+      if (r.map.states().empty() || r.t_unix < 1.6e9) calls.push_back("bad record");
+      return Status::Ok();
+    }
+    Status Close(const RunStats& stats) override {
+      calls.push_back(fmt::format("close {} {}", stats.frames, stats.stop_reason));
+      return Status::Ok();
+    }
+  };
+  const Site site = LoadSiteText(SiteText());
+  Context ctx(2);
+  RunOptions o = Options("sink");
+  auto recorder = std::make_shared<Recorder>();
+  o.sinks.push_back(recorder);
+  auto r = RunSite(site, o, ctx);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_EQ(recorder->calls, (std::vector<std::string>{"open 4", fmt::format("close {} end of streams", kFrames)}));
+  ASSERT_EQ(recorder->frames.size(), static_cast<size_t>(kFrames));
+  const auto lines = Detections("sink");
+  for (int f = 0; f < kFrames; ++f) {
+    EXPECT_EQ(recorder->frames[f], f);
+    EXPECT_EQ(recorder->detections[f], lines[f]["blobs"].size());
   }
 }
 

@@ -1,0 +1,306 @@
+#include "occmap/pipeline/camera_inputs.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+
+#include "occmap/detect/background.h"
+#include "occmap/util/file_util.h"
+#include "occmap/util/hash.h"
+#include "occmap/util/image_io.h"
+
+namespace occmap {
+namespace fs = std::filesystem;
+
+Status CheckFrameSize(const CameraState& c, const Frame& f) {
+  const ImageSize want = c.cam->camera->image_size();
+  if (c.is_mask) {
+    // Masks at any resolution are resampled to the camera's size, but not to another shape.
+    const double a_want = static_cast<double>(want.width) / want.height;
+    const double a_got = static_cast<double>(f.gray.width()) / std::max(1, f.gray.height());
+    if (std::abs(a_got / a_want - 1) > 0.01) {
+      return InvalidInput(fmt::format("{} gives {}x{} masks, expected the shape of the {}x{} image "
+                                      "(any resolution with the same aspect ratio)",
+                                      c.source->Describe(), f.gray.width(), f.gray.height(), want.width,
+                                      want.height));
+    }
+    return Status::Ok();
+  }
+  if (f.gray.width() != want.width || f.gray.height() != want.height) {
+    return InvalidInput(fmt::format("{} gives {}x{} frames, expected the site's image size {}x{} "
+                                    "(set the camera's image_size)",
+                                    c.source->Describe(), f.gray.width(), f.gray.height(), want.width,
+                                    want.height));
+  }
+  return Status::Ok();
+}
+
+namespace {
+
+// A background picture's size against the camera's image size.
+Status CheckBackgroundSize(const SiteCamera& cam, int width, int height, const fs::path& path) {
+  const ImageSize size = cam.camera->image_size();
+  if (width == size.width && height == size.height) return Status::Ok();
+  return InvalidInput(fmt::format("camera {}: background '{}' is {}x{}, expected the image size {}x{}", cam.id,
+                                  path.string(), width, height, size.width, size.height));
+}
+
+// The part of an estimated background's cache key every estimate depends on (the source and its
+// modification time, the start frame, colour, the size); callers add their own settings.
+Hasher BackgroundKey(std::string_view version, const Site& site, const SiteCamera& cam, int64_t start_frame,
+                     bool colour) {
+  Hasher h;
+  h.Add(version);
+  h.Add(site.name);
+  h.Add(cam.id);
+  h.Add(cam.source.location);
+  h.AddPod(start_frame);
+  h.AddPod(colour);
+  const ImageSize size = cam.camera->image_size();
+  h.AddPod(size.width);
+  h.AddPod(size.height);
+  std::error_code ec;
+  if (const auto mtime = fs::last_write_time(cam.source.location, ec); !ec) h.AddPod(mtime.time_since_epoch().count());
+  return h;
+}
+
+}  // namespace
+
+YuvView FrameYuv(const Frame& f) {
+  if (f.u.empty()) return {f.gray.view(), {}, {}};
+  return {f.gray.view(), f.u.view(), f.v.view()};
+}
+
+Status WriteYuvPng(const fs::path& path, const YuvImage& yuv) {
+  if (!yuv.has_chroma()) return WritePng(path, yuv.y.view());
+  return WritePng(path, RgbFromYuv(yuv.view()).view());
+}
+
+namespace {
+
+// The adaptive model's background of a camera: given (a picture), reused from the cache, or
+// learned from the busy video (site.backgrounds: K frames over learn_s seconds).
+Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bool chroma,
+                                 const FrameSourceOptions& src_opts, CameraState& c) {
+  const SiteCamera& cam = *c.cam;
+  const BackgroundOptions& bo = site.backgrounds;
+  const ImageSize size = cam.camera->image_size();
+  YuvImage background;
+  std::optional<BackgroundLearner::Alternative> alternative;
+  std::optional<BackgroundLearner> learned_from;  // its samples warm the shadow look up
+  auto check_size = [&](int w, int h, const fs::path& path) { return CheckBackgroundSize(cam, w, h, path); };
+  double fps = 10;
+  if (cam.background) {
+    if (chroma) {
+      auto rgb = ReadRgbImage(*cam.background);
+      if (!rgb.ok()) return rgb.status().WithContext(fmt::format("camera {}: background", cam.id));
+      OCCMAP_RETURN_IF_ERROR(check_size(rgb->width(), rgb->height(), *cam.background));
+      background = YuvFromRgb(rgb->view());
+    } else {
+      auto gray = ReadGrayImage(*cam.background);
+      if (!gray.ok()) return gray.status().WithContext(fmt::format("camera {}: background", cam.id));
+      OCCMAP_RETURN_IF_ERROR(check_size(gray->width(), gray->height(), *cam.background));
+      background.y = std::move(gray).value();
+    }
+    c.info.background = fmt::format("given: {}", cam.background->string());
+    if (auto f = c.source->fps()) fps = *f;
+  } else {
+    Hasher h = BackgroundKey("adaptive-background-v3", site, cam, options.start_frame, chroma);
+    h.Add(ToString(bo.learning));
+    h.AddPod(bo.learn_s);
+    h.AddPod(bo.learn_samples);
+    h.AddPod(bo.mode_radius);
+    std::error_code ec;
+    const fs::path cached = options.cache_dir.empty() ? fs::path()
+                                                      : options.cache_dir / "backgrounds" /
+                                                            fmt::format("{}-{}-{:016x}", site.name, cam.id, h.Digest());
+    auto plane_path = [&](const char* plane) { return fs::path(cached.string() + "-" + plane + ".png"); };
+    bool reused = false;
+    if (!cached.empty() && fs::exists(plane_path("y"), ec)) {
+      auto y = ReadGrayImage(plane_path("y"));
+      auto u = chroma ? ReadGrayImage(plane_path("u")) : Result<Image<uint8_t>>(Image<uint8_t>());
+      auto v = chroma ? ReadGrayImage(plane_path("v")) : Result<Image<uint8_t>>(Image<uint8_t>());
+      auto alt_y = ReadGrayImage(plane_path("alt-y"));
+      auto alt_n = ReadGrayImage(plane_path("alt-n"));
+      if (y.ok() && u.ok() && v.ok() && y->width() == size.width && y->height() == size.height) {
+        background.y = std::move(y).value();
+        background.u = std::move(u).value();
+        background.v = std::move(v).value();
+        if (alt_y.ok() && alt_n.ok() && alt_y->width() == size.width && alt_n->width() == size.width &&
+            alt_y->height() == size.height && alt_n->height() == size.height) {
+          alternative.emplace();
+          alternative->levels.y = std::move(alt_y).value();
+          alternative->support = std::move(alt_n).value();
+        }
+        reused = true;
+        c.info.background = fmt::format("reused: {}", plane_path("y").string());
+      }
+    }
+    OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> src, OpenFrameSource(cam.source, src_opts));
+    if (auto f = src->fps()) fps = *f;
+    if (!reused) {
+      OCCMAP_RETURN_IF_ERROR(src->SkipTo(options.start_frame));
+      const int64_t window = std::max<int64_t>(1, std::llround(bo.learn_s * fps));
+      const int64_t step = std::max<int64_t>(1, window / bo.learn_samples);
+      BackgroundLearner& learner = learned_from.emplace(size.width, size.height, chroma, bo.learn_samples);
+      Frame f;
+      for (int64_t read = 0; read < window && learner.count() < bo.learn_samples; ++read) {
+        OCCMAP_ASSIGN_OR_RETURN(bool got, src->Read(f));
+        if (!got) break;
+        if (read % step != 0) continue;
+        OCCMAP_RETURN_IF_ERROR(CheckFrameSize(c, f).WithContext(fmt::format("camera {}", cam.id)));
+        learner.Add(FrameYuv(f));
+      }
+      if (learner.count() == 0) {
+        return InvalidInput(fmt::format("camera {}: {} has no frames to learn a background from", cam.id, src->Describe()));
+      }
+      if (bo.learning == BackgroundLearning::kMode) alternative.emplace();
+      background = learner.Learn(bo.learning, bo.mode_radius, alternative ? &*alternative : nullptr);
+      c.info.background = fmt::format("learned: {} of {} frames over {:.1f} s", ToString(bo.learning), learner.count(),
+                                      static_cast<double>(std::min(window, learner.count() * step)) / fps);
+      if (!cached.empty()) {
+        OCCMAP_RETURN_IF_ERROR(EnsureDirectory(cached.parent_path()));
+        if (chroma) {
+          OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("u"), background.u.view()));
+          OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("v"), background.v.view()));
+        }
+        if (alternative) {
+          OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("alt-y"), alternative->levels.y.view()));
+          OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("alt-n"), alternative->support.view()));
+        }
+        OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("y"), background.y.view()));  // last: marks the set complete
+      }
+    }
+  }
+  c.model = std::make_unique<BackgroundModel>(bo, fps);
+  c.model->Reset(background);
+  if (alternative) {
+    c.model->SetAlternative(*alternative, static_cast<int>(std::ceil(bo.alternative_min_share * bo.learn_samples)));
+  }
+  if (learned_from && bo.shadows.enabled && bo.shadows.learn) {
+    // The shadow look from the learning samples, so that the first frames are tested with it.
+    std::vector<YuvView> samples;
+    for (int k = 0; k < learned_from->count(); ++k) samples.push_back(learned_from->Sample(k));
+    c.model->WarmUp(samples, site.detection.threshold);
+  }
+  return Status::Ok();
+}
+
+// The background of a camera: given, reused from the cache, or the median of K frames.
+Status PrepareBackground(const Site& site, const RunOptions& options, bool colour, const FrameSourceOptions& src_opts,
+                         CameraState& c) {
+  const SiteCamera& cam = *c.cam;
+  const ImageSize size = cam.camera->image_size();
+  if (c.is_mask) {
+    c.info.background = "none (foreground masks)";
+    return Status::Ok();
+  }
+  auto check_size = [&](int w, int h, const fs::path& path) { return CheckBackgroundSize(cam, w, h, path); };
+  auto load = [&](const fs::path& path) -> Status {
+    if (colour) {
+      auto rgb = ReadRgbImage(path);
+      if (!rgb.ok()) return rgb.status().WithContext(fmt::format("camera {}: background", cam.id));
+      OCCMAP_RETURN_IF_ERROR(check_size(rgb->width(), rgb->height(), path));
+      c.background_rgb = std::move(rgb).value();
+    }
+    auto gray = ReadGrayImage(path);
+    if (!gray.ok()) return gray.status().WithContext(fmt::format("camera {}: background", cam.id));
+    OCCMAP_RETURN_IF_ERROR(check_size(gray->width(), gray->height(), path));
+    c.background_gray = std::move(gray).value();
+    return Status::Ok();
+  };
+  if (cam.background) {
+    OCCMAP_RETURN_IF_ERROR(load(*cam.background));
+    c.info.background = fmt::format("given: {}", cam.background->string());
+    return Status::Ok();
+  }
+  // Estimated backgrounds are cached under a key of everything they depend on.
+  Hasher h = BackgroundKey("background-v2", site, cam, options.start_frame, colour);
+  h.AddPod(options.background_frames);
+  h.AddPod(options.background_step);
+  std::error_code ec;
+  const fs::path cached = options.cache_dir.empty()
+                              ? fs::path()
+                              : options.cache_dir / "backgrounds" / fmt::format("{}-{}-{:016x}.png", site.name, cam.id, h.Digest());
+  if (!cached.empty() && fs::exists(cached, ec) && load(cached).ok()) {
+    c.info.background = fmt::format("reused: {}", cached.string());
+    return Status::Ok();
+  }
+  OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> src, OpenFrameSource(cam.source, src_opts));
+  OCCMAP_RETURN_IF_ERROR(src->SkipTo(options.start_frame));
+  MedianBackground gray_median(size.width, size.height);
+  MedianBackgroundRgb rgb_median(size.width, size.height);
+  Frame f;
+  int64_t read = 0;
+  while (gray_median.count() < options.background_frames) {
+    OCCMAP_ASSIGN_OR_RETURN(bool got, src->Read(f));
+    if (!got) break;
+    if (read++ % options.background_step != 0) continue;
+    OCCMAP_RETURN_IF_ERROR(CheckFrameSize(c, f).WithContext(fmt::format("camera {}", cam.id)));
+    gray_median.Add(f.gray.view());
+    if (colour) rgb_median.Add(f.rgb.view());
+  }
+  if (gray_median.count() == 0) {
+    return InvalidInput(fmt::format("camera {}: {} has no frames to estimate a background from", cam.id, src->Describe()));
+  }
+  c.background_gray = gray_median.Median();
+  if (colour) c.background_rgb = rgb_median.Median();
+  c.info.background = fmt::format("estimated: median of {} frames", gray_median.count());
+  if (!cached.empty()) {
+    OCCMAP_RETURN_IF_ERROR(EnsureDirectory(cached.parent_path()));
+    if (colour) {
+      OCCMAP_RETURN_IF_ERROR(WritePng(cached, c.background_rgb.view()));
+    } else {
+      OCCMAP_RETURN_IF_ERROR(WritePng(cached, c.background_gray.view()));
+    }
+  }
+  return Status::Ok();
+}
+
+
+}  // namespace
+
+FrameSourceOptions RunSourceOptions(const FusionPlan& plan, int num_threads, int num_cameras) {
+  FrameSourceOptions o;
+  o.colour = plan.colour;
+  o.chroma = plan.chroma;
+  o.decoder_threads = DecoderThreadsPerCamera(num_threads, num_cameras);
+  return o;
+}
+
+Result<std::vector<CameraState>> OpenCameras(const Site& site, const RunOptions& options, const FusionPlan& plan,
+                                             Context& ctx) {
+  std::vector<CameraState> cams(site.cameras.size());
+  const FrameSourceOptions src_opts = RunSourceOptions(plan, ctx.num_threads(), static_cast<int>(site.cameras.size()));
+  // A background estimated from one camera's frames uses all the threads.
+  FrameSourceOptions background_opts = src_opts;
+  background_opts.decoder_threads = ctx.num_threads();
+  for (size_t n = 0; n < cams.size(); ++n) {
+    CameraState& c = cams[n];
+    c.cam = &site.cameras[n];
+    c.info.id = c.cam->id;
+    if (c.cam->source.kind == FrameSourceSpec::Kind::kNone) {
+      return InvalidInput(fmt::format("camera {}: no source (give cameras[{}].source in the site file)", c.cam->id, n));
+    }
+    c.is_mask = c.cam->source.kind == FrameSourceSpec::Kind::kMasks;
+    auto src = OpenFrameSource(c.cam->source, src_opts);
+    if (!src.ok()) return src.status().WithContext(fmt::format("camera {}", c.cam->id));
+    c.source = std::move(src).value();
+    c.info.source = c.source->Describe();
+    if (plan.adaptive && !c.is_mask) {
+      OCCMAP_RETURN_IF_ERROR(PrepareAdaptiveBackground(site, options, plan.chroma, background_opts, c));
+    } else {
+      OCCMAP_RETURN_IF_ERROR(PrepareBackground(site, options, plan.colour, background_opts, c));
+    }
+    if (options.start_frame > 0) {
+      OCCMAP_RETURN_IF_ERROR(c.source->SkipTo(options.start_frame).WithContext(fmt::format("camera {}", c.cam->id)));
+    }
+    const ImageSize size = c.cam->camera->image_size();
+    c.raw_changes = Image<uint8_t>(size.width, size.height);
+  }
+  return cams;
+}
+
+}  // namespace occmap

@@ -1,0 +1,52 @@
+// The cameras of a run: each one's frame source and background (given, reused from the cache,
+// estimated as a median, or learned by the adaptive model), opened and prepared before the
+// first frame set (pipeline/run.cc), then read by the FrameReader (pipeline/frame_reader.h).
+//
+//   OCCMAP_ASSIGN_OR_RETURN(std::vector<CameraState> cams, OpenCameras(site, options, plan, ctx));
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "occmap/detect/background_model.h"
+#include "occmap/io/frame_source.h"
+#include "occmap/pipeline/fusion_path.h"
+#include "occmap/pipeline/run.h"
+#include "occmap/util/image.h"
+#include "occmap/util/yuv.h"
+
+namespace occmap {
+
+struct CameraState {
+  const SiteCamera* cam = nullptr;
+  std::unique_ptr<FrameSource> source;
+  bool is_mask = false;
+  Image<uint8_t> background_gray;
+  Image<Rgb8> background_rgb;
+  Frame lookahead;  // timestamp sync: the next frame not yet used
+  bool has_lookahead = false;
+  bool present = false;  // has a frame for the current instant
+  bool active = true;    // its stream has not ended or failed
+  Image<uint8_t> raw_changes;
+  std::vector<uint8_t> dilate_scratch;
+  // The adaptive model (site.backgrounds.adaptive): learned or given, kept up to date.
+  std::unique_ptr<BackgroundModel> model;
+  CameraRunInfo info;
+};
+
+// A frame's size against the camera's image size (masks: its shape).
+Status CheckFrameSize(const CameraState& c, const Frame& f);
+// A frame's planes as the adaptive model reads them.
+YuvView FrameYuv(const Frame& f);
+// A background of the adaptive model as a picture: RGB from luma and chroma, or grey.
+Status WriteYuvPng(const std::filesystem::path& path, const YuvImage& yuv);
+
+// The decoder options of the run's sources: grey, colour or chroma as the plan reads them, and
+// each camera's share of ctx's threads (the cameras decode side by side).
+FrameSourceOptions RunSourceOptions(const FusionPlan& plan, int num_threads, int num_cameras);
+
+// Every camera's source opened (at options.start_frame) and its background prepared.
+Result<std::vector<CameraState>> OpenCameras(const Site& site, const RunOptions& options, const FusionPlan& plan,
+                                             Context& ctx);
+
+}  // namespace occmap

@@ -1,0 +1,135 @@
+#include "occmap/pipeline/frame_reader.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+namespace occmap {
+using Clock = std::chrono::steady_clock;
+
+namespace {
+double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+}  // namespace
+
+// One decoding thread per camera (the reader and cameras - 1 more), at most --threads:
+// decoders without frame threads, side by side, cost less CPU per frame than frame-threaded
+// ones taking turns (lab bench, 4 x 640x480 H.264 on 2 cores: 2.6 against 3.3 ms of CPU per
+// frame set).
+FrameReader::FrameReader(std::vector<CameraState>& cams, const RunOptions& options, int num_threads)
+    : cams_(cams),
+      options_(options),
+      decode_ctx_(std::max(1, std::min(static_cast<int>(cams.size()), num_threads))),
+      read_got_(cams.size(), 0),
+      read_status_(cams.size()),
+      next_frame_index_(options.start_frame) {}
+
+bool FrameReader::Read(FrameSet& set) {
+  if (options_.max_frames >= 0 && frames_read_ >= options_.max_frames) return false;
+  auto t0 = Clock::now();
+  std::vector<std::pair<size_t, Status>> ended;  // camera, status (ok = end of stream)
+  // The cameras read by index (all of them, or camera 0 under timestamp sync) decode in
+  // parallel, one task per camera on decode_ctx's threads.
+  to_read_.clear();
+  for (size_t n = 0; n < cams_.size(); ++n) {
+    cams_[n].present = false;
+    if (cams_[n].active && !(options_.sync == FrameSync::kTimestamp && n > 0)) to_read_.push_back(n);
+  }
+  decode_ctx_.pool().Run(static_cast<int>(to_read_.size()), [&](int task, int) {
+    const size_t n = to_read_[task];
+    auto got = cams_[n].source->Read(set.frames[n]);
+    read_got_[n] = got.ok() && *got;
+    read_status_[n] = !got.ok() ? got.status() : read_got_[n] ? CheckFrameSize(cams_[n], set.frames[n]) : Status::Ok();
+  });
+  for (const size_t n : to_read_) {
+    if (!read_got_[n] || !read_status_[n].ok()) {
+      ended.emplace_back(n, read_status_[n]);
+      continue;
+    }
+    cams_[n].present = true;
+  }
+  if (options_.sync == FrameSync::kTimestamp && cams_[0].present) {
+    const double t_ref = set.frames[0].timestamp_s;
+    if (std::isnan(t_ref)) {
+      failure_ = InvalidInput(fmt::format("camera {}: {} has no timestamps; synchronise by frame index", cams_[0].cam->id,
+                                         cams_[0].source->Describe()));
+      return false;
+    }
+    for (size_t n = 1; n < cams_.size(); ++n) {
+      CameraState& c = cams_[n];
+      if (!c.active) continue;
+      while (true) {
+        if (!c.has_lookahead) {
+          auto got = c.source->Read(c.lookahead);
+          if (!got.ok() || !*got) {
+            ended.emplace_back(n, got.ok() ? Status::Ok() : got.status());
+            break;
+          }
+          if (std::isnan(c.lookahead.timestamp_s)) {
+            ended.emplace_back(n, InvalidInput(fmt::format("camera {}: {} has no timestamps; synchronise by frame index",
+                                                           c.cam->id, c.source->Describe())));
+            break;
+          }
+          c.has_lookahead = true;
+        }
+        const double dt = c.lookahead.timestamp_s - t_ref;
+        if (dt < -options_.sync_tolerance_s) {  // too old: drop it
+          c.has_lookahead = false;
+          continue;
+        }
+        if (dt <= options_.sync_tolerance_s) {  // close enough: use it for this instant
+          std::swap(set.frames[n], c.lookahead);
+          c.has_lookahead = false;
+          if (Status s = CheckFrameSize(c, set.frames[n]); !s.ok()) {
+            ended.emplace_back(n, s);
+            break;
+          }
+          c.present = true;
+        }
+        break;  // in the future: no frame of this camera for this instant
+      }
+    }
+  }
+  decode_s_ += Since(t0);
+  if (!ended.empty()) {
+    size_t active_left = 0;
+    for (const auto& c : cams_) active_left += c.active;
+    bool stop = ended.size() == active_left || options_.on_camera_failure == OnCameraFailure::kStop;
+    const bool all_ended = ended.size() == active_left;
+    for (const auto& [n, status] : ended) {
+      CameraState& c = cams_[n];
+      if (!all_ended || !status.ok()) {  // a normal end of every stream is not news
+        c.info.ended_at_frame = next_frame_index_;
+        c.info.end_reason = status.ok() ? "end of stream" : status.message();
+      }
+      if (!status.ok() && options_.on_camera_failure == OnCameraFailure::kStop && failure_.ok()) {
+        failure_ = status.WithContext(fmt::format("camera {} at frame {}", c.cam->id, next_frame_index_));
+      }
+      c.active = false;
+      c.present = false;
+    }
+    if (options_.sync == FrameSync::kTimestamp && !cams_[0].active) stop = true;  // the reference ended
+    if (stop) {
+      if (all_ended) {
+        stop_reason_ = "end of streams";
+      } else {
+        stop_reason_ = fmt::format("camera {} ended at frame {}", cams_[ended[0].first].cam->id, next_frame_index_);
+      }
+      return false;
+    }
+  }
+  set.frame_index = next_frame_index_++;
+  set.timestamp_s = std::nan("");
+  for (size_t n = 0; n < cams_.size(); ++n) {
+    set.active[n] = cams_[n].active && cams_[n].present;
+    // Stream time from the first camera with a frame (camera 0 may have ended).
+    if (set.active[n] && std::isnan(set.timestamp_s)) set.timestamp_s = set.frames[n].timestamp_s;
+  }
+  set.arrival = Clock::now();
+  set.t_unix = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  ++frames_read_;
+  return true;
+}
+}  // namespace occmap
