@@ -42,13 +42,14 @@ Result<LineCounter> LineCounter::Create(const std::vector<LineOptions>& lines) {
   return LineCounter(lines);
 }
 
-std::vector<LineEvent> LineCounter::Update(int64_t frame, double time_s, const std::vector<Track>& tracks) {
+LineFrame LineCounter::Update(int64_t frame, double time_s, const std::vector<Track>& tracks) {
   std::vector<const Track*> by_id;
   by_id.reserve(tracks.size());
   for (const Track& t : tracks) by_id.push_back(&t);
   std::sort(by_id.begin(), by_id.end(), [](const Track* a, const Track* b) { return a->id < b->id; });
 
-  std::vector<LineEvent> events;
+  LineFrame result;
+  std::vector<LineEvent>& events = result.events;
   for (size_t l = 0; l < lines_.size(); ++l) {
     const LineOptions& line = lines_[l];
     std::map<int64_t, Side> now;
@@ -70,7 +71,8 @@ std::vector<LineEvent> LineCounter::Update(int64_t frame, double time_s, const s
     }
     sides_[l] = std::move(now);
   }
-  return events;
+  result.counts = counts_;
+  return result;
 }
 
 }  // namespace occmap

@@ -14,8 +14,9 @@
 // no longer reported is forgotten (memory stays bounded by the live tracks).
 //
 //   OCCMAP_ASSIGN_OR_RETURN(LineCounter lines, LineCounter::Create(options.lines));
-//   for (const LineEvent& e : lines.Update(frame, time_s, tracks)) events.Append(LineEventJsonLine(e) + "\n");
-//   int64_t in = lines.counts()[0].in;
+//   LineFrame f = lines.Update(frame, time_s, tracks);
+//   for (const LineEvent& e : f.events) events.Append(LineEventJsonLine(e) + "\n");
+//   int64_t in = f.counts[0].in;
 #pragma once
 
 #include <Eigen/Core>
@@ -50,6 +51,11 @@ struct LineEvent {
   friend bool operator==(const LineEvent&, const LineEvent&) = default;
 };
 
+struct LineFrame {
+  std::vector<LineEvent> events;   // this frame's crossings
+  std::vector<LineCounts> counts;  // per line, in the lines' order: cumulative after this frame
+};
+
 // The side of the directed line through from_m and to_m the point is on: +1 left, -1 right,
 // 0 within 1 nm of the line.
 int SideOfLine(const Eigen::Vector2d& from_m, const Eigen::Vector2d& to_m, const Eigen::Vector2d& point_m);
@@ -61,7 +67,7 @@ class LineCounter {
 
   // The crossings of this frame: line by line in the lines' order, within a line in increasing
   // track id.
-  std::vector<LineEvent> Update(int64_t frame, double time_s, const std::vector<Track>& tracks);
+  LineFrame Update(int64_t frame, double time_s, const std::vector<Track>& tracks);
 
   const std::vector<LineOptions>& lines() const { return lines_; }
   const std::vector<LineCounts>& counts() const { return counts_; }  // per line, cumulative

@@ -31,7 +31,8 @@ std::string CrossingsOf(LineCounter& counter, const std::vector<std::vector<Eige
         tracks.push_back(At(static_cast<int64_t>(k + 1), paths[k][f].x(), paths[k][f].y()));
       }
     }
-    for (const LineEvent& e : counter.Update(static_cast<int64_t>(f), kDt * static_cast<double>(f), tracks)) {
+    const LineFrame result = counter.Update(static_cast<int64_t>(f), kDt * static_cast<double>(f), tracks);
+    for (const LineEvent& e : result.events) {
       s += LineEventJsonLine(e) + "\n";
     }
   }
@@ -111,17 +112,18 @@ TEST(LineCounter, AStepThroughAnEndpointCounts) {
 
 TEST(LineCounter, CoastingPredictionsNeverCrossAndEndedTracksAreForgotten) {
   LineCounter gate = Gate();
-  EXPECT_TRUE(gate.Update(0, 0.0, {At(1, 0.5, 1)}).empty());
+  EXPECT_TRUE(gate.Update(0, 0.0, {At(1, 0.5, 1)}).events.empty());
   // Predicted across the line while coasting: nothing; measured there later: the crossing.
-  EXPECT_TRUE(gate.Update(1, 0.1, {At(1, -0.5, 1, /*coasting=*/true)}).empty());
-  const std::vector<LineEvent> measured = gate.Update(2, 0.2, {At(1, -0.6, 1)});
-  ASSERT_EQ(measured.size(), 1u);
-  EXPECT_EQ(measured[0].direction, LineDirection::kIn);
+  EXPECT_TRUE(gate.Update(1, 0.1, {At(1, -0.5, 1, /*coasting=*/true)}).events.empty());
+  const LineFrame measured = gate.Update(2, 0.2, {At(1, -0.6, 1)});
+  ASSERT_EQ(measured.events.size(), 1u);
+  EXPECT_EQ(measured.events[0].direction, LineDirection::kIn);
+  EXPECT_EQ(measured.counts, (std::vector<LineCounts>{{1, 0}}));
   // A track left out of a frame is forgotten: its next position starts afresh (the trackers
   // never report an id again once it is gone; this only shows the state is dropped).
-  EXPECT_TRUE(gate.Update(3, 0.3, {At(2, 0.5, 1)}).empty());
-  EXPECT_TRUE(gate.Update(4, 0.4, {}).empty());
-  EXPECT_TRUE(gate.Update(5, 0.5, {At(2, -0.5, 1)}).empty());
+  EXPECT_TRUE(gate.Update(3, 0.3, {At(2, 0.5, 1)}).events.empty());
+  EXPECT_TRUE(gate.Update(4, 0.4, {}).events.empty());
+  EXPECT_TRUE(gate.Update(5, 0.5, {At(2, -0.5, 1)}).events.empty());
   EXPECT_EQ(gate.counts()[0], (LineCounts{1, 0}));
 }
 
