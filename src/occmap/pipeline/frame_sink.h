@@ -29,6 +29,7 @@
 #include "occmap/fusion/occupancy_map.h"
 #include "occmap/objects/detection.h"
 #include "occmap/site/site.h"
+#include "occmap/track/count_lines.h"
 #include "occmap/track/track.h"
 #include "occmap/track/zones.h"
 #include "occmap/util/image.h"
@@ -71,6 +72,7 @@ struct RunStats {
   LatencyFigures latency;
   int64_t tracks = 0;          // distinct reported track ids so far
   int64_t zone_events = 0;     // events so far
+  std::vector<LineCounts> lines;  // per counting line (site.tracking.lines): crossings so far
   std::string stop_reason;     // Close only: "end of streams", "frame limit", "stop requested", ...
 };
 
@@ -85,6 +87,7 @@ struct FrameRecord {
   std::vector<Detection> detections;     // the frame's objects
   std::vector<Track> tracks;             // the reported tracks (empty without tracking)
   ZoneFrame zones;                       // zone events and per-zone counts (empty without zones)
+  LineFrame lines;                       // line crossings and per-line counts (empty without lines)
   // Pictures drawn by the run when an output asks for them, else empty.
   Image<Rgb8> mosaic;                          // the mosaic (RunOptions::mosaic_video)
   std::vector<Image<uint8_t>> change_pictures;  // per camera, 255 changed (RunOptions::change_pngs)

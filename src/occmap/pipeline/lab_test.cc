@@ -4,6 +4,7 @@
 #include <fmt/core.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <iostream>
 #include <map>
 #include <sstream>
@@ -331,6 +332,75 @@ TEST_F(FullLab, ZoneEventsMatchTheGroundTruthCrossings) {
   }
   std::cout << fmt::format("band: {} true crossings, {} events, {} crossings without an event\n", truth.size(),
                            events.size(), unmatched_truth);
+}
+
+// Line crossings of a run match those of the ground truth: a line across the room at x = 4.5
+// from y = 0 to y = 6.5 ("in" = towards -x). Every true crossing has an event of the same
+// direction within 3 frames, no event is left over, and summary.json's counts are the events'.
+TEST_F(FullLab, LineCrossingsMatchTheGroundTruthInBothDirections) {
+  ASSERT_NE(demo_, nullptr);
+  auto site = LoadSite(Dataset() / "site.yaml");
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  site->tracking.lines = {LineOptions{"middle", {4.5, 0.0}, {4.5, 6.5}}};
+  RunOptions run;
+  run.out_dir = dir_->path() / "run_lines";
+  run.occupancy_video = run.mosaic_video = false;
+  Context ctx(2);
+  ASSERT_TRUE(RunSite(*site, run, ctx).ok());
+
+  struct Crossing {
+    std::string direction;
+    int64_t frame;
+    bool matched = false;
+  };
+  std::vector<Crossing> truth;
+  std::map<int64_t, double> last_x;
+  const std::string gt = *ReadFileToString(Dataset() / "ground_truth.jsonl");
+  std::istringstream gt_lines(gt);
+  for (std::string line; std::getline(gt_lines, line);) {
+    const auto j = nlohmann::json::parse(line);
+    const int64_t frame = j["frame"].get<int64_t>();
+    for (const auto& o : j["objects"]) {
+      const int64_t id = o["id"].get<int64_t>();
+      const double x = o["x_m"].get<double>();
+      if (last_x.count(id) > 0 && (last_x[id] < 4.5) != (x < 4.5)) truth.push_back({x < 4.5 ? "in" : "out", frame});
+      last_x[id] = x;
+    }
+  }
+  std::vector<Crossing> events;
+  int64_t in = 0, out = 0;
+  const std::string ev = *ReadFileToString(run.out_dir / "events.jsonl");
+  std::istringstream ev_lines(ev);
+  for (std::string line; std::getline(ev_lines, line);) {
+    const auto j = nlohmann::json::parse(line);
+    if (!j.contains("line")) continue;
+    EXPECT_EQ(j["line"], "middle");
+    events.push_back({j["direction"].get<std::string>(), j["frame"].get<int64_t>()});
+    (events.back().direction == "in" ? in : out) += 1;
+    EXPECT_EQ(j["in"].get<int64_t>(), in);
+    EXPECT_EQ(j["out"].get<int64_t>(), out);
+  }
+  ASSERT_GE(truth.size(), 3u) << "the line is crossed";
+  ASSERT_TRUE(std::any_of(truth.begin(), truth.end(), [](const Crossing& c) { return c.direction == "in"; }));
+  ASSERT_TRUE(std::any_of(truth.begin(), truth.end(), [](const Crossing& c) { return c.direction == "out"; }));
+  for (Crossing& t : truth) {
+    Crossing* best = nullptr;
+    for (Crossing& e : events) {
+      if (e.matched || e.direction != t.direction || std::abs(e.frame - t.frame) > 3) continue;
+      if (best == nullptr || std::abs(e.frame - t.frame) < std::abs(best->frame - t.frame)) best = &e;
+    }
+    if (best == nullptr) {
+      ADD_FAILURE() << "no '" << t.direction << "' crossing near frame " << t.frame;
+      continue;
+    }
+    best->matched = t.matched = true;
+  }
+  for (const Crossing& e : events) {
+    EXPECT_TRUE(e.matched) << "an '" << e.direction << "' crossing at frame " << e.frame << " that no object made";
+  }
+  const auto summary = nlohmann::json::parse(*ReadFileToString(run.out_dir / "summary.json"));
+  EXPECT_EQ(summary["tracking"]["lines"], nlohmann::json::parse(fmt::format(R"([{{"name":"middle","in":{},"out":{}}}])", in, out)));
+  std::cout << fmt::format("middle line: {} true crossings, {} in and {} out events\n", truth.size(), in, out);
 }
 
 }  // namespace

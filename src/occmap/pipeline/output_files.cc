@@ -145,10 +145,14 @@ Status OutputFiles::Consume(const FrameRecord& r, const RunStats& stats) {
     if (Status s = tracks_->Append(text_); !s.ok()) return fail(s);
     if (Status s = mot_->Append(MotGroundPlaneRows(r.frame, r.tracks)); !s.ok()) return fail(s);
   }
-  if (events_ && !r.zones.events.empty()) {
+  if (events_ && (!r.zones.events.empty() || !r.lines.events.empty())) {
     text_.clear();
     for (const ZoneEvent& e : r.zones.events) {
       text_ += ZoneEventJsonLine(e);
+      text_ += '\n';
+    }
+    for (const LineEvent& e : r.lines.events) {
+      text_ += LineEventJsonLine(e);
       text_ += '\n';
     }
     if (Status s = events_->Append(text_); !s.ok()) return fail(s);

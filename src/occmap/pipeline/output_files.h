@@ -2,7 +2,7 @@
 //   detections.jsonl   one line per frame set: {"frame", "time_s", "blobs": [{x_m, y_m, area_m2, cells}]}
 //   tracks.jsonl       one line per frame set (track/track_output.h), with tracking
 //   tracks_mot.csv     the tracks as MOTChallenge ground-plane rows, with tracking
-//   events.jsonl       zone events, one line each, with tracking and zones
+//   events.jsonl       zone events and line crossings, one line each, with tracking and zones or lines
 //   occupancy.mp4      the map per frame set (white free, black occupied, grey unseen)
 //   occupancy/NNNNNN.png, changes/<camera>/NNNNNN.png, mosaic.mp4   when asked for
 // The lines are what eval/run_outputs.h reads (a round-trip test holds them together).
@@ -67,7 +67,7 @@ class TextOutput {
 struct OutputFilesOptions {
   OutputMode mode = OutputMode::kLive;
   bool track = true;              // tracks.jsonl, tracks_mot.csv (and events.jsonl with zones)
-  bool events = false;            // events.jsonl (the site has zones)
+  bool events = false;            // events.jsonl (the site has zones or counting lines)
   bool occupancy_video = true;    // occupancy.mp4
   bool occupancy_pngs = false;    // occupancy/NNNNNN.png
   bool mosaic_video = false;      // mosaic.mp4 from FrameRecord::mosaic

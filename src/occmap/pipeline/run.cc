@@ -43,6 +43,7 @@
 #include "occmap/track/multi_target_tracker.h"
 #include "occmap/track/track_output.h"
 #include "occmap/track/window_tracker.h"
+#include "occmap/track/count_lines.h"
 #include "occmap/track/zones.h"
 #include "occmap/util/file_util.h"
 #include "occmap/util/hash.h"
@@ -117,6 +118,16 @@ LatencyFigures Figures(const LatencyHistogram& h) {
   f.p99_ms = 1e3 * h.Percentile(0.99);
   f.max_ms = 1e3 * h.max_s();
   return f;
+}
+
+// summary.json's tracking.lines: per counting line its name and crossings in and out so far.
+json LinesJson(const std::vector<LineOptions>& lines, const std::vector<LineCounts>& counts) {
+  json out = json::array();
+  for (size_t l = 0; l < lines.size(); ++l) {
+    const LineCounts c = l < counts.size() ? counts[l] : LineCounts{};
+    out.push_back({{"name", lines[l].name}, {"in", c.in}, {"out", c.out}});
+  }
+  return out;
 }
 
 json LatencyJson(const LatencyFigures& f) {
@@ -229,7 +240,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   OutputFilesOptions file_options;
   file_options.mode = options.output_mode;
   file_options.track = options.track;
-  file_options.events = options.track && !site.tracking.zones.empty();
+  file_options.events = options.track && (!site.tracking.zones.empty() || !site.tracking.lines.empty());
   file_options.occupancy_video = options.occupancy_video;
   file_options.occupancy_pngs = options.occupancy_pngs;
   file_options.mosaic_video = options.mosaic_video;
@@ -281,6 +292,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   // Tracking.
   std::optional<AnyTracker> tracker;
   std::optional<ZoneMonitor> zones;
+  std::optional<LineCounter> lines;
   TrailHistory trails(site.tracking.trail_length);
   double last_track_time_s = -std::numeric_limits<double>::infinity();
   if (options.track) {
@@ -288,6 +300,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     tracker = std::move(t);
     OCCMAP_ASSIGN_OR_RETURN(ZoneMonitor z, ZoneMonitor::Create(site.tracking.zones, site.tracking.zone_count_every_frame));
     zones = std::move(z);
+    OCCMAP_ASSIGN_OR_RETURN(LineCounter l, LineCounter::Create(site.tracking.lines));
+    lines = std::move(l);
   }
 
   // The parts of summary.json known before the first frame set; the running summary (rewritten
@@ -300,7 +314,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     static_summary["tracking"] = {{"algorithm", std::string(ToString(site.tracking.algorithm))},
                                   {"tracks", 0},
                                   {"zones", site.tracking.zones.size()},
-                                  {"zone_events", 0}};
+                                  {"zone_events", 0},
+                                  {"lines", LinesJson(site.tracking.lines, {})}};
   }
   if (adaptive) {
     const BackgroundOptions& bo = site.backgrounds;
@@ -397,6 +412,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       max_track_id = std::max(max_track_id, t.id);
     }
     stats.zone_events += static_cast<int64_t>(r.zones.events.size());
+    if (!r.lines.counts.empty()) stats.lines = r.lines.counts;
     total_blobs += static_cast<int64_t>(r.detections.size());
     max_blobs = std::max(max_blobs, r.detections.size());
     if (stats.frames == 1) t_first_written = t0;
@@ -418,6 +434,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       if (options.track) {
         j["tracking"]["tracks"] = stats.tracks;
         j["tracking"]["zone_events"] = stats.zone_events;
+        j["tracking"]["lines"] = LinesJson(site.tracking.lines, stats.lines);
       }
       json cj = json::array();
       for (size_t n = 0; n < cams.size(); ++n) {
@@ -595,6 +612,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
           OCCMAP_ASSIGN_OR_RETURN(tracks, tracker->Update(objects, track_time_s));
           // Zones count every live track; the outputs get the reported ones.
           record.zones = zones->Update(frame_index, time_s, tracks);
+          record.lines = lines->Update(frame_index, time_s, tracks);
           std::erase_if(tracks, [&](const Track& t) { return !IsReported(t, site.tracking.report_coasting_s); });
           trails.Update(tracks);
         }
@@ -855,6 +873,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   if (options.track) {
     j["tracking"]["tracks"] = summary.tracks;
     j["tracking"]["zone_events"] = summary.zone_events;
+    j["tracking"]["lines"] = LinesJson(site.tracking.lines, stats.lines);
   }
   j["stop_reason"] = summary.stop_reason;
   j["latency_ms"] = LatencyJson(stats.latency);

@@ -17,7 +17,8 @@
 //   detections.jsonl   one line per frame: {"frame", "time_s", "blobs": [{x_m, y_m, area_m2, ...}]}
 //   tracks.jsonl       one line per frame: {"frame", "time_s", "tracks": [{id, x_m, y_m, vx_mps, ...}]}
 //   tracks_mot.csv     the tracks as MOTChallenge ground-plane rows
-//   events.jsonl       zone events (enter, leave, dwell, count), when the site has zones
+//   events.jsonl       zone events (enter, leave, dwell, count) and line crossings (in, out), when the
+//                      site has zones or counting lines
 //   summary.json       frames, timing, settings, cameras and how each ended
 //   occupancy.mp4      the map per frame (white free, black occupied, grey unseen), and/or
 //   occupancy/NNNNNN.png
