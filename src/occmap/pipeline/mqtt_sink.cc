@@ -1,0 +1,96 @@
+#include "occmap/pipeline/mqtt_sink.h"
+
+#include <nlohmann/json.hpp>
+
+#include "occmap/track/track_output.h"
+
+namespace occmap {
+namespace {
+
+double WallClockNow() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+}  // namespace
+
+std::string MqttStatsJson(double t_unix, const RunStats& stats, const std::vector<double>& camera_fps,
+                          int64_t line_crossings, const MqttCounters& mqtt) {
+  using nlohmann::json;
+  json cameras = json::array();
+  for (size_t n = 0; n < stats.cameras.size(); ++n) {
+    const CameraStats& c = stats.cameras[n];
+    cameras.push_back({{"id", c.id},
+                       {"active", c.active},
+                       {"connected", c.connected},
+                       {"frames", c.frames},
+                       {"frames_per_second", n < camera_fps.size() ? std::round(camera_fps[n] * 100) / 100 : 0.0},
+                       {"dropped", c.dropped},
+                       {"reconnects", c.reconnects}});
+  }
+  const json j = {{"t_unix", std::round(t_unix * 1e3) / 1e3},
+                  {"frames", stats.frames},
+                  {"elapsed_s", std::round(stats.elapsed_s * 1e3) / 1e3},
+                  {"frames_per_second", std::round(stats.frames_per_second * 100) / 100},
+                  {"cameras", cameras},
+                  {"latency_ms",
+                   {{"p50", stats.latency.p50_ms}, {"p95", stats.latency.p95_ms}, {"p99", stats.latency.p99_ms},
+                    {"max", stats.latency.max_ms}}},
+                  {"tracks", stats.tracks},
+                  {"zone_events", stats.zone_events},
+                  {"line_crossings", line_crossings},
+                  {"mqtt",
+                   {{"published", mqtt.published},
+                    {"dropped", mqtt.dropped},
+                    {"connects", mqtt.connects},
+                    {"disconnects", mqtt.disconnects}}}};
+  return j.dump();
+}
+
+Status MqttSink::Open(const SinkStart& start) {
+  MqttPublisherInfo info;
+  info.site_name = start.site->name;
+  if (start.track) {
+    for (const ZoneOptions& z : start.site->tracking.zones) info.zones.push_back(z.name);
+    for (const LineOptions& l : start.site->tracking.lines) info.lines.push_back(l.name);
+  }
+  OCCMAP_ASSIGN_OR_RETURN(publisher_, MqttPublisher::Start(options_, info));
+  last_stats_ = std::chrono::steady_clock::now();
+  last_camera_frames_.assign(start.camera_ids.size(), 0);
+  return Status::Ok();
+}
+
+Status MqttSink::Consume(const FrameRecord& r, const RunStats& stats) {
+  MqttFrame frame;
+  frame.tracks_json = TracksJsonLine(r.frame, r.time_s, r.tracks);
+  for (const ZoneEvent& e : r.zones.events) frame.events_json.push_back(ZoneEventJsonLine(e));
+  for (const LineEvent& e : r.lines.events) frame.events_json.push_back(LineEventJsonLine(e));
+  frame.zone_counts = r.zones.counts;
+  frame.line_counts = r.lines.counts;
+  line_crossings_ += static_cast<int64_t>(r.lines.events.size());
+  publisher_->PublishFrame(frame);
+  const auto now = std::chrono::steady_clock::now();
+  if (std::chrono::duration<double>(now - last_stats_).count() >= options_.stats_every_s) SendStats(stats);
+  return Status::Ok();
+}
+
+void MqttSink::SendStats(const RunStats& stats) {
+  const auto now = std::chrono::steady_clock::now();
+  const double dt_s = std::chrono::duration<double>(now - last_stats_).count();
+  std::vector<double> fps(stats.cameras.size(), 0.0);
+  last_camera_frames_.resize(stats.cameras.size(), 0);
+  for (size_t n = 0; n < stats.cameras.size(); ++n) {
+    if (dt_s > 0) fps[n] = static_cast<double>(stats.cameras[n].frames - last_camera_frames_[n]) / dt_s;
+    last_camera_frames_[n] = stats.cameras[n].frames;
+  }
+  last_stats_ = now;
+  publisher_->PublishStats(MqttStatsJson(WallClockNow(), stats, fps, line_crossings_, publisher_->counters()));
+}
+
+Status MqttSink::Close(const RunStats& stats) {
+  if (!publisher_) return Status::Ok();
+  SendStats(stats);
+  publisher_->Stop();
+  return Status::Ok();
+}
+
+}  // namespace occmap

@@ -1,0 +1,95 @@
+#include "occmap/pipeline/mqtt_sink.h"
+
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "occmap/publish/test_broker.h"
+
+namespace occmap {
+namespace {
+
+using namespace std::chrono_literals;
+using occmap::testing::TestBroker;
+using occmap::testing::TestSubscriber;
+
+TEST(MqttSink, PublishesTheRecordsTracksEventsAndCountsAndStatsAtTheEnd) {
+  TestBroker broker;
+  ASSERT_TRUE(broker.Start()) << broker.error();
+  TestSubscriber sub(broker.port(), "occmap/#");
+  ASSERT_TRUE(sub.WaitSubscribed());
+
+  Site site;
+  site.name = "Lab";
+  site.tracking.zones = {ZoneOptions{"door", {{0, 0}, {1, 0}, {1, 1}}, std::nullopt}};
+  site.tracking.lines = {LineOptions{"gate", {0, 0}, {0, 2}}};
+  MqttOptions options;
+  options.broker = {"127.0.0.1", broker.port()};
+  options.stats_every_s = 3600;  // only the one at the end
+  MqttSink sink(options);
+  SinkStart start;
+  start.site = &site;
+  start.camera_ids = {"c1"};
+  ASSERT_TRUE(sink.Open(start).ok());
+  ASSERT_TRUE(sub.WaitFor("occmap/lab/lines/gate/out", "0")) << "the state on connecting";
+
+  FrameRecord r;
+  r.frame = 7;
+  r.time_s = 0.7;
+  Track t;
+  t.id = 3;
+  t.x_m = 0.5;
+  t.y_m = 0.25;
+  t.object_class = "person";
+  r.tracks = {t};
+  r.zones.events = {ZoneEvent{7, 0.7, "door", 3, ZoneEventKind::kEnter, 1}};
+  r.zones.counts = {1};
+  r.lines.events = {LineEvent{7, 0.7, "gate", 3, LineDirection::kOut, {0, 1}}};
+  r.lines.counts = {{0, 1}};
+  RunStats stats;
+  stats.frames = 8;
+  stats.cameras = {CameraStats{.id = "c1", .frames = 8, .dropped = 2}};
+  ASSERT_TRUE(sink.Consume(r, stats).ok());
+  ASSERT_TRUE(sink.Close(stats).ok());
+
+  ASSERT_TRUE(sub.WaitFor("occmap/lab/available", "offline"));
+  ASSERT_TRUE(sub.WaitFor("occmap/lab/stats"));
+  EXPECT_EQ(sub.On("occmap/lab/tracks").back().payload,
+            R"({"frame":7,"time_s":0.7,"tracks":[{"id":3,"x_m":0.5,"y_m":0.25,"vx_mps":0,"vy_mps":0,"class":"person"}]})");
+  const auto events = sub.On("occmap/lab/events");
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[0].payload, R"({"frame":7,"time_s":0.7,"zone":"door","track_id":3,"event":"enter","count":1})");
+  EXPECT_EQ(events[1].payload,
+            R"({"frame":7,"time_s":0.7,"line":"gate","track_id":3,"event":"cross","direction":"out","in":0,"out":1})");
+  EXPECT_EQ(sub.On("occmap/lab/zones/door/count").back().payload, "1");
+  EXPECT_EQ(sub.On("occmap/lab/zones/door/occupied").back().payload, "ON");
+  EXPECT_EQ(sub.On("occmap/lab/lines/gate/out").back().payload, "1");
+  const nlohmann::json s = nlohmann::json::parse(sub.On("occmap/lab/stats").back().payload);
+  EXPECT_EQ(s["frames"], 8);
+  EXPECT_EQ(s["line_crossings"], 1);
+  EXPECT_EQ(s["cameras"][0]["id"], "c1");
+  EXPECT_EQ(s["cameras"][0]["dropped"], 2);
+  EXPECT_EQ(s["mqtt"]["dropped"], 0);
+  EXPECT_GT(s["t_unix"].get<double>(), 1.7e9);
+}
+
+TEST(MqttSink, ABrokerThatIsNotThereNeverFailsTheRun) {
+  Site site;
+  site.name = "lab";
+  MqttOptions options;
+  options.broker = {"127.0.0.1", occmap::testing::FreeLoopbackPort()};
+  MqttSink sink(options);
+  SinkStart start;
+  start.site = &site;
+  ASSERT_TRUE(sink.Open(start).ok());
+  FrameRecord r;
+  for (int k = 0; k < 5; ++k) {
+    r.frame = k;
+    EXPECT_TRUE(sink.Consume(r, RunStats{}).ok());
+  }
+  EXPECT_TRUE(sink.Close(RunStats{}).ok());
+  EXPECT_EQ(sink.counters().dropped, 6) << "5 tracks messages and the last stats";
+}
+
+}  // namespace
+}  // namespace occmap
