@@ -378,6 +378,7 @@ struct RunCommand {
   bool continue_without_camera = false;
   bool no_video = false;
   bool atomic_outputs = false;
+  bool no_wall_clock = false;
   std::optional<double> min_blob_area_m2;
 };
 
@@ -400,6 +401,7 @@ Status RunRun(const CommonOptions& common, RunCommand cmd) {
   o.on_camera_failure = cmd.continue_without_camera ? OnCameraFailure::kContinue : OnCameraFailure::kStop;
   if (cmd.no_video) o.occupancy_video = o.mosaic_video = false;
   o.output_mode = cmd.atomic_outputs ? OutputMode::kAtomic : OutputMode::kLive;
+  o.wall_clock_times = !cmd.no_wall_clock;
   o.stop = signals.stop();
   ProgressBar bar;
   auto summary = RunSite(site, o, ctx, [&](const RunProgress& p) { bar.Update(p); });
@@ -677,6 +679,8 @@ int main(int argc, char** argv) {
   run_cmd->add_flag("--change-pngs", run.options.change_pngs,
                     "also write changes/<camera>/NNNNNN.png per frame (changed pixels, before the tolerance)");
   run_cmd->add_flag("--no-video", run.no_video, "do not write occupancy.mp4 and mosaic.mp4");
+  run_cmd->add_flag("--no-wall-clock", run.no_wall_clock,
+                    "leave t_unix (wall-clock time) out of the JSON lines: outputs that depend on the inputs alone");
   run_cmd->add_flag("--atomic-outputs", run.atomic_outputs,
                     "write the outputs through temporaries renamed at the end (all or nothing) instead of "
                     "appending whole lines per frame set");

@@ -45,6 +45,7 @@
 //   and a read that blocks longer than stream_timeout_ms fails with kIoError.
 #pragma once
 
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -88,6 +89,9 @@ struct FrameSourceOptions {
   double image_fps = 0;
   // Streams: an open or a read that blocks longer than this fails (kIoError) rather than hang.
   int stream_timeout_ms = 10000;
+  // Streams: when set and true, a blocked open or read gives up at once (kIoError), so that a
+  // reader thread can be stopped without waiting for the time-out.
+  const std::atomic<bool>* cancel = nullptr;
 
   Status Validate() const;
 };

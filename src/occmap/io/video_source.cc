@@ -207,7 +207,9 @@ class VideoSource final : public FrameSource {
     deadline_ = std::chrono::steady_clock::now() + std::chrono::milliseconds(options_.stream_timeout_ms);
   }
   static int Interrupt(void* opaque) {
-    return std::chrono::steady_clock::now() > static_cast<VideoSource*>(opaque)->deadline_ ? 1 : 0;
+    const auto* self = static_cast<VideoSource*>(opaque);
+    if (self->options_.cancel != nullptr && self->options_.cancel->load(std::memory_order_relaxed)) return 1;
+    return std::chrono::steady_clock::now() > self->deadline_ ? 1 : 0;
   }
 
   std::string location_;

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
+#include <thread>
 #include <utility>
 
 namespace occmap {
@@ -18,24 +20,70 @@ double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock:
 // decoders without frame threads, side by side, cost less CPU per frame than frame-threaded
 // ones taking turns (lab bench, 4 x 640x480 H.264 on 2 cores: 2.6 against 3.3 ms of CPU per
 // frame set).
-FrameReader::FrameReader(std::vector<CameraState>& cams, const RunOptions& options, int num_threads)
+FrameReader::FrameReader(std::vector<CameraState>& cams, const RunOptions& options, int num_threads,
+                         const FrameSourceOptions& source_options)
     : cams_(cams),
       options_(options),
       decode_ctx_(std::max(1, std::min(static_cast<int>(cams.size()), num_threads))),
       read_got_(cams.size(), 0),
       read_status_(cams.size()),
-      next_frame_index_(options.start_frame) {}
+      next_frame_index_(options.start_frame) {
+  live_.resize(cams.size());
+  LiveSourceOptions live_options;
+  for (size_t n = 0; n < cams.size(); ++n) {
+    CameraState& c = cams[n];
+    if (c.cam->source.kind != FrameSourceSpec::Kind::kStream || options.sync != FrameSync::kIndex) continue;
+    FrameSourceOptions reopen = source_options;
+    reopen.decoder_threads = 1;
+    // A stream silent this long is dropped and opened again (a key frame every 2 s or so must
+    // arrive within it to open).
+    reopen.stream_timeout_ms = std::min(reopen.stream_timeout_ms, 3000);
+    live_[n] = std::make_unique<LiveSource>(std::move(c.source), c.cam->source, reopen, live_options);
+    ++num_live_;
+  }
+}
+
+// Live streams: the first new frame of any live camera (1 s at most), then the others' within
+// the sync window; frames taken by arrival, the newest of each camera.
+bool FrameReader::ReadLive(FrameSet& set) {
+  using std::chrono::duration;
+  const auto t_start = Clock::now();
+  auto stopped = [&] { return options_.stop != nullptr && options_.stop->load(); };
+  std::optional<Clock::time_point> window_end;
+  size_t got = 0;
+  while (got < num_live_) {
+    for (size_t n = 0; n < cams_.size(); ++n) {
+      if (!live_[n] || cams_[n].present) continue;
+      if (live_[n]->Take(set.frames[n], 0)) {
+        cams_[n].present = true;
+        ++got;
+        if (!window_end) {
+          window_end = Clock::now() + std::chrono::duration_cast<Clock::duration>(duration<double>(options_.live_sync_window_s));
+        }
+      }
+    }
+    if (got == num_live_ || stopped()) break;
+    const auto now = Clock::now();
+    if (window_end ? now >= *window_end : now - t_start >= std::chrono::seconds(1)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return !stopped();
+}
 
 bool FrameReader::Read(FrameSet& set) {
   if (options_.max_frames >= 0 && frames_read_ >= options_.max_frames) return false;
   auto t0 = Clock::now();
   std::vector<std::pair<size_t, Status>> ended;  // camera, status (ok = end of stream)
+  for (size_t n = 0; n < cams_.size(); ++n) cams_[n].present = false;
+  if (num_live_ > 0 && !ReadLive(set)) {
+    stop_reason_ = "stop requested";
+    return false;
+  }
   // The cameras read by index (all of them, or camera 0 under timestamp sync) decode in
   // parallel, one task per camera on decode_ctx's threads.
   to_read_.clear();
   for (size_t n = 0; n < cams_.size(); ++n) {
-    cams_[n].present = false;
-    if (cams_[n].active && !(options_.sync == FrameSync::kTimestamp && n > 0)) to_read_.push_back(n);
+    if (cams_[n].active && !live_[n] && !(options_.sync == FrameSync::kTimestamp && n > 0)) to_read_.push_back(n);
   }
   decode_ctx_.pool().Run(static_cast<int>(to_read_.size()), [&](int task, int) {
     const size_t n = to_read_[task];

@@ -24,6 +24,7 @@ Result<RunSummary> RunGoPro4(const fs::path& root, const fs::path& out, int tole
   RunOptions o;
   o.out_dir = out;
   o.occupancy_pngs = true;
+  o.wall_clock_times = false;  // runs are compared line by line
   o.occupancy_video = o.mosaic_video = false;
   Context ctx(2);
   return RunSite(site, o, ctx);

@@ -38,6 +38,12 @@ Image<Rgb8> OccupancyPicture(const Image<uint8_t>& gray, int scale) {
 
 const char* ToString(OutputMode mode) { return mode == OutputMode::kLive ? "live" : "atomic"; }
 
+std::string WithTUnix(std::string_view line, double t_unix) {
+  if (line.size() < 2 || line.front() != '{') return std::string(line);
+  const std::string stamp = fmt::format("{{\"t_unix\":{:.6f}", t_unix);
+  return stamp + (line[1] == '}' ? "" : ",") + std::string(line.substr(1));
+}
+
 std::string DetectionsJsonLine(int64_t frame, double time_s, const std::vector<Detection>& detections) {
   json line = {{"frame", frame}, {"time_s", std::round(time_s * 1e6) / 1e6}, {"blobs", json::array()}};
   for (const Detection& b : detections) {
@@ -136,11 +142,14 @@ Status OutputFiles::Consume(const FrameRecord& r, const RunStats& stats) {
     failed_ = true;
     return s;
   };
+  const bool stamp = options_.wall_clock_times;
   text_ = DetectionsJsonLine(r.frame, r.time_s, r.detections);
+  if (stamp) text_ = WithTUnix(text_, r.t_unix);
   text_ += '\n';
   if (Status s = detections_->Append(text_); !s.ok()) return fail(s);
   if (tracks_) {
     text_ = TracksJsonLine(r.frame, r.time_s, r.tracks);
+    if (stamp) text_ = WithTUnix(text_, r.t_unix);
     text_ += '\n';
     if (Status s = tracks_->Append(text_); !s.ok()) return fail(s);
     if (Status s = mot_->Append(MotGroundPlaneRows(r.frame, r.tracks)); !s.ok()) return fail(s);
@@ -148,11 +157,11 @@ Status OutputFiles::Consume(const FrameRecord& r, const RunStats& stats) {
   if (events_ && (!r.zones.events.empty() || !r.lines.events.empty())) {
     text_.clear();
     for (const ZoneEvent& e : r.zones.events) {
-      text_ += ZoneEventJsonLine(e);
+      text_ += stamp ? WithTUnix(ZoneEventJsonLine(e), r.t_unix) : ZoneEventJsonLine(e);
       text_ += '\n';
     }
     for (const LineEvent& e : r.lines.events) {
-      text_ += LineEventJsonLine(e);
+      text_ += stamp ? WithTUnix(LineEventJsonLine(e), r.t_unix) : LineEventJsonLine(e);
       text_ += '\n';
     }
     if (Status s = events_->Append(text_); !s.ok()) return fail(s);

@@ -39,6 +39,9 @@ namespace occmap {
 enum class OutputMode { kLive, kAtomic };
 const char* ToString(OutputMode mode);  // "live", "atomic"
 
+// `line` (a JSON object) with "t_unix" (seconds since 1970, to 1 us) as its first key.
+std::string WithTUnix(std::string_view line, double t_unix);
+
 // One line of detections.jsonl, without the newline (positions to 0.1 mm, areas to 0.01 cm2,
 // time to 1 us).
 std::string DetectionsJsonLine(int64_t frame, double time_s, const std::vector<Detection>& detections);
@@ -74,6 +77,7 @@ struct OutputFilesOptions {
   ImageSize mosaic_size;          // with mosaic_video
   bool change_pngs = false;       // changes/<camera>/NNNNNN.png from FrameRecord::change_pictures
   VideoWriterOptions video;       // encoder choice; `fragmented` follows the mode
+  bool wall_clock_times = true;   // "t_unix" (FrameRecord::t_unix) on every JSON line
 };
 
 class OutputFiles : public FrameSink {

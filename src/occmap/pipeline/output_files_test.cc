@@ -35,6 +35,7 @@ std::vector<FrameRecord> RandomRecords(const Site& site, int frames) {
     FrameRecord r;
     r.frame = f;
     r.time_s = 0.04 * f + 1.0 / 3.0;
+    r.t_unix = 1.7e9 + r.time_s;
     r.active = {true, f % 2 == 0};
     r.map = OccupancyMap(site.grid);
     for (int k = 0; k < f % 4; ++k) {
@@ -125,6 +126,28 @@ TEST(OutputFiles, WhatItWritesTheEvalReadersReadBackInBothModes) {
     EXPECT_EQ(mot.substr(0, 2), "1,") << "MOTChallenge frames count from 1";
     EXPECT_EQ(files.written().size(), 4u);
   }
+}
+
+// Every JSON line starts with the wall-clock time of its frame set; the readers skip it.
+TEST(OutputFiles, EveryJsonLineCarriesTheWallClockTime) {
+  EXPECT_EQ(WithTUnix(R"({"frame":1})", 1700000000.25), R"({"t_unix":1700000000.250000,"frame":1})");
+  EXPECT_EQ(WithTUnix("{}", 1.5), R"({"t_unix":1.500000})");
+  const Site site = TinySite();
+  const std::vector<FrameRecord> records = RandomRecords(site, 6);
+  testing::TempDir dir;
+  OutputFiles files(TextOnly(OutputMode::kLive));
+  ASSERT_TRUE(files.Open(StartIn(site, dir.path())).ok());
+  for (const FrameRecord& r : records) ASSERT_TRUE(files.Consume(r, RunStats{}).ok());
+  ASSERT_TRUE(files.Close(RunStats{}).ok());
+  for (const char* name : {"detections.jsonl", "tracks.jsonl", "events.jsonl"}) {
+    const std::string text = *ReadFileToString(dir.path() / name);
+    size_t lines = 0;
+    for (size_t at = 0; at < text.size(); at = text.find('\n', at) + 1, ++lines) {
+      EXPECT_EQ(text.compare(at, 11, R"({"t_unix":1)"), 0) << name << ": " << text.substr(at, 40);
+    }
+    EXPECT_GT(lines, 0u) << name;
+  }
+  ExpectReadsBack(dir.path(), records);
 }
 
 // Live: after every frame set the files hold exactly the lines of the frame sets so far, each

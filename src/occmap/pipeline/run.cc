@@ -151,6 +151,9 @@ Status RunOptions::Validate() const {
   }
   if (background_step < 1) return InvalidInput(fmt::format("background step: expected >= 1, found {}", background_step));
   if (!(sync_tolerance_s > 0)) return InvalidInput("--sync-tolerance-s: expected > 0");
+  if (!(live_sync_window_s > 0 && live_sync_window_s <= 10)) {
+    return InvalidInput(fmt::format("live sync window: expected 0 < s <= 10, found {}", live_sync_window_s));
+  }
   return Status::Ok();
 }
 
@@ -246,6 +249,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   file_options.mosaic_video = options.mosaic_video;
   file_options.mosaic_size = mosaic.size();
   file_options.change_pngs = options.change_pngs;
+  file_options.wall_clock_times = options.wall_clock_times;
   auto files = std::make_shared<OutputFiles>(file_options);
   std::vector<std::shared_ptr<FrameSink>> sinks = {files};
   for (const auto& sink : options.sinks) {
@@ -360,7 +364,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   // 1. The reader (pipeline/frame_reader.h): one frame per active camera, by index or by
   // timestamp, on its own thread (decoding overlaps the processing of the previous frames),
   // into a ring of kSlots frame sets: memory stays flat.
-  FrameReader frame_reader(cams, options, ctx.num_threads());
+  FrameReader frame_reader(cams, options, ctx.num_threads(),
+                           RunSourceOptions(plan, ctx.num_threads(), static_cast<int>(cams.size())));
 
   // The stages, each on its own thread, joined by bounded queues (stage_queue.h): memory stays
   // flat however long the run, and the stages overlap, so a run over video files is limited by
@@ -403,8 +408,16 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     ++stats.frames;
     stats.elapsed_s = Since(t_start);
     for (size_t n = 0; n < cams.size(); ++n) {
-      stats.cameras[n].active = r.active[n];
-      stats.cameras[n].frames += r.active[n] ? 1 : 0;
+      CameraStats& cs = stats.cameras[n];
+      cs.frames += r.active[n] ? 1 : 0;
+      if (const LiveSource* live = frame_reader.live(n); live != nullptr) {
+        cs.connected = live->connected();
+        cs.dropped = live->dropped();
+        cs.reconnects = live->reconnects();
+        cs.active = true;
+      } else {
+        cs.active = r.active[n];
+      }
     }
     const int64_t max_before = max_track_id;
     for (const Track& t : r.tracks) {
@@ -440,6 +453,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       for (size_t n = 0; n < cams.size(); ++n) {
         json e = static_cameras[n];
         e["active"] = stats.cameras[n].active;
+        e["connected"] = stats.cameras[n].connected;
         e["frames"] = stats.cameras[n].frames;
         e["dropped_frames"] = stats.cameras[n].dropped;
         e["reconnects"] = stats.cameras[n].reconnects;

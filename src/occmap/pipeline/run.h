@@ -60,6 +60,12 @@ struct RunOptions {
   int64_t max_frames = -1;          // -1: until a source ends
   FrameSync sync = FrameSync::kIndex;
   double sync_tolerance_s = 0.020;  // timestamp sync: largest accepted offset from camera 0
+  // Live streams (`stream:` sources, pipeline/frame_reader.h): the frames of one frame set
+  // arrive within this window after its first one (a frame interval at 10 fps).
+  double live_sync_window_s = 0.1;
+  // Every line of detections.jsonl, tracks.jsonl and events.jsonl carries "t_unix": the wall-clock
+  // time its frame set arrived. Off: the lines depend on the inputs alone (runs compare).
+  bool wall_clock_times = true;
   // A camera whose stream ends or whose frame is unreadable: stop the run (default), or go on
   // without it, marking the cells only it could see as unseen.
   OnCameraFailure on_camera_failure = OnCameraFailure::kStop;

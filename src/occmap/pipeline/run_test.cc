@@ -114,6 +114,7 @@ class RunFixture : public ::testing::Test {
   RunOptions Options(const std::string& out) const {
     RunOptions o;
     o.out_dir = dir_ / out;
+    o.wall_clock_times = false;  // runs are compared line by line
     o.occupancy_video = false;
     o.mosaic_video = false;
     return o;

@@ -1,0 +1,111 @@
+#!/usr/bin/env bash
+# `occmap run` on live streams: the rendered lab scene served on loopback by ffmpeg (one MPEG-TS
+# over UDP stream per camera, in real time, looping), detections.jsonl growing while it runs;
+# one camera's stream stopped for 5 s (it is left out: its frame count stalls, then it rejoins
+# without a restart), then SIGINT: exit 0 within 2 s, every output valid, no temporary file.
+# Usage: stream_test.sh OCCMAP_BINARY SOURCE_DIR   (skipped, exit 0, without the ffmpeg program)
+set -uo pipefail
+occmap=$1
+src=$2
+python=${PYTHON:-python3}
+if ! command -v ffmpeg >/dev/null; then
+  echo "SKIP: no ffmpeg program (scripts/install-deps.sh installs it)"
+  exit 0
+fi
+work=$(mktemp -d)
+senders=()
+cleanup() {
+  for p in "${senders[@]}"; do kill "$p" 2>/dev/null; done
+  rm -rf "$work"
+}
+trap cleanup EXIT
+failures=0
+passed=0
+fail() {
+  echo "FAIL $*"
+  failures=$((failures + 1))
+}
+ok() { passed=$((passed + 1)); }
+
+"$occmap" synth --scene lab --video --frames 100 --out "$work/lab" >/dev/null 2>&1 || {
+  echo "FAIL synth"
+  exit 1
+}
+# Four free UDP ports on loopback.
+read -r -a ports <<<"$("$python" -c "
+import socket
+socks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(4)]
+for s in socks: s.bind(('127.0.0.1', 0))
+print(' '.join(str(s.getsockname()[1]) for s in socks))")"
+sed_args=()
+for n in 1 2 3 4; do
+  sed_args+=(-e "s#{video: frames/cam$n.mp4}#{stream: 'udp://127.0.0.1:${ports[$((n - 1))]}?overrun_nonfatal=1\&fifo_size=100000'}#")
+done
+sed "${sed_args[@]}" "$work/lab/site.yaml" >"$work/lab/stream.yaml"
+grep -q 'stream:' "$work/lab/stream.yaml" || {
+  echo "FAIL: no stream sources in the site file"
+  exit 1
+}
+
+serve() {  # serve N: camera N's video, looped, in real time, to its port
+  ffmpeg -loglevel error -re -stream_loop -1 -i "$work/lab/frames/cam$1.mp4" -c copy -f mpegts \
+    "udp://127.0.0.1:${ports[$(($1 - 1))]}?pkt_size=1316" >/dev/null 2>&1 &
+  senders[$1]=$!
+}
+for n in 1 2 3 4; do serve $n; done
+sleep 1
+
+out="$work/run"
+"$occmap" run "$work/lab/stream.yaml" --out "$out" --no-cache --summary-every-s 0.5 >"$work/run.log" 2>&1 &
+pid=$!
+lines() { [ -f "$1" ] && wc -l <"$1" || echo 0; }
+cam_frames() {  # frames of camera 1 in the running summary
+  "$python" -c "import json; print(json.load(open('$out/summary.json'))['cameras'][0]['frames'])" 2>/dev/null || echo -1
+}
+for _ in $(seq 300); do
+  [ "$(lines "$out/detections.jsonl")" -ge 30 ] && break
+  sleep 0.1
+done
+a=$(lines "$out/detections.jsonl")
+sleep 1
+b=$(lines "$out/detections.jsonl")
+if [ "$a" -ge 30 ] && [ "$b" -gt "$a" ]; then ok; else fail "detections.jsonl did not grow while running ($a, then $b lines)"; cat "$work/run.log"; fi
+
+# Camera 1's stream stops for 5 s: the run goes on without it, then takes it back.
+kill "${senders[1]}"
+sleep 1.5
+during0=$(cam_frames)
+lines_during0=$(lines "$out/detections.jsonl")
+sleep 3
+during1=$(cam_frames)
+lines_during1=$(lines "$out/detections.jsonl")
+sleep 0.5
+serve 1
+sleep 6
+after=$(cam_frames)
+echo "camera 1 frames: $during0 -> $during1 while stopped, $after after it came back"
+if [ "$during1" -le $((during0 + 2)) ]; then ok; else fail "camera 1 kept getting frames while its stream was stopped"; fi
+if [ "$lines_during1" -gt "$lines_during0" ]; then ok; else fail "the run stopped while camera 1 was away"; fi
+if [ "$after" -gt $((during1 + 10)) ]; then ok; else fail "camera 1 did not rejoin ($during1 -> $after frames)"; fi
+
+t0=$(date +%s.%N)
+kill -INT $pid
+wait $pid
+code=$?
+t1=$(date +%s.%N)
+elapsed=$("$python" -c "print(round($t1 - $t0, 3))")
+echo "stopped in $elapsed s, exit $code"
+if [ $code -eq 0 ]; then ok; else fail "exit $code, want 0"; cat "$work/run.log"; fi
+if "$python" -c "import sys; sys.exit(0 if $elapsed < 2.0 else 1)"; then ok; else fail "took $elapsed s to stop"; fi
+if "$python" "$src/tests/check_run_outputs.py" "$out" final; then ok; else fail "outputs"; fi
+"$python" - "$out/summary.json" <<'PY' || fail "summary"
+import json, sys
+s = json.load(open(sys.argv[1]))
+c = s["cameras"][0]
+print(f"summary: {s['frames']} frame sets, camera 1: {c['frames']} frames, {c['reconnects']} reconnects, "
+      f"{c['dropped_frames']} dropped; latency ms p50 {s['latency_ms']['p50']} p95 {s['latency_ms']['p95']} "
+      f"p99 {s['latency_ms']['p99']}")
+sys.exit(0 if s["stop_reason"] == "stop requested" else 1)
+PY
+echo "$passed passed, $failures failed"
+[ $failures -eq 0 ]
