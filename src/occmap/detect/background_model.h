@@ -206,6 +206,8 @@ class BackgroundModel {
   // Exchanges (x, y)'s background and alternative (its chroma block's too when (x, y) is the
   // block's top-left pixel). No-op without an alternative.
   void SwapWithAlternative(int x, int y);
+  // Forgets (x, y)'s alternative: which of the two is the floor has been decided.
+  void DropAlternative(int x, int y) { alt_valid_[Index(x, y)] = 0; }
 
   int width() const { return width_; }
   int height() const { return height_; }

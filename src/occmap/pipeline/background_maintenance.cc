@@ -30,34 +30,58 @@ bool Inside(const Eigen::Vector2d& px, ImageSize size) {
 
 }  // namespace
 
-ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vector<BackgroundModel*>& models,
+ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vector<const CameraModel*>& cameras,
+                                          double plane_height_m, const std::vector<BackgroundModel*>& models,
                                           int threshold) {
   OCCMAP_CHECK(static_cast<int>(models.size()) == lut.num_cameras(), "consensus: one model (or null) per camera");
+  OCCMAP_CHECK(cameras.empty() || cameras.size() == models.size(), "consensus: no cameras or one per model");
   const size_t cams = models.size();
   // Blocks of kConsensusBlock x kConsensusBlock cells: a far cell is hit by few pixels' rays,
-  // a block by enough cameras.
+  // a block by enough cameras. With the cameras, the blocks go on beyond the grid by its own size
+  // on every side: a low camera sees most of a standing person against floor far behind them.
   const FloorGrid& g = lut.grid();
-  const int bx = (g.cells_x + kConsensusBlock - 1) / kConsensusBlock;
-  const int by = (g.cells_y + kConsensusBlock - 1) / kConsensusBlock;
+  const double block_m = kConsensusBlock * g.cell_size_m;
+  const int gbx = (g.cells_x + kConsensusBlock - 1) / kConsensusBlock;
+  const int gby = (g.cells_y + kConsensusBlock - 1) / kConsensusBlock;
+  const int mx = cameras.empty() ? 0 : gbx, my = cameras.empty() ? 0 : gby;  // margin, blocks
+  const int bx = gbx + 2 * mx, by = gby + 2 * my;
   const size_t cells = static_cast<size_t>(bx) * static_cast<size_t>(by);
-  auto block_of = [&](uint32_t cell) {
-    const int i = static_cast<int>(cell % static_cast<uint32_t>(g.cells_x)) / kConsensusBlock;
-    const int j = static_cast<int>(cell / static_cast<uint32_t>(g.cells_x)) / kConsensusBlock;
-    return static_cast<size_t>(j) * static_cast<size_t>(bx) + static_cast<size_t>(i);
-  };
   const uint32_t sentinel = lut.sentinel();
-  // Mean background luma per (cell, camera).
-  std::vector<float> sum(cells * cams, 0.0f);
-  std::vector<uint16_t> count(cells * cams, 0);
+  // Per camera and pixel: its block, or -1.
+  std::vector<std::vector<int32_t>> pixel_block(cams);
   for (size_t n = 0; n < cams; ++n) {
     const BackgroundModel* m = models[n];
     if (m == nullptr || m->empty()) continue;
     const std::span<const uint32_t> l1 = lut.l1(static_cast<int>(n));
     const int w = m->width();
+    pixel_block[n].assign(l1.size(), -1);
     for (size_t p = 0; p < l1.size(); ++p) {
-      if (l1[p] == sentinel) continue;
+      int i = -1, j = -1;
+      if (l1[p] != sentinel) {
+        i = static_cast<int>(l1[p] % static_cast<uint32_t>(g.cells_x)) / kConsensusBlock + mx;
+        j = static_cast<int>(l1[p] / static_cast<uint32_t>(g.cells_x)) / kConsensusBlock + my;
+      } else if (!cameras.empty()) {
+        const auto q = cameras[n]->PixelToPlane(Eigen::Vector2d(static_cast<double>(p % w), static_cast<double>(p / w)),
+                                                plane_height_m);
+        if (!q) continue;
+        i = static_cast<int>(std::floor((q->x() - g.origin_x_m) / block_m)) + mx;
+        j = static_cast<int>(std::floor((q->y() - g.origin_y_m) / block_m)) + my;
+      }
+      if (i < 0 || j < 0 || i >= bx || j >= by) continue;
+      pixel_block[n][p] = j * bx + i;
+    }
+  }
+  // Mean background luma per (block, camera).
+  std::vector<float> sum(cells * cams, 0.0f);
+  std::vector<uint16_t> count(cells * cams, 0);
+  for (size_t n = 0; n < cams; ++n) {
+    const BackgroundModel* m = models[n];
+    if (m == nullptr || m->empty()) continue;
+    const int w = m->width();
+    for (size_t p = 0; p < pixel_block[n].size(); ++p) {
+      if (pixel_block[n][p] < 0) continue;
       const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
-      const size_t k = block_of(l1[p]) * cams + n;
+      const size_t k = static_cast<size_t>(pixel_block[n][p]) * cams + n;
       if (count[k] == 65535) continue;
       sum[k] += static_cast<float>(m->BackgroundLevel(x, y));
       ++count[k];
@@ -106,22 +130,30 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
   for (size_t n = 0; n < cams; ++n) {
     BackgroundModel* m = models[n];
     if (m == nullptr || m->empty()) continue;
-    const std::span<const uint32_t> l1 = lut.l1(static_cast<int>(n));
     const int w = m->width();
-    for (size_t p = 0; p < l1.size(); ++p) {
-      if (l1[p] == sentinel || consensus[block_of(l1[p])] < 0) continue;
+    for (size_t p = 0; p < pixel_block[n].size(); ++p) {
+      const int32_t b = pixel_block[n][p];
+      if (b < 0 || consensus[static_cast<size_t>(b)] < 0) continue;
       const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
       ++result.pixels_checked;
-      const float expected = consensus[block_of(l1[p])] * gain[n];
+      const float expected = consensus[static_cast<size_t>(b)] * gain[n];
       const float d_bg = std::abs(static_cast<float>(m->BackgroundLevel(x, y)) - expected);
       const int alt = m->AlternativeLevel(x, y);
       if (alt < 0) continue;
       // The alternative is much closer to what the other cameras see there (the block's mean:
       // no texture, hence a comparison, not a tolerance).
       const float d_alt = std::abs(static_cast<float>(alt) - expected);
+      // Decided either way, the pixel keeps no alternative: the other cluster is someone who
+      // stood there, and swapping it in later (BackgroundModel::Update) would hide them when
+      // they stand there again.
       if (d_alt + static_cast<float>(threshold) < d_bg) {
         m->SwapWithAlternative(x, y);
+        m->DropAlternative(x, y);
         ++result.pixels_swapped;
+        ++result.pixels_settled;
+      } else if (d_bg + static_cast<float>(threshold) < d_alt) {
+        m->DropAlternative(x, y);
+        ++result.pixels_settled;
       }
     }
   }

@@ -41,15 +41,22 @@ class BackgroundModel;
 // consensus is the median over the cameras that see it (at least three) of their backgrounds'
 // mean luma there, each camera brought to a reference camera's exposure by the median ratio
 // over the blocks both see. A pixel takes its alternative (BackgroundLearner's second cluster)
-// when that is closer to its block's consensus than its background by more than threshold. It
-// cannot fix the person's own footprint (every camera saw the feet there), pixels whose ray
-// leaves the monitored floor (a low camera sees most of a standing person against the far
-// side), nor pixels without an alternative (covered for over 90 % of the window).
+// when that is closer to its block's consensus than its background by more than threshold; when
+// either is that much closer, the pixel is settled and drops its alternative (the other cluster
+// is someone who stood there: swapping it back in would hide them when they stand there again).
+// Given the cameras, the blocks go on beyond the grid by the grid's size on every side, over the
+// plane each pixel's ray meets: a low camera sees most of a standing person against floor far
+// behind them. It cannot fix the person's own footprint (every camera saw the feet there),
+// pixels whose ray meets no plane seen by three cameras (sky, walls), nor pixels without an
+// alternative (covered for over 90 % of the window).
 struct ConsensusResult {
   int64_t pixels_checked = 0;  // floor pixels whose block has a consensus
   int64_t pixels_swapped = 0;  // took their alternative
+  int64_t pixels_settled = 0;  // decided either way: their alternative is dropped
 };
-ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vector<BackgroundModel*>& models,
+// cameras: at the models' image size, to carry the check beyond the grid (empty: the grid only).
+ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vector<const CameraModel*>& cameras,
+                                          double plane_height_m, const std::vector<BackgroundModel*>& models,
                                           int threshold);
 
 class BackgroundProtection {

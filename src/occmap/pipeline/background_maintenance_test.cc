@@ -198,7 +198,7 @@ TEST(ResolveLearnedBackgrounds, APersonLearnedInOneViewTakesTheFloorTheOthersSee
     models.back()->SetAlternative(alt, 3);
     pointers.push_back(models.back().get());
   }
-  const ConsensusResult r = ResolveLearnedBackgrounds(*lut, pointers, 20);
+  const ConsensusResult r = ResolveLearnedBackgrounds(*lut, {}, 0.0, pointers, 20);
   EXPECT_GT(floor_pixels_first, 400);
   // Every pixel of the first rectangle that sees the floor takes the floor (its cell seen by at
   // least three cameras), the second keeps the person (no alternative), nothing else moves.
@@ -207,9 +207,66 @@ TEST(ResolveLearnedBackgrounds, APersonLearnedInOneViewTakesTheFloorTheOthersSee
   const auto seen = room.cameras[0].PixelToPlane(Eigen::Vector2d(x0 + 5, y0 + 5), 0.0);
   ASSERT_TRUE(seen.has_value());
   EXPECT_EQ(models[0]->BackgroundLevel(x0 + 5, y0 + 5), FloorLevel(*seen));
-  EXPECT_EQ(models[0]->AlternativeLevel(x0 + 5, y0 + 5), 250);  // the person is the alternative now
+  EXPECT_EQ(models[0]->AlternativeLevel(x0 + 5, y0 + 5), -1);  // decided: the person is never swapped back in
   EXPECT_EQ(models[0]->BackgroundLevel(x2 + 5, y0 + 5), 250);
   EXPECT_EQ(models[1]->AlternativeLevel(5, 5), -1);
+}
+
+// The same room with a grid over its first 2 x 1.5 m only: camera 0 has a person learned in
+// where it sees the floor at (3.0, 2.2) m, off the grid. Only with the cameras does the check
+// reach that floor, take it, and settle the pixels (their alternative, the person, dropped).
+TEST(ResolveLearnedBackgrounds, BeyondTheGridWithTheCameras) {
+  testing::SmallRoom room;
+  const FloorGrid small{.origin_x_m = 0, .origin_y_m = 0, .cells_x = 40, .cells_y = 30, .cell_size_m = 0.05};
+  std::vector<LutCameraInput> inputs;
+  std::vector<const CameraModel*> cameras;
+  for (const auto& c : room.cameras) {
+    inputs.push_back({&c, {}});
+    cameras.push_back(&c);
+  }
+  Context ctx(2);
+  auto lut = BuildGroundLut(inputs, small, LutOptions{}, ctx);
+  ASSERT_TRUE(lut.ok()) << lut.status().message();
+  const auto centre = room.cameras[0].Project({3.0, 2.2, 0.0});
+  ASSERT_TRUE(centre.has_value());
+  const int cx = static_cast<int>(std::lround(centre->x())), cy = static_cast<int>(std::lround(centre->y()));
+  auto make = [&](std::vector<std::unique_ptr<BackgroundModel>>& models, std::vector<BackgroundModel*>& pointers) {
+    for (size_t n = 0; n < room.cameras.size(); ++n) {
+      YuvImage b;
+      b.y = Image<uint8_t>(160, 120, 0);
+      BackgroundLearner::Alternative alt{{Image<uint8_t>(160, 120, 0), {}, {}}, Image<uint8_t>(160, 120, 0)};
+      for (int y = 0; y < 120; ++y) {
+        for (int x = 0; x < 160; ++x) {
+          const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
+          const int floor = p ? FloorLevel(*p) : 0;
+          b.y(x, y) = static_cast<uint8_t>(floor);
+          if (n == 0 && std::abs(x - cx) <= 4 && std::abs(y - cy) <= 4) {
+            b.y(x, y) = 250;
+            alt.levels.y(x, y) = static_cast<uint8_t>(floor);
+            alt.support(x, y) = 10;
+          }
+        }
+      }
+      models.push_back(std::make_unique<BackgroundModel>(BackgroundOptions{}, 10.0));
+      models.back()->Reset(b);
+      models.back()->SetAlternative(alt, 3);
+      pointers.push_back(models.back().get());
+    }
+  };
+  ASSERT_EQ(lut->l1(0)[static_cast<size_t>(cy) * 160 + cx], lut->sentinel());  // off the grid
+  std::vector<std::unique_ptr<BackgroundModel>> grid_only, beyond;
+  std::vector<BackgroundModel*> grid_only_p, beyond_p;
+  make(grid_only, grid_only_p);
+  make(beyond, beyond_p);
+  ResolveLearnedBackgrounds(*lut, {}, 0.0, grid_only_p, 20);
+  EXPECT_EQ(grid_only[0]->BackgroundLevel(cx, cy), 250);
+  const ConsensusResult r = ResolveLearnedBackgrounds(*lut, cameras, 0.0, beyond_p, 20);
+  const auto seen = room.cameras[0].PixelToPlane(Eigen::Vector2d(cx, cy), 0.0);
+  ASSERT_TRUE(seen.has_value());
+  EXPECT_EQ(beyond[0]->BackgroundLevel(cx, cy), FloorLevel(*seen));
+  EXPECT_EQ(beyond[0]->AlternativeLevel(cx, cy), -1);
+  EXPECT_GE(r.pixels_swapped, 70);  // most of the 81
+  EXPECT_GE(r.pixels_settled, r.pixels_swapped);
 }
 
 TEST_F(StillScene, WithoutAbsorptionTheBoxStays) {

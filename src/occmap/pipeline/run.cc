@@ -190,9 +190,12 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       any_alternative |= c.info.background.starts_with("learned") || c.info.background.starts_with("reused");
     }
     if (any_alternative) {
-      const ConsensusResult r = ResolveLearnedBackgrounds(lut, models, site.detection.threshold);
+      std::vector<const CameraModel*> cameras;
+      for (const auto& c : cams) cameras.push_back(c.cam->camera.get());
+      const ConsensusResult r = ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold);
       summary.consensus_pixels_checked = r.pixels_checked;
       summary.consensus_pixels_swapped = r.pixels_swapped;
+      summary.consensus_pixels_settled = r.pixels_settled;
     }
   }
   Fusion fusion(lut);
@@ -331,7 +334,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                                      {"max_ratio", bo.shadows.max_ratio}, {"max_channel_spread", bo.shadows.max_channel_spread},
                                      {"texture_radius_px", bo.shadows.texture_radius_px}}},
                         {"consensus", {{"pixels_checked", summary.consensus_pixels_checked},
-                                       {"pixels_swapped", summary.consensus_pixels_swapped}}}};
+                                       {"pixels_swapped", summary.consensus_pixels_swapped},
+                                       {"pixels_settled", summary.consensus_pixels_settled}}}};
   }
   static_summary["settings"] = {{"threshold", site.detection.threshold},
                    {"colour", site.detection.colour},

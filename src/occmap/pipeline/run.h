@@ -126,7 +126,7 @@ struct RunSummary {
   double background_s = 0;  // the adaptive backgrounds' update (the fusion stage)
   double people_s = 0;      // column fusion and the explanation of the views (the fusion stage)
   // Learned backgrounds checked across cameras (pipeline/background_maintenance.h).
-  int64_t consensus_pixels_checked = 0, consensus_pixels_swapped = 0;
+  int64_t consensus_pixels_checked = 0, consensus_pixels_swapped = 0, consensus_pixels_settled = 0;
   // Frame set arrival (frames decoded) to every sink done (the files written), over the run.
   LatencyFigures latency;
   int max_queued_outputs = 0;  // the most frames whose outputs waited for the writer at once
