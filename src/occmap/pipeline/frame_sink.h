@@ -44,6 +44,7 @@ struct SinkStart {
   double fps = 10;                    // frame rate of the run (camera 0's, 10 without one)
   std::vector<std::string> camera_ids;
   bool track = true;                  // the tracker runs (tracks and events are filled)
+  bool wall_clock_times = true;       // lines carry "t_unix" (RunOptions::wall_clock_times)
 };
 
 // One camera's running figures.

@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "occmap/pipeline/output_files.h"
 #include "occmap/track/track_output.h"
 
 namespace occmap {
@@ -47,6 +48,7 @@ std::string MqttStatsJson(double t_unix, const RunStats& stats, const std::vecto
 }
 
 Status MqttSink::Open(const SinkStart& start) {
+  wall_clock_times_ = start.wall_clock_times;
   MqttPublisherInfo info;
   info.site_name = start.site->name;
   if (start.track) {
@@ -61,9 +63,11 @@ Status MqttSink::Open(const SinkStart& start) {
 
 Status MqttSink::Consume(const FrameRecord& r, const RunStats& stats) {
   MqttFrame frame;
-  frame.tracks_json = TracksJsonLine(r.frame, r.time_s, r.tracks);
-  for (const ZoneEvent& e : r.zones.events) frame.events_json.push_back(ZoneEventJsonLine(e));
-  for (const LineEvent& e : r.lines.events) frame.events_json.push_back(LineEventJsonLine(e));
+  // The same objects as the lines of tracks.jsonl and events.jsonl, "t_unix" included.
+  auto stamped = [&](std::string line) { return wall_clock_times_ ? WithTUnix(line, r.t_unix) : line; };
+  frame.tracks_json = stamped(TracksJsonLine(r.frame, r.time_s, r.tracks));
+  for (const ZoneEvent& e : r.zones.events) frame.events_json.push_back(stamped(ZoneEventJsonLine(e)));
+  for (const LineEvent& e : r.lines.events) frame.events_json.push_back(stamped(LineEventJsonLine(e)));
   frame.zone_counts = r.zones.counts;
   frame.line_counts = r.lines.counts;
   line_crossings_ += static_cast<int64_t>(r.lines.events.size());

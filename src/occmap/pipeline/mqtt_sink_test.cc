@@ -36,6 +36,7 @@ TEST(MqttSink, PublishesTheRecordsTracksEventsAndCountsAndStatsAtTheEnd) {
   FrameRecord r;
   r.frame = 7;
   r.time_s = 0.7;
+  r.t_unix = 1.5e9;  // stamped first, as on the files' lines
   Track t;
   t.id = 3;
   t.x_m = 0.5;
@@ -55,12 +56,12 @@ TEST(MqttSink, PublishesTheRecordsTracksEventsAndCountsAndStatsAtTheEnd) {
   ASSERT_TRUE(sub.WaitFor("occmap/lab/available", "offline"));
   ASSERT_TRUE(sub.WaitFor("occmap/lab/stats"));
   EXPECT_EQ(sub.On("occmap/lab/tracks").back().payload,
-            R"({"frame":7,"time_s":0.7,"tracks":[{"id":3,"x_m":0.5,"y_m":0.25,"vx_mps":0,"vy_mps":0,"class":"person"}]})");
+            R"({"t_unix":1500000000.000000,"frame":7,"time_s":0.7,"tracks":[{"id":3,"x_m":0.5,"y_m":0.25,"vx_mps":0,"vy_mps":0,"class":"person"}]})");
   const auto events = sub.On("occmap/lab/events");
   ASSERT_EQ(events.size(), 2u);
-  EXPECT_EQ(events[0].payload, R"({"frame":7,"time_s":0.7,"zone":"door","track_id":3,"event":"enter","count":1})");
+  EXPECT_EQ(events[0].payload, R"({"t_unix":1500000000.000000,"frame":7,"time_s":0.7,"zone":"door","track_id":3,"event":"enter","count":1})");
   EXPECT_EQ(events[1].payload,
-            R"({"frame":7,"time_s":0.7,"line":"gate","track_id":3,"event":"cross","direction":"out","in":0,"out":1})");
+            R"({"t_unix":1500000000.000000,"frame":7,"time_s":0.7,"line":"gate","track_id":3,"event":"cross","direction":"out","in":0,"out":1})");
   EXPECT_EQ(sub.On("occmap/lab/zones/door/count").back().payload, "1");
   EXPECT_EQ(sub.On("occmap/lab/zones/door/occupied").back().payload, "ON");
   EXPECT_EQ(sub.On("occmap/lab/lines/gate/out").back().payload, "1");

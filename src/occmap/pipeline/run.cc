@@ -263,6 +263,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   sink_start.out_dir = out;
   sink_start.fps = fps;
   sink_start.track = options.track;
+  sink_start.wall_clock_times = options.wall_clock_times;
   for (const auto& c : cams) sink_start.camera_ids.push_back(c.cam->id);
   // Sinks opened get Close whatever happens next (OutputFiles: kAtomic drops its temporaries).
   size_t sinks_open = 0;
