@@ -11,12 +11,18 @@ packages=(
   googletest libgtest-dev libgmock-dev libbenchmark-dev
   libmosquitto-dev mosquitto mosquitto-clients
   ffmpeg
+  chromium-headless-shell
 )
 missing=()
 for p in "${packages[@]}"; do
   status=$(dpkg-query -W -f='${db:Status-Status}' "$p" 2>/dev/null || true)
   [ "$status" = "installed" ] || missing+=("$p")
 done
+# The web front end is bundled with npm (Debian 12: nodejs 18 and npm 9); a Node.js from elsewhere
+# (NodeSource's nodejs ships its own npm and conflicts with Debian's) is as good.
+if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+  missing+=(nodejs npm)
+fi
 if [ ${#missing[@]} -eq 0 ]; then
   exit 0
 fi

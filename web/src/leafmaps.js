@@ -1,0 +1,54 @@
+// Leaflet maps in occmap's two frames: the floor in metres (x east, y north, CRS.Simple with
+// lat = y, lng = x) and a camera image in pixels (lat = -v, lng = u).
+import L from 'leaflet';
+import { gridBounds, imageBounds, url } from './api.js';
+
+function baseMap(div) {
+  return L.map(div, {
+    crs: L.CRS.Simple, minZoom: -6, maxZoom: 8, zoomSnap: 0.25, zoomDelta: 0.5,
+    attributionControl: false, boxZoom: false,
+  });
+}
+
+// The floor map with the live tri-state map image; refresh(version) swaps the picture once the
+// previous one has loaded, so a slow link shows fewer frames rather than a growing queue.
+export function createFloorMap(div, grid) {
+  const map = baseMap(div);
+  const bounds = gridBounds(grid);
+  const overlay = L.imageOverlay(url('/api/map.png', { v: 0 }), bounds, { className: 'map-image' }).addTo(map);
+  L.rectangle(bounds, { color: '#555', weight: 1, fill: false, interactive: false }).addTo(map);
+  map.fitBounds(bounds, { padding: [8, 8] });
+  let loading = false;
+  let wanted = null;
+  overlay.on('load error', () => {
+    loading = false;
+    if (wanted !== null) { const v = wanted; wanted = null; refresh(v); }
+  });
+  function refresh(version) {
+    if (loading) { wanted = version; return; }
+    loading = true;
+    overlay.setUrl(url('/api/map.png', { v: version }));
+  }
+  const resize = new ResizeObserver(() => map.invalidateSize());
+  resize.observe(div);
+  return { map, overlay, bounds, refresh, destroy: () => { resize.disconnect(); map.remove(); } };
+}
+
+// A camera's picture in pixels; setUrl replaces it (the grid overlay after a calibration).
+export function createImageMap(div, width, height, src) {
+  const map = baseMap(div);
+  const bounds = imageBounds(width, height);
+  const overlay = L.imageOverlay(src, bounds).addTo(map);
+  map.fitBounds(bounds);
+  map.setMaxBounds(L.latLngBounds(bounds).pad(0.25));
+  const resize = new ResizeObserver(() => { map.invalidateSize(); });
+  resize.observe(div);
+  return { map, overlay, bounds, destroy: () => { resize.disconnect(); map.remove(); } };
+}
+
+// Where a map point appears in the page (client pixels): what a user would click.
+export function clientPoint(map, latlng) {
+  const p = map.latLngToContainerPoint(latlng);
+  const r = map.getContainer().getBoundingClientRect();
+  return { x: r.left + p.x, y: r.top + p.y };
+}

@@ -1,0 +1,194 @@
+// The live view: the floor map with detections, tracks and their trails, zones and lines with
+// their counts; per-camera state and pictures; stage timings and latency.
+import { h } from 'preact';
+import { useEffect, useRef, useState } from 'preact/hooks';
+import htm from 'htm';
+import L from 'leaflet';
+import { colorForId, fmt, url } from './api.js';
+import { clientPoint, createFloorMap } from './leafmaps.js';
+
+const html = htm.bind(h);
+const kTrailLength = 60;          // positions kept per track (6 s at 10 events per second)
+const kForgetAfterFrames = 30;    // a track absent this long loses its trail
+
+function drawZones(layer, site, frame) {
+  layer.clearLayers();
+  const counts = new Map(((frame && frame.zones) || []).map((z) => [z.name, z.count]));
+  for (const z of site.zones || []) {
+    const n = counts.get(z.name);
+    const poly = L.polygon(z.polygon_m.map(([x, y]) => [y, x]), {
+      color: n ? '#d97706' : '#2563eb', weight: 2, fillOpacity: n ? 0.18 : 0.06, interactive: false,
+    }).addTo(layer);
+    poly.bindTooltip(`${z.name}: ${n === undefined ? '–' : n}`, { permanent: true, direction: 'center', className: 'zone-label' });
+  }
+  const crossings = new Map(((frame && frame.lines) || []).map((l) => [l.name, l]));
+  for (const l of site.lines || []) {
+    const c = crossings.get(l.name);
+    const line = L.polyline([[l.a_m[1], l.a_m[0]], [l.b_m[1], l.b_m[0]]], { color: '#7c3aed', weight: 3, interactive: false }).addTo(layer);
+    line.bindTooltip(`${l.name}: in ${c ? c.in : '–'} · out ${c ? c.out : '–'}`, { permanent: true, direction: 'right', className: 'line-label' });
+  }
+}
+
+function FloorMap({ site, frame }) {
+  const div = useRef(null);
+  const ctx = useRef(null);
+  useEffect(() => {
+    const floor = createFloorMap(div.current, site.grid);
+    const zones = L.layerGroup().addTo(floor.map);
+    const trails = L.layerGroup().addTo(floor.map);
+    const detections = L.layerGroup().addTo(floor.map);
+    const tracks = L.layerGroup().addTo(floor.map);
+    ctx.current = { floor, zones, trails, detections, tracks, history: new Map() };
+    // For tests and scripts: where a floor point (metres) is on the screen.
+    window.occmap = Object.assign(window.occmap || {}, {
+      liveMap: floor.map,
+      floorToClient: (x, y) => clientPoint(floor.map, [y, x]),
+    });
+    return () => floor.destroy();
+  }, [site.grid]);
+
+  useEffect(() => { if (ctx.current) drawZones(ctx.current.zones, site, frame); }, [site, frame && frame.zones, frame && frame.lines]);
+
+  useEffect(() => {
+    const c = ctx.current;
+    if (!c || !frame) return;
+    if (frame.map_version !== undefined) c.floor.refresh(frame.map_version);
+    c.detections.clearLayers();
+    for (const d of frame.detections || []) {
+      L.circleMarker([d.y_m, d.x_m], { radius: 5, color: '#ea580c', weight: 1.5, fillOpacity: 0.35, interactive: false })
+        .addTo(c.detections);
+    }
+    const seen = new Set();
+    for (const t of frame.tracks || []) {
+      seen.add(t.id);
+      let hist = c.history.get(t.id);
+      if (!hist) { hist = { points: [], last: frame.frame }; c.history.set(t.id, hist); }
+      hist.points.push([t.y_m, t.x_m]);
+      if (hist.points.length > kTrailLength) hist.points.shift();
+      hist.last = frame.frame;
+    }
+    for (const [id, hist] of c.history) if (frame.frame - hist.last > kForgetAfterFrames || frame.frame < hist.last) c.history.delete(id);
+    c.trails.clearLayers();
+    c.tracks.clearLayers();
+    for (const [id, hist] of c.history) {
+      const color = colorForId(id);
+      L.polyline(hist.points, { color, weight: 2, opacity: seen.has(id) ? 0.8 : 0.3, interactive: false }).addTo(c.trails);
+      if (!seen.has(id)) continue;
+      const p = hist.points[hist.points.length - 1];
+      L.circleMarker(p, { radius: 7, color: '#fff', weight: 2, fillColor: color, fillOpacity: 1, interactive: false })
+        .bindTooltip(String(id), { permanent: true, direction: 'top', offset: [0, -6], className: 'track-label' })
+        .addTo(c.tracks);
+    }
+  }, [frame]);
+
+  return html`<div class="floor-map" ref=${div} data-testid="live-map"></div>`;
+}
+
+// A camera's picture with the change overlay, reloaded on frame events once the previous one
+// has arrived (at most one request in flight per tile).
+function CameraTile({ camera, frameNo, camState }) {
+  const img = useRef(null);
+  const busy = useRef(false);
+  const pending = useRef(null);
+  const load = (n) => {
+    if (busy.current) { pending.current = n; return; }
+    busy.current = true;
+    img.current.src = url(`/api/cameras/${encodeURIComponent(camera.id)}/frame.jpg`, { overlay: 'change', f: n });
+  };
+  const done = () => {
+    busy.current = false;
+    if (pending.current !== null) { const n = pending.current; pending.current = null; load(n); }
+  };
+  useEffect(() => { if (img.current) load(frameNo === undefined ? 0 : frameNo); }, [frameNo]);
+  const s = camState || {};
+  const up = s.connected !== false && s.active !== false;
+  return html`
+    <figure class="tile" data-camera=${camera.id}>
+      <img ref=${img} onLoad=${done} onError=${done} alt=${'camera ' + camera.id}
+           style=${`aspect-ratio: ${camera.width_px} / ${camera.height_px}`} />
+      <figcaption>
+        <b>${camera.id}</b>
+        <span class=${'badge ' + (up ? 'up' : 'down')}>${up ? 'up' : s.reconnects ? 'reconnecting' : 'down'}</span>
+        <span>${fmt(s.fps)} fps</span>
+        <span title="frames dropped">${s.dropped || 0} dropped</span>
+        <span title="age of the background model">bg ${fmt(s.background_age_s, 0)} s</span>
+      </figcaption>
+    </figure>`;
+}
+
+function Stats({ state, frame, site }) {
+  const lat = (state && state.latency_ms) || {};
+  const stages = (state && state.stages_s) || {};
+  const total = Object.values(stages).reduce((a, b) => a + (Number(b) || 0), 0);
+  const cams = (state && state.cameras) || [];
+  return html`
+    <section class="panel">
+      <h2>Pipeline</h2>
+      <dl class="kv">
+        <dt>frame</dt><dd>${frame ? frame.frame : state ? state.frame : '–'}</dd>
+        <dt>time</dt><dd>${frame ? fmt(frame.time_s, 1) + ' s' : '–'}</dd>
+        <dt>tracks</dt><dd data-testid="track-count">${frame ? (frame.tracks || []).length : '–'}</dd>
+        <dt>detections</dt><dd>${frame ? (frame.detections || []).length : '–'}</dd>
+        <dt>latency</dt><dd>p50 ${fmt(lat.p50, 0)} · p95 ${fmt(lat.p95, 0)} · p99 ${fmt(lat.p99, 0)} ms</dd>
+        <dt>up</dt><dd>${state ? fmt(state.uptime_s, 0) + ' s' : '–'}${state && state.running === false ? ' (inputs ended)' : ''}</dd>
+      </dl>
+      <h3>Stage time</h3>
+      <table class="stages">
+        ${Object.entries(stages).map(([k, v]) => html`
+          <tr><td>${k}</td><td class="num">${fmt(v, 2)} s</td>
+              <td class="bar"><span style=${`width:${total > 0 ? (100 * v) / total : 0}%`}></span></td></tr>`)}
+      </table>
+    </section>
+    <section class="panel">
+      <h2>Zones and lines</h2>
+      ${(site.zones || []).length + (site.lines || []).length === 0
+        ? html`<p class="hint">No zones yet: draw them in Setup.</p>` : null}
+      <table class="counts" data-testid="zone-counts">
+        ${(site.zones || []).map((z) => {
+          const c = ((frame && frame.zones) || []).find((q) => q.name === z.name);
+          return html`<tr data-zone=${z.name}><td>${z.name}</td><td class="num">${c ? c.count : '–'}</td></tr>`;
+        })}
+        ${(site.lines || []).map((l) => {
+          const c = ((frame && frame.lines) || []).find((q) => q.name === l.name);
+          return html`<tr data-line=${l.name}><td>${l.name}</td><td class="num">in ${c ? c.in : '–'} · out ${c ? c.out : '–'}</td></tr>`;
+        })}
+      </table>
+    </section>
+    <section class="panel">
+      <h2>Cameras</h2>
+      <table class="cams">
+        <tr><th>id</th><th>state</th><th>fps</th><th title="frames read">frames</th><th title="frames dropped">drop</th><th title="reconnections">reconn</th><th title="age of the background model">bg age</th></tr>
+        ${cams.map((c) => html`
+          <tr><td>${c.id}</td><td>${c.connected === false ? 'reconnecting' : c.active === false ? 'idle' : 'up'}</td>
+              <td class="num">${fmt(c.fps)}</td><td class="num">${c.frames ?? '–'}</td><td class="num">${c.dropped ?? '–'}</td>
+              <td class="num">${c.reconnects ?? '–'}</td><td class="num">${fmt(c.background_age_s, 0)} s</td></tr>`)}
+      </table>
+    </section>`;
+}
+
+export function LiveView({ site, state, frame }) {
+  const camStates = new Map(((state && state.cameras) || []).map((c) => [c.id, c]));
+  // Camera pictures follow the frame events, at most 5 per second each.
+  const [tileFrame, setTileFrame] = useState(0);
+  const lastTile = useRef(0);
+  useEffect(() => {
+    if (!frame) return;
+    const now = performance.now();
+    if (now - lastTile.current >= 200) { lastTile.current = now; setTileFrame(frame.frame); }
+  }, [frame]);
+  return html`
+    <div class="live">
+      <div class="map-col">
+        <${FloorMap} site=${site} frame=${frame} />
+        <div class="legend">
+          <span><i class="sw free"></i>free</span><span><i class="sw occ"></i>occupied</span>
+          <span><i class="sw unseen"></i>unseen</span><span><i class="sw det"></i>detection</span>
+          <span><i class="sw trk"></i>track, trail</span>
+        </div>
+        <div class="tiles">
+          ${site.cameras.map((c) => html`<${CameraTile} key=${c.id} camera=${c} frameNo=${tileFrame} camState=${camStates.get(c.id)} />`)}
+        </div>
+      </div>
+      <aside class="side"><${Stats} state=${state} frame=${frame} site=${site} /></aside>
+    </div>`;
+}

@@ -1,0 +1,63 @@
+// occmap serve's page: the live view (map, tracks, zones, cameras, timings) and the setup
+// (calibration from floor points, floor masks, zones and lines, saved to the site file).
+import 'leaflet/dist/leaflet.css';
+import '@geoman-io/leaflet-geoman-free/dist/leaflet-geoman.css';
+import './style.css';
+import { h, render } from 'preact';
+import { useEffect, useState } from 'preact/hooks';
+import htm from 'htm';
+import { getJSON, subscribe } from './api.js';
+import { LiveView } from './live.js';
+import { SetupView } from './setup.js';
+
+const html = htm.bind(h);
+
+function initialTab() {
+  return location.hash === '#setup' ? 'setup' : 'live';
+}
+
+function App() {
+  const [site, setSite] = useState(null);
+  const [state, setState] = useState(null);
+  const [frame, setFrame] = useState(null);
+  const [connected, setConnected] = useState(false);
+  const [error, setError] = useState(null);
+  const [tab, setTab] = useState(initialTab());
+
+  useEffect(() => {
+    getJSON('/api/site').then(setSite).catch((e) => setError(e.message));
+    getJSON('/api/state').then(setState).catch(() => {});
+    return subscribe({ frame: setFrame, state: setState, site: setSite }, setConnected);
+  }, []);
+  useEffect(() => {
+    const onHash = () => setTab(initialTab());
+    window.addEventListener('hashchange', onHash);
+    return () => window.removeEventListener('hashchange', onHash);
+  }, []);
+
+  if (error) return html`<div class="fatal"><h1>occmap</h1><p>${error}</p></div>`;
+  if (!site) return html`<p class="loading">occmap: loading the site…</p>`;
+  const fps = frame ? frame.fps : state && state.fps;
+  return html`
+    <header>
+      <span class="brand">occmap</span>
+      <span class="site-name" title=${site.path}>${site.name}</span>
+      <nav>
+        <a href="#live" class=${tab === 'live' ? 'active' : ''} data-tab="live">Live</a>
+        <a href="#setup" class=${tab === 'setup' ? 'active' : ''} data-tab="setup">Setup</a>
+      </nav>
+      <span class="grow"></span>
+      <span class="status">
+        frame <b data-testid="frame">${frame ? frame.frame : state ? state.frame : '–'}</b>
+        · ${fps !== undefined && fps !== null ? Number(fps).toFixed(1) : '–'} fps
+        · <span class=${'dot ' + (connected ? 'on' : 'off')}></span>${connected ? 'live' : 'reconnecting'}
+      </span>
+    </header>
+    <main>
+      ${tab === 'live'
+        ? html`<${LiveView} site=${site} state=${state} frame=${frame} />`
+        : html`<${SetupView} site=${site} frame=${frame} onSaved=${setSite} />`}
+    </main>`;
+}
+
+render(html`<${App} />`, document.getElementById('app'));
