@@ -22,6 +22,7 @@ int ClampInt(double v, int lo, int hi) { return static_cast<int>(std::clamp(std:
 constexpr double kLookDecay = 0.95;      // per frame
 constexpr double kLookMinMass = 2000;    // pixels before a look is trusted
 constexpr double kLookMinPeakShare = 0.15; // of them within the mode's three bins
+constexpr double kLookJumpFactor = 2;      // a new mode this many times the look's own moves it
 
 // One row of the luma test: cls = out = 1 where |frame - expected| > threshold or the chroma
 // test said so (cc), expected = clamp((gq b + cq) >> 16); returns the count. Cloned for AVX2
@@ -502,6 +503,7 @@ void BackgroundModel::Reset(const YuvImage& background) {
   look_ = ShadowLook{};
   ratio_histogram_.assign(kRatioBins, 0.0);
   learning_ = ShadowLearning{};
+  shadow_lessons_ = 0;
 }
 
 void BackgroundModel::SetAlternative(const BackgroundLearner::Alternative& alternative, int min_support) {
@@ -621,10 +623,17 @@ void BackgroundModel::LearnShadowLook(const ShadowLearning& frame) {
     mass += ratio_histogram_[static_cast<size_t>(b)];
   }
   look_.mass = mass;
-  if (mass < kLookMinMass) return;
-  int best = 0;
-  double best_v = -1;
-  for (int b = 0; b < kRatioBins; ++b) {  // the mode, over three bins
+  const bool settled = shadow_lessons_ >= static_cast<int64_t>(std::lround(1 / (1 - kLookDecay)));
+  if (mass < kLookMinMass) {
+    // The warm-up's look (clothing may have taught it) stands until the map has had its say.
+    if (settled) look_.ratio = 0;
+    return;
+  }
+  // The mode over three bins: over all ratios, and within the window of the look learned.
+  const double window_bins = options_.shadows.ratio_window * kRatioBins;
+  int best = 0, near = -1;
+  double best_v = -1, near_v = -1;
+  for (int b = 0; b < kRatioBins; ++b) {
     double v = ratio_histogram_[static_cast<size_t>(b)];
     if (b > 0) v += ratio_histogram_[static_cast<size_t>(b - 1)];
     if (b + 1 < kRatioBins) v += ratio_histogram_[static_cast<size_t>(b + 1)];
@@ -632,11 +641,24 @@ void BackgroundModel::LearnShadowLook(const ShadowLearning& frame) {
       best_v = v;
       best = b;
     }
+    if (look_.ratio > 0 && std::abs(b + 0.5 - look_.ratio * kRatioBins) <= window_bins && v > near_v) {
+      near_v = v;
+      near = b;
+    }
+  }
+  // Shadows move slowly (the sun, a lamp dimmed): a learned look jumps to another ratio only
+  // when that one clearly dominates, not for a passer-by whose dark clothes outnumber the
+  // shadows in view for a moment.
+  // The rule holds once the map has taught the look for a while (the warm-up's may be clothing).
+  if (settled && near >= 0 && best_v < kLookJumpFactor * near_v) {
+    best = near;
+    best_v = near_v;
   }
   // Shadows share a ratio; dark clothing alone spreads over all of them (a scene without cast
-  // shadows): a peak too flat is no shadow look.
+  // shadows): a peak too flat is no shadow look. Once learned, a flat spell (a crowd in dark
+  // clothes, few shadows in view) keeps the look.
   look_.peak_share = best_v / mass;
-  look_.ratio = look_.peak_share >= kLookMinPeakShare ? (best + 0.5) / kRatioBins : 0.0;
+  if (look_.peak_share >= kLookMinPeakShare) look_.ratio = (best + 0.5) / kRatioBins;
   if (chroma_ && frame.pattern_count >= 100) {
     std::array<float, 3> p{};
     float mean = 0;
@@ -699,7 +721,45 @@ void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold
 
 void BackgroundModel::WarmUp(const std::vector<YuvView>& frames, int threshold) {
   Image<uint8_t> scratch(width_, height_);
+  warming_up_ = true;
   for (const YuvView& f : frames) DetectChanges(f, threshold, scratch.view());
+  warming_up_ = false;
+}
+
+void BackgroundModel::LearnShadows(const YuvView& frame, ImageView<const uint8_t> teach) {
+  OCCMAP_CHECK(frame.y.width() == width_ && frame.y.height() == height_, "background model: frame size differs");
+  OCCMAP_CHECK(teach.width() == width_ && teach.height() == height_, "background model: teachers' size");
+  const ShadowOptions& s = options_.shadows;
+  if (!s.enabled || !s.learn) return;
+  if (shadow_lessons_ == 0) {
+    // What the warm-up taught (every darker pixel, clothing too) gives way to the map's teachers.
+    ratio_histogram_.assign(kRatioBins, 0.0);
+    learning_.pending = false;
+  }
+  ++shadow_lessons_;
+  if (learning_.pending) return;  // DetectChanges was not called since the last lesson
+  learning_ = ShadowLearning{};
+  learning_.pending = true;
+  for (int y = 0; y < height_; ++y) {
+    const uint8_t* t = teach.row(y);
+    const uint8_t* cls = class_.data() + static_cast<size_t>(y) * width_;
+    const uint8_t* fy = frame.y.row(y);
+    for (int x = 0; x < width_; ++x) {
+      if (t[x] == 0 || cls[x] == kBackground) continue;
+      const int b = bg8_(x, y);
+      const int expected = pred_[b];
+      if (fy[x] >= expected || fy[x] < shadow_lo_[b] || fy[x] > shadow_hi_[b]) continue;
+      int eu = 0, ev = 0, u = 0, v = 0;
+      if (chroma_) {
+        const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+        eu = pred_c_[std::min(255, (bu_[c] + 128) >> 8)];
+        ev = pred_c_[std::min(255, (bv_[c] + 128) >> 8)];
+        u = frame.u(x / 2, y / 2);
+        v = frame.v(x / 2, y / 2);
+      }
+      FitsShadowLook(fy[x], u, v, expected, eu, ev, &learning_);
+    }
+  }
 }
 
 void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageView<uint8_t> changes) {
@@ -712,7 +772,10 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
   for (int y = 0; y < height_; ++y) RoundRow(by_.data() + static_cast<size_t>(y) * width_, width_, bg8_.row(y));
   transfer_ = EstimateTransfer(bg8_.view(), frame.y);
   threshold_ = threshold;
-  if (learning_.pending) LearnShadowLook(learning_);  // the previous frame's shadows
+  if (learning_.pending) {  // the previous frame's shadows
+    LearnShadowLook(learning_);
+    learning_.pending = false;
+  }
   const ShadowOptions& s = options_.shadows;
   gain_q16_ = static_cast<int32_t>(std::lround(transfer_.gain * 65536));
   offset_q16_ = static_cast<int32_t>(std::lround(transfer_.offset * 65536)) + 32768;
@@ -730,7 +793,8 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
   const int tc = chroma_ ? options_.chroma_threshold : 0;
   int64_t changed = 0, shadow = 0;
   ShadowLearning* learn = nullptr;
-  if (options_.shadows.enabled && options_.shadows.learn) {
+  // In a run the look is taught after the fusion (LearnShadows); warming up, by every pixel.
+  if (warming_up_ && options_.shadows.enabled && options_.shadows.learn) {
     learning_ = ShadowLearning{};
     learning_.pending = true;
     learn = &learning_;

@@ -85,9 +85,9 @@ struct ShadowOptions {
   double max_ratio = 0.85;     // and loses at least 1 - max_ratio of it
   // The scene's shadows are learned (ShadowLook): their ratio, within ratio_window of it, and
   // their colour pattern, each of R, G, B's ratio (less the pixel's mean ratio) within
-  // max_channel_spread of it. Until learned (and in scenes whose darker changes share no
-  // ratio: no cast shadows) nothing is a shadow; without learning: any ratio in range, the
-  // pattern of white light.
+  // max_channel_spread of it, taught by the pixels LearnShadows is given. Until learned (and
+  // in scenes whose taught pixels share no ratio, or are too few: no cast shadows) nothing is
+  // a shadow; without learning: any ratio in range, the pattern of white light.
   bool learn = true;
   double ratio_window = 0.2;
   double max_channel_spread = 0.06;
@@ -225,6 +225,16 @@ class BackgroundModel {
   // The plain per-pixel loop of DetectChanges (no tables), for tests: the same output.
   void DetectChangesReference(const YuvView& frame, int threshold, ImageView<uint8_t> changes) const;
 
+  // After the fusion, before Update: the frame's pixels that teach the shadow look (non-zero:
+  // the pixel shows the floor darkened, as the map's cameras agree; pipeline/
+  // background_maintenance.h, ShadowTeachers). Until the first call, the warm-up's look (taught
+  // by every darker pixel) is used; from it on only taught pixels count, and a look they do not
+  // confirm within the first seconds is dropped.
+  void LearnShadows(const YuvView& frame, ImageView<const uint8_t> teach);
+  // The last DetectChanges' class per pixel: kBackground, kChanged or kShadow.
+  ImageView<const uint8_t> pixel_classes() const { return {class_.data(), width_, height_, width_}; }
+  enum Class : uint8_t { kBackground = 0, kChanged = 1, kShadow = 2 };
+
   // After the fusion: protection per pixel (kFree, kObject, kPerson), the frame's index.
   void Update(const YuvView& frame, ImageView<const uint8_t> protection, int64_t frame_index);
 
@@ -236,7 +246,6 @@ class BackgroundModel {
   const ShadowLook& shadow_look() const { return look_; }
 
  private:
-  enum Class : uint8_t { kBackground = 0, kChanged = 1, kShadow = 2 };
   size_t Index(int x, int y) const { return static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x); }
 
   uint8_t Classify(int y, int u, int v, int by, int bu, int bv, int threshold) const;
@@ -286,6 +295,8 @@ class BackgroundModel {
   ShadowLook look_;
   std::vector<double> ratio_histogram_;  // decayed, over [0, 1)
   ShadowLearning learning_;              // the last frame's sums
+  bool warming_up_ = false;              // in WarmUp: every darker pixel teaches the look
+  int64_t shadow_lessons_ = 0;           // LearnShadows calls since Reset
   BackgroundStats stats_;
   // Tables of the last frame's transfer, per background level.
   int pred_[256];          // expected frame luma

@@ -241,27 +241,74 @@ TEST(BackgroundModel, AShadowKeepsTheFloorsTextureAndFlatClothesDoNot) {
   EXPECT_GT(trousers_changed, 56 * 24 / 2);  // most of the trousers (their dark tiles may pass)
 }
 
+// A flat grey floor (neutral chroma).
+YuvImage GreyFloor(int w, int h, uint8_t level) {
+  YuvImage b;
+  b.y = Image<uint8_t>(w, h, level);
+  b.u = Image<uint8_t>(ChromaPlaneSize(w), ChromaPlaneSize(h), 128);
+  b.v = Image<uint8_t>(ChromaPlaneSize(w), ChromaPlaneSize(h), 128);
+  return b;
+}
+
 TEST(BackgroundModel, LearnsTheRatioTheScenesShadowsShare) {
   // Frames whose darker changes are mostly shadows at 0.4 of the lit floor, some dark grey
   // clothes at 0.7: the look settles on 0.4, and the clothes are changes again.
   const int w = 96, h = 64;
-  YuvImage b;
-  b.y = Image<uint8_t>(w, h, 200);
-  b.u = Image<uint8_t>(48, 32, 128);
-  b.v = Image<uint8_t>(48, 32, 128);
+  const YuvImage b = GreyFloor(w, h, 200);
   BackgroundModel model(BackgroundOptions{}, 10);
   model.Reset(b);
   YuvImage f = b;
   Paint(f, 0, 0, 64, 64, 80, 128, 128);    // shadow: 0.4
   Paint(f, 64, 0, 80, 64, 140, 128, 128);  // grey clothes: 0.7
   Image<uint8_t> changes(w, h);
-  for (int k = 0; k < 5; ++k) model.DetectChanges(f.view(), 20, changes.view());
+  const Image<uint8_t> everyone(w, h, 1);  // every pixel teaches
+  for (int k = 0; k < 5; ++k) {
+    model.DetectChanges(f.view(), 20, changes.view());
+    model.LearnShadows(f.view(), everyone.view());
+  }
   EXPECT_EQ(changes(70, 10), 1);
   EXPECT_EQ(changes(10, 10), 0);
   EXPECT_NEAR(model.shadow_look().ratio, 0.4, 0.02);
   Image<uint8_t> reference(w, h);
   model.DetectChangesReference(f.view(), 20, reference.view());
   EXPECT_TRUE(reference == changes);
+}
+
+// Only the pixels the map says show the floor teach: clothing that outnumbers the shadows but
+// teaches nothing leaves the look on the shadows' ratio.
+TEST(BackgroundModel, OnlyTaughtPixelsMoveTheLook) {
+  const int w = 96, h = 64;
+  const YuvImage b = GreyFloor(w, h, 200);
+  BackgroundModel model(BackgroundOptions{}, 10);
+  model.Reset(b);
+  YuvImage f = b;
+  Paint(f, 0, 0, 24, 64, 80, 128, 128);    // shadow: 0.4
+  Paint(f, 24, 0, 96, 64, 140, 128, 128);  // grey clothes: 0.7, three times the shadow's area
+  Image<uint8_t> teach(w, h, 0);
+  for (int y = 0; y < h; ++y) std::fill_n(teach.row(y), 24, uint8_t{1});
+  Image<uint8_t> changes(w, h);
+  for (int k = 0; k < 40; ++k) {
+    model.DetectChanges(f.view(), 20, changes.view());
+    model.LearnShadows(f.view(), teach.view());
+  }
+  EXPECT_NEAR(model.shadow_look().ratio, 0.4, 0.02);
+  EXPECT_EQ(changes(10, 10), 0);
+  EXPECT_EQ(changes(50, 10), 1);
+  // Nothing taught for the first seconds: a warm-up's look (here: the clothes') is dropped.
+  BackgroundModel fresh(BackgroundOptions{}, 10);
+  fresh.Reset(b);
+  YuvImage clothes = b;
+  Paint(clothes, 0, 0, 96, 64, 140, 128, 128);
+  fresh.WarmUp({clothes.view(), clothes.view()}, 20);
+  fresh.DetectChanges(clothes.view(), 20, changes.view());
+  EXPECT_NEAR(fresh.shadow_look().ratio, 0.7, 0.02);
+  const Image<uint8_t> nobody(w, h, 0);
+  for (int k = 0; k < 30; ++k) {
+    fresh.LearnShadows(clothes.view(), nobody.view());
+    fresh.DetectChanges(clothes.view(), 20, changes.view());
+  }
+  EXPECT_EQ(fresh.shadow_look().ratio, 0.0);
+  EXPECT_EQ(changes(50, 10), 1);
 }
 
 TEST(BackgroundModel, DetectChangesEqualsItsReference) {

@@ -209,6 +209,7 @@ void BackgroundProtection::Protect(double cx, double cy, double radius, uint8_t 
 void BackgroundProtection::AddPeople(const std::vector<Eigen::Vector2d>& positions_m, double radius_m) {
   for (const Eigen::Vector2d& p : positions_m) {
     ++persons_;
+    person_positions_.push_back(p);
     Protect(p.x(), p.y(), radius_m + options_.margin_m, BackgroundModel::kPerson);
   }
 }
@@ -219,6 +220,7 @@ void BackgroundProtection::Compute(const OccupancyMap& map, const std::vector<Im
     for (int y = 0; y < im.height(); ++y) std::fill(im.row(y), im.row(y) + im.width(), BackgroundModel::kFree);
   }
   objects_ = persons_ = 0;
+  person_positions_.clear();
   const FloorGrid& g = map.grid();
   const std::vector<Blob>& blobs = finder_.Find(map, {.min_area_m2 = options_.min_area_m2});
   for (const Blob& b : blobs) {
@@ -242,8 +244,105 @@ void BackgroundProtection::Compute(const OccupancyMap& map, const std::vector<Im
     }
     const bool person = seen > 0 && 2 * changed >= seen + (seen > 1 ? 1 : 0);
     persons_ += person;
+    if (person) person_positions_.emplace_back(b.x_m, b.y_m);
     const uint8_t value = person ? BackgroundModel::kPerson : BackgroundModel::kObject;
     Protect(cx, cy, radius, value);
+  }
+}
+
+namespace {
+constexpr uint8_t kAbstain = 255;
+constexpr uint8_t kCellUnknown = 0, kCellDark = 1, kCellNotDark = 2;
+}  // namespace
+
+ShadowTeachers::ShadowTeachers(const GroundLut& lut) : lut_(lut) {
+  pixels_.assign(lut.total_pixels(), kAbstain);
+  cell_state_.assign(static_cast<size_t>(lut.grid().num_cells()), kCellUnknown);
+  near_person_.assign(static_cast<size_t>(lut.grid().num_cells()), 0);
+  for (int n = 0; n < lut.num_cameras(); ++n) {
+    const ImageSize s = lut.image_size(n);
+    images_.emplace_back(s.width, s.height, uint8_t{0});
+  }
+}
+
+void ShadowTeachers::Compute(const std::vector<ImageView<const uint8_t>>& classes,
+                             const std::vector<Eigen::Vector2d>& people_m, double radius_m) {
+  const int cameras = lut_.num_cameras();
+  OCCMAP_CHECK(static_cast<int>(classes.size()) == cameras, "shadow teachers: one class image per camera");
+  // The cells of people's feet: dark in every view, but not a shadow.
+  const FloorGrid& g = lut_.grid();
+  for (uint32_t c : near_person_cells_) near_person_[c] = 0;
+  near_person_cells_.clear();
+  const int r = static_cast<int>(std::ceil(radius_m / g.cell_size_m));
+  for (const Eigen::Vector2d& p : people_m) {
+    const int ci = static_cast<int>(std::floor((p.x() - g.origin_x_m) / g.cell_size_m));
+    const int cj = static_cast<int>(std::floor((p.y() - g.origin_y_m) / g.cell_size_m));
+    for (int j = std::max(0, cj - r); j <= std::min(g.cells_y - 1, cj + r); ++j) {
+      for (int i = std::max(0, ci - r); i <= std::min(g.cells_x - 1, ci + r); ++i) {
+        if ((i - ci) * (i - ci) + (j - cj) * (j - cj) > r * r) continue;
+        const uint32_t cell = static_cast<uint32_t>(static_cast<int64_t>(j) * g.cells_x + i);
+        if (!near_person_[cell]) {
+          near_person_[cell] = 1;
+          near_person_cells_.push_back(cell);
+        }
+      }
+    }
+  }
+  for (uint32_t c : touched_) cell_state_[c] = kCellUnknown;
+  touched_.clear();
+  for (int n = 0; n < cameras; ++n) {
+    const ImageSize size = lut_.image_size(n);
+    uint8_t* dst = pixels_.data() + lut_.pixel_offset(n);
+    if (classes[static_cast<size_t>(n)].empty()) {
+      std::fill(dst, dst + static_cast<size_t>(size.width) * size.height, kAbstain);
+      continue;
+    }
+    OCCMAP_CHECK(classes[static_cast<size_t>(n)].width() == size.width && classes[static_cast<size_t>(n)].height() == size.height,
+                 "shadow teachers: class image size");
+    for (int y = 0; y < size.height; ++y) {
+      std::copy_n(classes[static_cast<size_t>(n)].row(y), size.width, dst + static_cast<size_t>(y) * size.width);
+    }
+  }
+  // A cell is dark when every pixel of the active cameras that views it is changed or shadow;
+  // only the cells of dark pixels are asked.
+  const uint32_t sentinel = lut_.sentinel();
+  auto dark_cell = [&](uint32_t cell) {
+    if (cell_state_[cell] == kCellUnknown) {
+      bool dark = false, lit = false;
+      for (uint32_t q : lut_.l2_pixels_of(cell)) {
+        const uint8_t v = pixels_[q];
+        if (v == kAbstain) continue;
+        if (v == BackgroundModel::kBackground) {
+          lit = true;
+          break;
+        }
+        dark = true;
+      }
+      cell_state_[cell] = dark && !lit ? kCellDark : kCellNotDark;
+      touched_.push_back(cell);
+    }
+    return cell_state_[cell] == kCellDark;
+  };
+  teachers_ = 0;
+  for (int n = 0; n < cameras; ++n) {
+    Image<uint8_t>& out = images_[static_cast<size_t>(n)];
+    const ImageSize size = lut_.image_size(n);
+    const ImageView<const uint8_t> cls = classes[static_cast<size_t>(n)];
+    if (cls.empty()) {
+      for (int y = 0; y < size.height; ++y) std::fill(out.row(y), out.row(y) + size.width, uint8_t{0});
+      continue;
+    }
+    const std::span<const uint32_t> l1 = lut_.l1(n);
+    for (int y = 0; y < size.height; ++y) {
+      const uint8_t* c = cls.row(y);
+      uint8_t* o = out.row(y);
+      for (int x = 0; x < size.width; ++x) {
+        const uint32_t cell = l1[static_cast<size_t>(y) * size.width + x];
+        const bool teach = c[x] != BackgroundModel::kBackground && cell != sentinel && dark_cell(cell) && !near_person_[cell];
+        o[x] = teach ? 1 : 0;
+        teachers_ += teach;
+      }
+    }
   }
 }
 

@@ -75,6 +75,8 @@ class BackgroundProtection {
   const Image<uint8_t>& image(size_t camera) const { return images_[camera]; }
   int objects() const { return objects_; }
   int persons() const { return persons_; }
+  // Where the persons stand (the groups' centroids, and the people added), metres.
+  const std::vector<Eigen::Vector2d>& person_positions() const { return person_positions_; }
 
  private:
   // Marks the image of the upright box of `radius` around (cx, cy) with value in every camera.
@@ -86,6 +88,42 @@ class BackgroundProtection {
   std::vector<Image<uint8_t>> images_;
   BlobFinder finder_;
   int objects_ = 0, persons_ = 0;
+  std::vector<Eigen::Vector2d> person_positions_;
+};
+
+// Which pixels teach each camera its shadow look (BackgroundModel::LearnShadows). A cast
+// shadow lies on the floor: every camera that sees a shadowed cell sees it darkened (changed,
+// or already called a shadow), while clothing that one camera takes for a shadow stands above
+// the floor, whose cell the other cameras see unchanged beyond it. A teacher is a changed or
+// shadow pixel whose floor cell (L1) has every pixel that views it (L2, the cameras that are
+// active) changed or shadow, away from where people stand (their feet meet that test too).
+// Without cast shadows in a scene, little teaches (the foot of a low object that is not a
+// person), and no look is learned.
+//
+//   ShadowTeachers teachers(lut);
+//   teachers.Compute(classes, protection.person_positions(), 0.3);   // after the fusion
+//   model.LearnShadows(frame, teachers.image(n));
+class ShadowTeachers {
+ public:
+  explicit ShadowTeachers(const GroundLut& lut);  // lut must outlive this
+
+  // classes[n]: camera n's BackgroundModel::pixel_classes(), empty when the camera is not active
+  // (it abstains). Cells within radius_m of people_m never teach.
+  void Compute(const std::vector<ImageView<const uint8_t>>& classes, const std::vector<Eigen::Vector2d>& people_m,
+               double radius_m);
+
+  const Image<uint8_t>& image(size_t camera) const { return images_[camera]; }
+  int64_t teachers() const { return teachers_; }  // of the last Compute, over the cameras
+
+ private:
+  const GroundLut& lut_;
+  std::vector<uint8_t> pixels_;     // per global pixel id: its class, kAbstain when inactive
+  std::vector<uint8_t> cell_state_;  // per cell: kUnknown, kDark or kNotDark
+  std::vector<uint32_t> touched_;    // cells whose state was set this frame
+  std::vector<uint8_t> near_person_;  // per cell: within the radius of a person
+  std::vector<uint32_t> near_person_cells_;
+  std::vector<Image<uint8_t>> images_;
+  int64_t teachers_ = 0;
 };
 
 }  // namespace occmap

@@ -312,5 +312,67 @@ TEST(BackgroundProtection, PeopleFromAnotherDetectorAreProtectedAsPersons) {
   }
 }
 
+// A cast shadow on the floor is dark in every view; clothing that camera 0 takes for a shadow
+// stands above the floor, whose cells the other cameras see lit. Only the shadow teaches, and
+// not where a person stands.
+TEST(ShadowTeachers, TheFloorEveryCameraSeesDarkTeachesClothingDoesNot) {
+  testing::SmallRoom room(160, 120);
+  std::vector<LutCameraInput> inputs;
+  for (const auto& c : room.cameras) inputs.push_back({&c, {}});
+  Context ctx(1);
+  auto lut = BuildGroundLut(inputs, room.grid, LutOptions{}, ctx);
+  ASSERT_TRUE(lut.ok()) << lut.status().message();
+  auto in_shadow = [](const Eigen::Vector2d& p) { return p.x() >= 1.0 && p.x() < 2.0 && p.y() >= 1.0 && p.y() < 1.6; };
+  std::vector<Image<uint8_t>> classes;
+  int64_t shadow_pixels = 0;
+  for (size_t n = 0; n < room.cameras.size(); ++n) {
+    Image<uint8_t>& c = classes.emplace_back(160, 120, BackgroundModel::kBackground);
+    for (int y = 0; y < 120; ++y) {
+      for (int x = 0; x < 160; ++x) {
+        const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
+        if (p && in_shadow(*p)) {
+          c(x, y) = n % 2 == 0 ? BackgroundModel::kChanged : BackgroundModel::kShadow;
+          shadow_pixels += n == 0;
+        }
+      }
+    }
+  }
+  // Clothing in camera 0 only: pixels whose floor is lit for the others.
+  int clothing = 0;
+  for (int y = 0; y < 120; ++y) {
+    for (int x = 0; x < 160; ++x) {
+      const auto p = room.cameras[0].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
+      if (!p || p->x() < 3.0 || p->x() >= 3.4 || p->y() < 2.0 || p->y() >= 2.4) continue;
+      classes[0](x, y) = BackgroundModel::kChanged;
+      ++clothing;
+    }
+  }
+  ASSERT_GT(clothing, 50);
+  ASSERT_GT(shadow_pixels, 200);
+  std::vector<ImageView<const uint8_t>> views;
+  for (const auto& c : classes) views.push_back(c.view());
+  ShadowTeachers teachers(*lut);
+  teachers.Compute(views, {}, 0.35);
+  int64_t taught_shadow = 0, taught_clothing = 0;
+  for (int y = 0; y < 120; ++y) {
+    for (int x = 0; x < 160; ++x) {
+      if (teachers.image(0)(x, y) == 0) continue;
+      const auto p = room.cameras[0].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
+      ASSERT_TRUE(p.has_value());
+      (in_shadow(*p) ? taught_shadow : taught_clothing) += 1;
+    }
+  }
+  EXPECT_EQ(taught_clothing, 0);
+  EXPECT_GT(taught_shadow, shadow_pixels * 8 / 10);  // its edge cells may hold lit pixels too
+  // A camera that is not active abstains: the others still agree.
+  views[3] = {};
+  teachers.Compute(views, {}, 0.35);
+  EXPECT_GT(teachers.teachers(), 0);
+  EXPECT_EQ(teachers.image(3)(80, 60), 0);
+  // Where a person stands, the dark cells are their feet.
+  teachers.Compute(views, {Eigen::Vector2d(1.5, 1.3)}, 1.0);
+  EXPECT_EQ(teachers.teachers(), 0);
+}
+
 }  // namespace
 }  // namespace occmap

@@ -91,6 +91,8 @@ class AnyTracker {
 constexpr size_t kOutputQueue = 4;
 // Frames left out of the steady-state rate: decoders filling their frame threads, first touches.
 constexpr int64_t kWarmUpFrames = 10;
+// Around a person's position, cells are their feet: they never teach the shadow look.
+constexpr double kShadowTeacherPersonRadiusM = 0.35;
 
 // '.tmp-<name>-<pid>-<n>' files (util/file_util.h, io/video_writer.h) of processes that are
 // gone: what a killed run (kill -9) could not remove.
@@ -712,6 +714,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   std::optional<Clock::time_point> t_first_set;
   std::optional<BackgroundProtection> protection;
   std::vector<ImageView<const uint8_t>> protection_changes(cams.size());
+  std::optional<ShadowTeachers> teachers;
+  std::vector<ImageView<const uint8_t>> teacher_classes(cams.size());
   int64_t last_frame_index = options.start_frame;
   if (adaptive) {
     std::vector<const CameraModel*> models;
@@ -719,6 +723,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     ProtectionOptions po;
     po.person_height_m = site.backgrounds.person_height_m;
     protection.emplace(std::move(models), site.plane_height_m, po);
+    if (site.backgrounds.shadows.enabled && site.backgrounds.shadows.learn) teachers.emplace(lut);
   }
   while (std::optional<int> slot = filled_slots.Pop()) {
     if (!t_first_set) t_first_set = Clock::now();
@@ -815,9 +820,16 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         for (const ExplainedPerson& p : set.people) people_positions.emplace_back(p.x_m, p.y_m);
         protection->AddPeople(people_positions, site.tracking.person_radius_m());
       }
+      if (teachers) {  // the pixels that show the floor darkened, as the cameras agree
+        for (size_t n = 0; n < cams.size(); ++n) {
+          teacher_classes[n] = active[n] && cams[n].model ? cams[n].model->pixel_classes() : ImageView<const uint8_t>();
+        }
+        teachers->Compute(teacher_classes, protection->person_positions(), kShadowTeacherPersonRadiusM);
+      }
       ParallelFor(ctx, 0, static_cast<int64_t>(cams.size()), [&](int64_t b, int64_t e, int) {
         for (int64_t n = b; n < e; ++n) {
           if (active[n] && cams[n].model) {
+            if (teachers) cams[n].model->LearnShadows(FrameYuv(set.frames[n]), teachers->image(static_cast<size_t>(n)).view());
             cams[n].model->Update(FrameYuv(set.frames[n]), protection->image(static_cast<size_t>(n)).view(), set.frame_index);
           }
         }
