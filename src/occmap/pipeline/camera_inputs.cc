@@ -80,6 +80,10 @@ Status WriteYuvPng(const fs::path& path, const YuvImage& yuv) {
 
 namespace {
 
+// With a given background, the shadow look is warmed up on this much of a file source's start.
+constexpr double kShadowWarmUpS = 3;
+constexpr int64_t kShadowWarmUpFrames = 30;
+
 // The adaptive model's background of a camera: given (a picture), reused from the cache, or
 // learned from the busy video (site.backgrounds: K frames over learn_s seconds).
 Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bool chroma,
@@ -179,11 +183,29 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
   if (alternative) {
     c.model->SetAlternative(*alternative, static_cast<int>(std::ceil(bo.alternative_min_share * bo.learn_samples)));
   }
-  if (learned_from && bo.shadows.enabled && bo.shadows.learn) {
-    // The shadow look from the learning samples, so that the first frames are tested with it.
+  if (bo.shadows.enabled && bo.shadows.learn) {
+    // The shadow look before the first frame, so that the first frames are tested with it: from
+    // the learning samples, or with a given background from the first seconds of a file source
+    // (read a second time; a live stream learns it from its first frames instead).
     std::vector<YuvView> samples;
-    for (int k = 0; k < learned_from->count(); ++k) samples.push_back(learned_from->Sample(k));
-    c.model->WarmUp(samples, site.detection.threshold);
+    std::vector<Frame> first;
+    if (learned_from) {
+      for (int k = 0; k < learned_from->count(); ++k) samples.push_back(learned_from->Sample(k));
+    } else if (cam.source.kind == FrameSourceSpec::Kind::kVideo || cam.source.kind == FrameSourceSpec::Kind::kImages) {
+      OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> src, OpenFrameSource(cam.source, src_opts));
+      OCCMAP_RETURN_IF_ERROR(src->SkipTo(options.start_frame));
+      const int64_t n = std::min<int64_t>(kShadowWarmUpFrames, std::max<int64_t>(1, std::llround(kShadowWarmUpS * fps)));
+      for (int64_t k = 0; k < n; ++k) {
+        Frame f;
+        OCCMAP_ASSIGN_OR_RETURN(bool got, src->Read(f));
+        if (!got) break;
+        OCCMAP_RETURN_IF_ERROR(CheckFrameSize(c, f).WithContext(fmt::format("camera {}", cam.id)));
+        if (chroma && f.u.empty()) break;  // the run reports the missing colour
+        first.push_back(std::move(f));
+      }
+      for (const Frame& f : first) samples.push_back(FrameYuv(f));
+    }
+    if (!samples.empty()) c.model->WarmUp(samples, site.detection.threshold);
   }
   return Status::Ok();
 }
