@@ -45,7 +45,7 @@ function FloorMap({ site, frame }) {
       floorToClient: (x, y) => clientPoint(floor.map, [y, x]),
     });
     return () => floor.destroy();
-  }, [site.grid]);
+  }, [JSON.stringify(site.grid)]);
 
   useEffect(() => { if (ctx.current) drawZones(ctx.current.zones, site, frame); }, [site, frame && frame.zones, frame && frame.lines]);
 
@@ -133,6 +133,7 @@ function Stats({ state, frame, site }) {
         <dt>up</dt><dd>${state ? fmt(state.uptime_s, 0) + ' s' : '–'}${state && state.running === false ? ' (inputs ended)' : ''}</dd>
       </dl>
       <h3>Stage time</h3>
+      ${Object.keys(stages).length === 0 ? html`<p class="hint">not measured yet</p>` : null}
       <table class="stages">
         ${Object.entries(stages).map(([k, v]) => html`
           <tr><td>${k}</td><td class="num">${fmt(v, 2)} s</td>

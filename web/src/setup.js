@@ -203,6 +203,8 @@ function CameraSetup({ camera, draft, update }) {
             RMS <b data-testid="rms-px">${fmt(result.rms_px, 2)}</b> px · floor <b>${fmt(result.floor_rms_m * 100, 1)}</b> cm
             ${result.rms_px <= 1 ? html`<span class="badge up">good</span>` : html`<span class="badge down">check the points</span>`}
             <span class="hint">(pending until saved)</span></span>` : null}
+        ${result && result.warnings && result.warnings.length
+          ? html`<ul class="warnings">${result.warnings.map((w) => html`<li>${w}</li>`)}</ul>` : null}
         ${error ? html`<span class="error" data-testid="calibration-error">${error}</span>` : null}
       </div>
     </div>`;
@@ -215,7 +217,10 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
   const readAll = () => {
     const c = ctx.current;
     const zs = []; const ls = [];
-    c.zoneLayer.eachLayer((layer) => zs.push({ name: layer.occmapName, polygon_m: ringOf(layer).map((ll) => [round(ll.lng, 3), round(ll.lat, 3)]) }));
+    c.zoneLayer.eachLayer((layer) => zs.push({
+      name: layer.occmapName, polygon_m: ringOf(layer).map((ll) => [round(ll.lng, 3), round(ll.lat, 3)]),
+      ...(layer.occmapDwell !== undefined ? { dwell_s: layer.occmapDwell } : {}),
+    }));
     c.lineLayer.eachLayer((layer) => {
       const p = layer.getLatLngs();
       ls.push({ name: layer.occmapName, a_m: [round(p[0].lng, 3), round(p[0].lat, 3)], b_m: [round(p[p.length - 1].lng, 3), round(p[p.length - 1].lat, 3)] });
@@ -239,7 +244,7 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
     const watch = (layer) => layer.on('pm:edit pm:dragend', readAll);
     for (const z of zones) {
       const p = L.polygon(z.polygon_m.map(([x, y]) => [y, x]), { color: '#2563eb', weight: 2, fillOpacity: 0.12 }).addTo(zoneLayer);
-      p.occmapName = z.name; watch(p);
+      p.occmapName = z.name; p.occmapDwell = z.dwell_s; watch(p);
     }
     for (const l of lines) {
       const p = L.polyline([[l.a_m[1], l.a_m[0]], [l.b_m[1], l.b_m[0]]], { color: '#7c3aed', weight: 3 }).addTo(lineLayer);
@@ -267,7 +272,7 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
       setupFloorToClient: (x, y) => clientPoint(floor.map, [y, x]),
     });
     return () => floor.destroy();
-  }, [site.grid]);
+  }, [JSON.stringify(site.grid)]);
 
   // Names typed in the list go onto the layers (and their labels).
   useEffect(() => {
