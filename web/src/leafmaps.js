@@ -20,14 +20,18 @@ export function createFloorMap(div, grid) {
   map.fitBounds(bounds, { padding: [8, 8] });
   let loading = false;
   let wanted = null;
-  overlay.on('load error', () => {
+  let version_shown = 0;
+  overlay.on('load error', (e) => {
     loading = false;
+    // No map before the first frame set (404): ask again in a second.
+    if (e.type === 'error' && wanted === null) setTimeout(() => refresh(version_shown), 1000);
     if (wanted !== null) { const v = wanted; wanted = null; refresh(v); }
   });
   function refresh(version) {
     if (loading) { wanted = version; return; }
     loading = true;
-    overlay.setUrl(url('/api/map.png', { v: version }));
+    version_shown = version;
+    overlay.setUrl(url('/api/map.png', { v: version, t: Date.now() % 100000 }));
   }
   const resize = new ResizeObserver(() => map.invalidateSize());
   resize.observe(div);

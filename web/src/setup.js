@@ -79,6 +79,8 @@ function CameraSetup({ camera, draft, update }) {
     });
     masks.eachLayer((layer) => layer.on('pm:edit pm:dragend', readMasks));
     im.map.on('pm:remove', readMasks);
+    // No picture before the camera's first frame (404): take another in a second.
+    im.overlay.on('error', () => setTimeout(() => ctx.current && setSnapshot(Date.now()), 1000));
     ctx.current = { im, masks, pointsLayer };
     window.occmap = Object.assign(window.occmap || {}, {
       cameraMap: im.map,

@@ -1,0 +1,143 @@
+// Shared by the browser tests: the rendered lab scene (rendered once per build tree by the
+// occmap_browser_scene fixture), its cameras streamed on loopback by ffmpeg in real time,
+// `occmap serve` on 127.0.0.1:0 started and stopped by PID, and Debian's headless Chromium driven
+// by playwright-core (never a downloaded browser).
+// Environment (set by CTest): OCCMAP (the binary), OCCMAP_SCENE (the rendered scene folder),
+// OCCMAP_SOURCE_DIR, NODE_PATH (npm ci's node_modules of the build tree).
+'use strict';
+const { spawn, spawnSync } = require('node:child_process');
+const dgram = require('node:dgram');
+const fs = require('node:fs');
+const os = require('node:os');
+const path = require('node:path');
+const { chromium } = require('playwright-core');
+
+const occmap = process.env.OCCMAP;
+const sceneDir = process.env.OCCMAP_SCENE;
+const sourceDir = process.env.OCCMAP_SOURCE_DIR;
+if (!occmap || !sceneDir) throw new Error('harness: OCCMAP and OCCMAP_SCENE must be set (run through ctest)');
+
+const browserPaths = ['/usr/bin/chromium-headless-shell', '/usr/bin/chromium'];
+function browserPath() {
+  const p = process.env.OCCMAP_CHROMIUM || browserPaths.find((f) => fs.existsSync(f));
+  if (!p) throw new Error(`no Chromium at ${browserPaths.join(' or ')}: scripts/install-deps.sh installs chromium-headless-shell`);
+  return p;
+}
+
+function tempDir(name) {
+  return fs.mkdtempSync(path.join(os.tmpdir(), `occmap-browser-${name}-`));
+}
+
+// A copy of the rendered scene's site file in `dir`, its paths still pointing at the scene, its
+// video sources optionally replaced by UDP streams (`ports`: one per camera).
+function siteCopy(dir, ports) {
+  let text = fs.readFileSync(path.join(sceneDir, 'site.yaml'), 'utf8');
+  if (!/^data_root:/m.test(text)) text = `data_root: ${sceneDir}\n${text}`;
+  else text = text.replace(/^data_root:.*$/m, `data_root: ${sceneDir}`);
+  if (ports) {
+    ports.forEach((port, i) => {
+      text = text.replace(`{video: frames/cam${i + 1}.mp4}`,
+        `{stream: 'udp://127.0.0.1:${port}?overrun_nonfatal=1&fifo_size=100000'}`);
+    });
+    if (!text.includes('stream:')) throw new Error('harness: no video source to replace by a stream in site.yaml');
+  }
+  const file = path.join(dir, 'site.yaml');
+  fs.writeFileSync(file, text);
+  return file;
+}
+
+async function freeUdpPorts(n) {
+  const socks = await Promise.all(Array.from({ length: n }, () => new Promise((resolve) => {
+    const s = dgram.createSocket('udp4');
+    s.bind(0, '127.0.0.1', () => resolve(s));
+  })));
+  const ports = socks.map((s) => s.address().port);
+  socks.forEach((s) => s.close());
+  return ports;
+}
+
+// Each camera's video, looped, in real time, as MPEG-TS over UDP to its port: a live camera.
+function streamCameras(ports) {
+  return ports.map((port, i) => spawn('ffmpeg', ['-loglevel', 'error', '-re', '-stream_loop', '-1',
+    '-i', path.join(sceneDir, 'frames', `cam${i + 1}.mp4`), '-c', 'copy', '-f', 'mpegts',
+    `udp://127.0.0.1:${port}?pkt_size=1316`], { stdio: 'ignore' }));
+}
+
+function stopProcess(proc, timeoutMs = 10000) {
+  return new Promise((resolve) => {
+    if (proc.exitCode !== null || proc.signalCode !== null) { resolve(proc.exitCode); return; }
+    const timer = setTimeout(() => proc.kill('SIGKILL'), timeoutMs);
+    proc.once('exit', (code) => { clearTimeout(timer); resolve(code); });
+    proc.kill('SIGTERM');
+  });
+}
+
+// `occmap serve SITE --listen ... --out DIR [args]`: resolves once it printed its address.
+function startServe(site, { listen = '127.0.0.1:0', args = [], out } = {}) {
+  const outDir = out || path.join(path.dirname(site), 'out');
+  const proc = spawn(occmap, ['serve', site, '--listen', listen, '--out', outDir, '--no-cache', ...args],
+    { stdio: ['ignore', 'pipe', 'pipe'] });
+  let log = '';
+  return new Promise((resolve, reject) => {
+    const timer = setTimeout(() => { proc.kill('SIGKILL'); reject(new Error(`occmap serve printed no address in 60 s:\n${log}`)); }, 60000);
+    const onData = (d) => {
+      log += d.toString();
+      const m = log.match(/occmap serve: listening on (http:\/\/\S+?)\/?\s/);
+      if (m) {
+        clearTimeout(timer);
+        resolve({ url: m[1], proc, outDir, log: () => log, stop: () => stopProcess(proc) });
+      }
+    };
+    proc.stdout.on('data', onData);
+    proc.stderr.on('data', (d) => { log += d.toString(); });
+    proc.on('exit', (code) => { clearTimeout(timer); reject(new Error(`occmap serve exited (${code}) before listening:\n${log}`)); });
+  });
+}
+
+async function launchBrowser() {
+  return chromium.launch({ executablePath: browserPath(), args: ['--no-sandbox'], headless: true });
+}
+
+// A page that fails the test on any uncaught error of its script.
+async function openPage(browser, url, viewport = { width: 1400, height: 900 }) {
+  const page = await browser.newPage({ viewport });
+  page.errors = [];
+  page.on('pageerror', (e) => page.errors.push(e.message));
+  // A picture asked before the first frame set is a 404 by contract: not a page error.
+  page.on('console', (m) => {
+    if (m.type() === 'error' && !/Failed to load resource/.test(m.text())) page.errors.push(`console: ${m.text()}`);
+  });
+  await page.goto(url);
+  return page;
+}
+
+// Screenshots for docs/images when OCCMAP_SCREENSHOTS names a folder.
+async function screenshot(page, name) {
+  const dir = process.env.OCCMAP_SCREENSHOTS;
+  if (!dir) return;
+  fs.mkdirSync(dir, { recursive: true });
+  await page.screenshot({ path: path.join(dir, name) });
+}
+
+function runOccmap(args) {
+  return spawnSync(occmap, args, { encoding: 'utf8' });
+}
+
+// The true floor points of a camera, projected through the scene's calibration
+// (tests/project_floor_points.py): [{u_px, v_px, x_m, y_m}].
+function trueFloorPoints(camera, points) {
+  const calib = path.join(sceneDir, 'calib');
+  const r = spawnSync(process.env.PYTHON || 'python3', [path.join(sourceDir, 'tests/project_floor_points.py'),
+    path.join(calib, `intr_${camera}.xml`), path.join(calib, `extr_${camera}.xml`),
+    ...points.map(([x, y]) => `${x},${y}`)], { encoding: 'utf8' });
+  if (r.status !== 0) throw new Error(`project_floor_points.py: ${r.stderr}`);
+  return r.stdout.trim().split('\n').slice(1).map((line) => {
+    const [u, v, x, y] = line.split(',').map(Number);
+    return { u_px: u, v_px: v, x_m: x, y_m: y };
+  });
+}
+
+module.exports = {
+  sceneDir, sourceDir, tempDir, siteCopy, freeUdpPorts, streamCameras, stopProcess, startServe,
+  launchBrowser, openPage, screenshot, runOccmap, trueFloorPoints,
+};

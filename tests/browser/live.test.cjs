@@ -1,0 +1,70 @@
+// The live view in a real browser: the rendered lab's four cameras streamed in real time over
+// UDP, `occmap serve` on them; the page shows the map picture, the camera pictures, the cameras
+// up, and tracks whose positions on the page change between two moments.
+'use strict';
+const test = require('node:test');
+const assert = require('node:assert');
+const h = require('./harness.cjs');
+
+async function trackLabels(page) {
+  return page.$$eval('.floor-map .leaflet-tooltip.track-label', (els) =>
+    els.map((e) => ({ id: e.textContent, at: e.getBoundingClientRect().left + ',' + e.getBoundingClientRect().top })));
+}
+
+test('live view: map, cameras and moving tracks', { timeout: 240000 }, async (t) => {
+  const dir = h.tempDir('live');
+  const ports = await h.freeUdpPorts(4);
+  const senders = h.streamCameras(ports);
+  const site = h.siteCopy(dir, ports);
+  const serve = await h.startServe(site);
+  const browser = await h.launchBrowser();
+  t.after(async () => {
+    await browser.close();
+    await serve.stop();
+    for (const s of senders) await h.stopProcess(s);
+  });
+  const page = await h.openPage(browser, serve.url + '/');
+  try {
+    // The map picture arrives and is refreshed: its URL carries the frame of the map.
+    await page.waitForFunction(() => {
+      const img = document.querySelector('.floor-map img.map-image');
+      return img && img.complete && img.naturalWidth > 0 && !/[?&]v=0\b/.test(img.src);
+    }, null, { timeout: 60000 });
+    const grid = await page.evaluate(() => fetch('/api/site').then((r) => r.json()).then((s) => s.grid));
+    // One pixel per cell (read while no newer picture is loading).
+    await page.waitForFunction((g) => {
+      const img = document.querySelector('.floor-map img.map-image');
+      return img.complete && img.naturalWidth === g.cols && img.naturalHeight === g.rows;
+    }, grid, { timeout: 10000 });
+
+    // Tracks appear; some track's label moves between two moments 1 s apart (tried for up to
+    // 30 s: a new scene starts with tracks being confirmed and lost).
+    await page.waitForFunction(() => document.querySelectorAll('.floor-map .track-label').length > 0, null, { timeout: 60000 });
+    let moved = [];
+    const samples = [];
+    for (let i = 0; i < 30 && moved.length === 0; i += 1) {
+      const before = await trackLabels(page);
+      await page.waitForTimeout(1000);
+      const after = await trackLabels(page);
+      moved = after.filter((a) => before.some((b) => b.id === a.id && b.at !== a.at));
+      samples.push([before, after]);
+    }
+    assert.ok(moved.length > 0, `no track moved on the page: ${JSON.stringify(samples.slice(-3))}`);
+
+    // Every camera tile shows a picture and its camera is up.
+    await page.waitForFunction(() => [...document.querySelectorAll('.tile img')].every((i) => i.complete && i.naturalWidth > 0),
+      null, { timeout: 30000 });
+    assert.strictEqual(await page.locator('.tile').count(), 4);
+    await page.waitForFunction(() => document.querySelectorAll('.tile .badge.up').length === 4, null, { timeout: 30000 });
+    const frame1 = Number(await page.textContent('[data-testid=frame]'));
+    await page.waitForTimeout(1000);
+    const frame2 = Number(await page.textContent('[data-testid=frame]'));
+    assert.ok(frame2 > frame1, `the frame number advances (${frame1}, then ${frame2})`);
+    await h.screenshot(page, 'serve-live.png');
+    assert.deepStrictEqual(page.errors, []);
+  } catch (e) {
+    await page.screenshot({ path: `${dir}/failure.png` });
+    console.log(`serve log:\n${serve.log()}\nscreenshot: ${dir}/failure.png`);
+    throw e;
+  }
+});

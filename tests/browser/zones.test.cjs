@@ -1,0 +1,73 @@
+// Zones in a real browser, on the live lab streams: a zone drawn on the setup map and saved
+// is written to the site file (valid for `occmap check`, the old file kept as .bak), and its
+// count appears in the live view once the pipeline runs on the new site. A name the loader
+// refuses shows the loader's message and writes nothing.
+'use strict';
+const test = require('node:test');
+const assert = require('node:assert');
+const fs = require('node:fs');
+const h = require('./harness.cjs');
+
+async function clickFloor(page, x, y) {
+  const at = await page.evaluate(([px, py]) => window.occmap.setupFloorToClient(px, py), [x, y]);
+  await page.mouse.click(at.x, at.y);
+}
+
+test('setup: a zone drawn and saved gets its count in the live view', { timeout: 300000 }, async (t) => {
+  const dir = h.tempDir('zones');
+  const ports = await h.freeUdpPorts(4);
+  const senders = h.streamCameras(ports);
+  const site = h.siteCopy(dir, ports);
+  const original = fs.readFileSync(site, 'utf8');
+  const serve = await h.startServe(site);
+  const browser = await h.launchBrowser();
+  t.after(async () => {
+    await browser.close();
+    await serve.stop();
+    for (const s of senders) await h.stopProcess(s);
+  });
+  const page = await h.openPage(browser, serve.url + '/#setup');
+  try {
+    // The first frame set's map and camera picture, before drawing.
+    await page.waitForFunction(() => [...document.querySelectorAll('.leaflet-image-layer')]
+      .every((img) => img.complete && img.naturalWidth > 0), null, { timeout: 60000 });
+    // Most of the room, so that the lab's walkers are in it.
+    await page.click('[data-testid=draw-zone]');
+    const corners = [[0.5, 0.5], [8.5, 0.5], [8.5, 6.0], [0.5, 6.0]];
+    for (const [x, y] of corners) await clickFloor(page, x, y);
+    await clickFloor(page, ...corners[0]);
+    await page.waitForSelector('[data-testid=zone-name-0]');
+    assert.strictEqual(await page.inputValue('[data-testid=zone-name-0]'), 'zone1');
+    await h.screenshot(page, 'serve-zones.png');
+
+    // A name the loader refuses: its message is shown, the file is untouched.
+    await page.fill('[data-testid=zone-name-0]', '');
+    await page.click('[data-testid=save]');
+    await page.waitForSelector('[data-testid=save-message].error', { timeout: 30000 });
+    const refusal = await page.textContent('[data-testid=save-message]');
+    assert.match(refusal, /zone|name/i, `the loader's message: ${refusal}`);
+    assert.strictEqual(fs.readFileSync(site, 'utf8'), original, 'nothing written on a refused save');
+
+    await page.fill('[data-testid=zone-name-0]', 'room');
+    await page.click('[data-testid=save]');
+    await page.waitForSelector('[data-testid=save-message].ok', { timeout: 60000 });
+    const check = h.runOccmap(['check', site]);
+    assert.strictEqual(check.status, 0, `occmap check ${site}: ${check.stdout}${check.stderr}`);
+    const saved = fs.readFileSync(site, 'utf8');
+    assert.match(saved, /room/, 'the zone is in the saved site file');
+    assert.strictEqual(fs.readFileSync(site + '.bak', 'utf8'), original, 'the previous file kept as .bak');
+
+    // The live view lists the zone and its count arrives with the frames.
+    await page.click('a[data-tab=live]');
+    await page.waitForFunction(() => {
+      const row = document.querySelector('[data-testid=zone-counts] tr[data-zone=room] td.num');
+      return row && /^\d+$/.test(row.textContent.trim());
+    }, null, { timeout: 90000 });
+    await page.waitForFunction(() => document.querySelector('.floor-map .zone-label') !== null);
+    assert.deepStrictEqual(page.errors, []);
+  } catch (e) {
+    await page.screenshot({ path: `${dir}/failure.png` });
+    console.log(`serve log:\n${serve.log()}\nscreenshot: ${dir}/failure.png`);
+    throw e;
+  }
+});
