@@ -8,29 +8,16 @@ set -uo pipefail
 occmap=$1
 src=$2
 trials=${3:-20}
-python=${PYTHON:-python3}
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-failures=0
-passed=0
-fail() {
-  echo "FAIL $*"
-  failures=$((failures + 1))
-}
-ok() { passed=$((passed + 1)); }
+source "$src/tests/test_lib.sh"
+tl_init
 
 # The lab scene rendered to H.264 (200 frames at 10 fps), run slowed down to real time by
 # --threads 1 and the mosaic video, so that there is a run to interrupt.
-"$occmap" synth --scene lab --video --frames 200 --out "$work/lab" >/dev/null 2>&1 || {
-  echo "FAIL synth"
-  exit 1
-}
+tl_synth_lab "$occmap" "$work/lab" --video --frames 200
 site="$work/lab/site.yaml"
 
 # check_outputs DIR [final]: tests/check_run_outputs.py.
 check_outputs() { "$python" "$src/tests/check_run_outputs.py" "$@"; }
-
-lines() { [ -f "$1" ] && wc -l <"$1" || echo 0; }
 
 # 1. SIGINT while it runs: lines appear during the run, then exit 0 within 2 s, outputs final.
 out="$work/sigint"
@@ -102,5 +89,4 @@ done
 if [ $bad -eq 0 ]; then ok; else fail "kill -9: $bad of $trials trials left an invalid output"; fi
 echo "kill -9: $trials trials, $bad with an invalid output"
 
-echo "$passed passed, $failures failed"
-[ $failures -eq 0 ]
+tl_finish live_test

@@ -7,61 +7,24 @@
 set -uo pipefail
 occmap=$1
 src=$2
-python=${PYTHON:-python3}
+source "$src/tests/test_lib.sh"
 if ! command -v ffmpeg >/dev/null; then
   echo "SKIP: no ffmpeg program (scripts/install-deps.sh installs it)"
   exit 0
 fi
-work=$(mktemp -d)
-senders=()
-cleanup() {
-  for p in "${senders[@]}"; do kill "$p" 2>/dev/null; done
-  rm -rf "$work"
-}
-trap cleanup EXIT
-failures=0
-passed=0
-fail() {
-  echo "FAIL $*"
-  failures=$((failures + 1))
-}
-ok() { passed=$((passed + 1)); }
-
-"$occmap" synth --scene lab --video --frames 100 --out "$work/lab" >/dev/null 2>&1 || {
-  echo "FAIL synth"
-  exit 1
-}
-# Four free UDP ports on loopback.
-read -r -a ports <<<"$("$python" -c "
-import socket
-socks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(4)]
-for s in socks: s.bind(('127.0.0.1', 0))
-print(' '.join(str(s.getsockname()[1]) for s in socks))")"
-sed_args=()
-for n in 1 2 3 4; do
-  sed_args+=(-e "s#{video: frames/cam$n.mp4}#{stream: 'udp://127.0.0.1:${ports[$((n - 1))]}?overrun_nonfatal=1\&fifo_size=100000'}#")
-done
-sed "${sed_args[@]}" "$work/lab/site.yaml" >"$work/lab/stream.yaml"
-grep -q 'stream:' "$work/lab/stream.yaml" || {
-  echo "FAIL: no stream sources in the site file"
-  exit 1
-}
-
-serve() {  # serve N: camera N's video, looped, in real time, to its port
-  ffmpeg -loglevel error -re -stream_loop -1 -i "$work/lab/frames/cam$1.mp4" -c copy -f mpegts \
-    "udp://127.0.0.1:${ports[$(($1 - 1))]}?pkt_size=1316" >/dev/null 2>&1 &
-  senders[$1]=$!
-}
+tl_init
+tl_synth_lab "$occmap" "$work/lab" --video --frames 100
+read -r -a ports <<<"$(tl_free_ports udp 4)"
+tl_stream_site "$work/lab" "$work/lab/stream.yaml" "${ports[@]}"
+serve() { tl_serve "$work/lab" "$1" "${ports[$(($1 - 1))]}"; }  # serve N: camera N's video, looped
 for n in 1 2 3 4; do serve $n; done
 sleep 1
 
 out="$work/run"
 "$occmap" run "$work/lab/stream.yaml" --out "$out" --no-cache --summary-every-s 0.5 >"$work/run.log" 2>&1 &
 pid=$!
-lines() { [ -f "$1" ] && wc -l <"$1" || echo 0; }
-cam_frames() {  # frames of camera 1 in the running summary
-  "$python" -c "import json; print(json.load(open('$out/summary.json'))['cameras'][0]['frames'])" 2>/dev/null || echo -1
-}
+tl_track $pid
+cam_frames() { summary_field "$out" "s['cameras'][0]['frames']"; }  # camera 1's, in the running summary
 for _ in $(seq 300); do
   [ "$(lines "$out/detections.jsonl")" -ge 30 ] && break
   sleep 0.1
@@ -72,7 +35,7 @@ b=$(lines "$out/detections.jsonl")
 if [ "$a" -ge 30 ] && [ "$b" -gt "$a" ]; then ok; else fail "detections.jsonl did not grow while running ($a, then $b lines)"; cat "$work/run.log"; fi
 
 # Camera 1's stream stops for 5 s: the run goes on without it, then takes it back.
-kill "${senders[1]}"
+tl_stop_serving 1
 sleep 1.5
 during0=$(cam_frames)
 lines_during0=$(lines "$out/detections.jsonl")
@@ -87,6 +50,8 @@ echo "camera 1 frames: $during0 -> $during1 while stopped, $after after it came 
 if [ "$during1" -le $((during0 + 2)) ]; then ok; else fail "camera 1 kept getting frames while its stream was stopped"; fi
 if [ "$lines_during1" -gt "$lines_during0" ]; then ok; else fail "the run stopped while camera 1 was away"; fi
 if [ "$after" -gt $((during1 + 10)) ]; then ok; else fail "camera 1 did not rejoin ($during1 -> $after frames)"; fi
+reconnects=$(summary_field "$out" "s['cameras'][0]['reconnects']")
+if [ "$reconnects" -ge 1 ]; then ok; else fail "camera 1's reconnect not counted ($reconnects)"; fi
 
 t0=$(date +%s.%N)
 kill -INT $pid
@@ -107,5 +72,4 @@ print(f"summary: {s['frames']} frame sets, camera 1: {c['frames']} frames, {c['r
       f"p99 {s['latency_ms']['p99']}")
 sys.exit(0 if s["stop_reason"] == "stop requested" else 1)
 PY
-echo "$passed passed, $failures failed"
-[ $failures -eq 0 ]
+tl_finish stream_test

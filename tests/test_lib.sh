@@ -1,0 +1,127 @@
+# Shared helpers of the shell tests (sourced, not run): pass/fail counters, a work folder removed
+# at exit with every process registered in it, a rendered lab scene, free loopback ports, the
+# lab's cameras served as looping UDP streams by ffmpeg, and a mosquitto broker of the test's own.
+#
+#   source "$(dirname "$0")/test_lib.sh"
+#   tl_init                       # $work, counters, clean-up at exit
+#   tl_synth_lab "$occmap" "$work/lab" --video --frames 100
+#   if cond; then ok; else fail "what went wrong"; fi
+#   tl_finish "my_test"           # prints the counts; the test's exit status
+#
+# Processes started with tl_track PID are killed (SIGKILL) at exit, brokers stopped by PID.
+
+python=${PYTHON:-python3}
+failures=0
+passed=0
+tl_pids=()
+
+fail() {
+  echo "FAIL $*"
+  failures=$((failures + 1))
+}
+ok() { passed=$((passed + 1)); }
+
+tl_track() { tl_pids+=("$1"); }
+
+tl_cleanup() {
+  local p
+  for p in "${tl_pids[@]}"; do
+    if [ -n "$p" ]; then kill -KILL "$p" 2>/dev/null; wait "$p" 2>/dev/null; fi
+  done
+  [ -n "${work:-}" ] && rm -rf "$work"
+}
+
+# A fresh work folder in $work, removed at exit with the tracked processes.
+tl_init() {
+  work=$(mktemp -d)
+  trap tl_cleanup EXIT
+}
+
+# tl_finish NAME: the counts, and the status of the test (0 when nothing failed).
+tl_finish() {
+  echo "${1:+$1: }$passed passed, $failures failed"
+  [ "$failures" -eq 0 ]
+}
+
+# tl_synth_lab OCCMAP DIR [synth options...]: the lab scene rendered into DIR (exits on failure).
+tl_synth_lab() {
+  local occmap=$1 dir=$2
+  shift 2
+  "$occmap" synth --scene lab --out "$dir" "$@" >/dev/null 2>&1 || {
+    echo "FAIL synth --scene lab $*"
+    exit 1
+  }
+}
+
+# lines FILE: its number of lines (0 when absent).
+lines() { [ -f "$1" ] && wc -l <"$1" || echo 0; }
+
+# tl_free_ports KIND N: N free ports on 127.0.0.1 (KIND tcp or udp), space-separated.
+tl_free_ports() {
+  "$python" -c "
+import socket, sys
+kind = socket.SOCK_DGRAM if sys.argv[1] == 'udp' else socket.SOCK_STREAM
+socks = [socket.socket(socket.AF_INET, kind) for _ in range(int(sys.argv[2]))]
+for s in socks: s.bind(('127.0.0.1', 0))
+print(' '.join(str(s.getsockname()[1]) for s in socks))" "$1" "$2"
+}
+
+# --- Live streams: the lab's cameras served by ffmpeg as MPEG-TS over UDP, looping, in real time.
+# tl_stream_site LAB_DIR OUT_SITE PORT...: LAB_DIR/site.yaml with camera n read from udp port n.
+tl_stream_site() {
+  local lab=$1 site=$2
+  shift 2
+  local args=() n=1 port
+  for port in "$@"; do
+    args+=(-e "s#{video: frames/cam$n.mp4}#{stream: 'udp://127.0.0.1:$port?overrun_nonfatal=1\&fifo_size=100000'}#")
+    n=$((n + 1))
+  done
+  sed "${args[@]}" "$lab/site.yaml" >"$site"
+  grep -q 'stream:' "$site" || {
+    echo "FAIL: no stream sources in $site"
+    exit 1
+  }
+}
+
+# tl_serve LAB_DIR N PORT: camera N's video sent to PORT, looped, in real time; its PID in
+# tl_sender[N] (tracked).
+declare -a tl_sender
+tl_serve() {
+  ffmpeg -loglevel error -re -stream_loop -1 -i "$1/frames/cam$2.mp4" -c copy -f mpegts \
+    "udp://127.0.0.1:$3?pkt_size=1316" >/dev/null 2>&1 &
+  tl_sender[$2]=$!
+  tl_track $!
+}
+# tl_stop_serving N: camera N's sender stopped.
+tl_stop_serving() {
+  kill "${tl_sender[$1]}" 2>/dev/null
+  wait "${tl_sender[$1]}" 2>/dev/null
+}
+
+# --- MQTT: tl_broker starts mosquitto on 127.0.0.1 at a free port ($broker_port), with a
+# generated config in $work; it is stopped by its PID at exit. Exits when it does not start.
+tl_broker() {
+  broker_port=$(tl_free_ports tcp 1)
+  cat >"$work/mosquitto.conf" <<CONF
+listener $broker_port 127.0.0.1
+allow_anonymous true
+persistence false
+log_dest stderr
+CONF
+  /usr/sbin/mosquitto -c "$work/mosquitto.conf" 2>"$work/broker.log" &
+  broker_pid=$!
+  tl_track "$broker_pid"
+  for _ in $(seq 100); do
+    mosquitto_pub -h 127.0.0.1 -p "$broker_port" -t occmap-test/probe -m x 2>/dev/null && return 0
+    sleep 0.05
+  done
+  echo "FAIL the broker did not start"
+  cat "$work/broker.log"
+  exit 1
+}
+
+# summary_field DIR EXPR: a Python expression over summary.json's object `s` (-1 when unreadable).
+summary_field() {
+  "$python" -c "import json, sys; s = json.load(open(sys.argv[1] + '/summary.json')); print($2)" "$1" 2>/dev/null ||
+    echo -1
+}
