@@ -489,6 +489,7 @@ void BackgroundModel::Reset(const YuvImage& background) {
     }
   }
   class_.assign(np, kBackground);
+  ratio_.assign(np, 0);
   prev_y_.assign(np, 0);
   alt_y_.assign(np, 0);
   alt_valid_.assign(np, 0);
@@ -812,6 +813,7 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
     const uint16_t* rbu = chroma_ ? bu_.data() + static_cast<size_t>(y / 2) * cw_ : nullptr;
     const uint16_t* rbv = chroma_ ? bv_.data() + static_cast<size_t>(y / 2) * cw_ : nullptr;
     uint8_t* cls = class_.data() + static_cast<size_t>(y) * width_;
+    uint8_t* rat = ratio_.data() + static_cast<size_t>(y) * width_;
     uint8_t* out = changes.row(y);
     uint8_t* cc = chroma_changed_.data();
     if (tc > 0 && y % 2 == 0) {
@@ -840,7 +842,11 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
       if (cls[x] == kBackground) continue;
       const int b = b8[x];
       const int expected = pred_[b];
-      if (fy[x] >= expected || fy[x] < shadow_lo_[b] || fy[x] > shadow_hi_[b]) continue;
+      if (fy[x] >= expected || fy[x] < shadow_lo_[b] || fy[x] > shadow_hi_[b]) {
+        rat[x] = 0;
+        continue;
+      }
+      rat[x] = static_cast<uint8_t>(std::min(255, (fy[x] * 255 + expected / 2) / expected));
       int eu = 0, ev = 0, u = 0, v = 0;
       if (chroma_) {
         eu = pred_c_[std::min(255, (rbu[x >> 1] + 128) >> 8)];

@@ -231,7 +231,10 @@ class BackgroundModel {
   // by every darker pixel) is used; from it on only taught pixels count, and a look they do not
   // confirm within the first seconds is dropped.
   void LearnShadows(const YuvView& frame, ImageView<const uint8_t> teach);
-  // The last DetectChanges' class per pixel: kBackground, kChanged or kShadow.
+  // The last DetectChanges' class per pixel: kBackground, kChanged or kShadow; and, where it is
+  // not kBackground, the frame/background brightness ratio x 255 of a pixel darker within the
+  // shadows' range, else 0 (with the shadow test on).
+  ImageView<const uint8_t> pixel_ratios() const { return {ratio_.data(), width_, height_, width_}; }
   ImageView<const uint8_t> pixel_classes() const { return {class_.data(), width_, height_, width_}; }
   enum Class : uint8_t { kBackground = 0, kChanged = 1, kShadow = 2 };
 
@@ -271,6 +274,7 @@ class BackgroundModel {
   bool chroma_ = false;
   std::vector<uint16_t> by_, bu_, bv_;   // 8.8 fixed point
   std::vector<uint8_t> class_;           // Class per luma pixel, last frame
+  std::vector<uint8_t> ratio_;           // see pixel_ratios()
   std::vector<uint8_t> prev_y_;          // last frame's luma (steadiness)
   std::vector<uint16_t> steady_frames_;  // frames changed and steady in a row
   std::vector<uint8_t> alt_y_;            // the alternative background's luma, 0 when none

@@ -253,10 +253,12 @@ void BackgroundProtection::Compute(const OccupancyMap& map, const std::vector<Im
 namespace {
 constexpr uint8_t kAbstain = 255;
 constexpr uint8_t kCellUnknown = 0, kCellDark = 1, kCellNotDark = 2;
+constexpr int kMaxRatioSpread = 38;  // 0.15: of the ratios x 255 over a cell's pixels
 }  // namespace
 
 ShadowTeachers::ShadowTeachers(const GroundLut& lut) : lut_(lut) {
   pixels_.assign(lut.total_pixels(), kAbstain);
+  ratios_.assign(lut.total_pixels(), 0);
   cell_state_.assign(static_cast<size_t>(lut.grid().num_cells()), kCellUnknown);
   near_person_.assign(static_cast<size_t>(lut.grid().num_cells()), 0);
   for (int n = 0; n < lut.num_cameras(); ++n) {
@@ -266,9 +268,11 @@ ShadowTeachers::ShadowTeachers(const GroundLut& lut) : lut_(lut) {
 }
 
 void ShadowTeachers::Compute(const std::vector<ImageView<const uint8_t>>& classes,
+                             const std::vector<ImageView<const uint8_t>>& ratios,
                              const std::vector<Eigen::Vector2d>& people_m, double radius_m) {
   const int cameras = lut_.num_cameras();
-  OCCMAP_CHECK(static_cast<int>(classes.size()) == cameras, "shadow teachers: one class image per camera");
+  OCCMAP_CHECK(static_cast<int>(classes.size()) == cameras && ratios.size() == classes.size(),
+               "shadow teachers: one class and ratio image per camera");
   // The cells of people's feet: dark in every view, but not a shadow.
   const FloorGrid& g = lut_.grid();
   for (uint32_t c : near_person_cells_) near_person_[c] = 0;
@@ -301,6 +305,8 @@ void ShadowTeachers::Compute(const std::vector<ImageView<const uint8_t>>& classe
                  "shadow teachers: class image size");
     for (int y = 0; y < size.height; ++y) {
       std::copy_n(classes[static_cast<size_t>(n)].row(y), size.width, dst + static_cast<size_t>(y) * size.width);
+      std::copy_n(ratios[static_cast<size_t>(n)].row(y), size.width,
+                  ratios_.data() + lut_.pixel_offset(n) + static_cast<size_t>(y) * size.width);
     }
   }
   // A cell is dark when every pixel of the active cameras that views it is changed or shadow;
@@ -309,16 +315,21 @@ void ShadowTeachers::Compute(const std::vector<ImageView<const uint8_t>>& classe
   auto dark_cell = [&](uint32_t cell) {
     if (cell_state_[cell] == kCellUnknown) {
       bool dark = false, lit = false;
+      int lo = 255, hi = 0;
       for (uint32_t q : lut_.l2_pixels_of(cell)) {
         const uint8_t v = pixels_[q];
         if (v == kAbstain) continue;
-        if (v == BackgroundModel::kBackground) {
+        if (v == BackgroundModel::kBackground || ratios_[q] == 0) {
           lit = true;
           break;
         }
         dark = true;
+        lo = std::min<int>(lo, ratios_[q]);
+        hi = std::max<int>(hi, ratios_[q]);
       }
-      cell_state_[cell] = dark && !lit ? kCellDark : kCellNotDark;
+      // A floor darkened by a shadow keeps one ratio from every side (a matte floor); an
+      // object's sides, each lit its own way, do not.
+      cell_state_[cell] = dark && !lit && hi - lo <= kMaxRatioSpread ? kCellDark : kCellNotDark;
       touched_.push_back(cell);
     }
     return cell_state_[cell] == kCellDark;

@@ -109,8 +109,8 @@ class ShadowTeachers {
 
   // classes[n]: camera n's BackgroundModel::pixel_classes(), empty when the camera is not active
   // (it abstains). Cells within radius_m of people_m never teach.
-  void Compute(const std::vector<ImageView<const uint8_t>>& classes, const std::vector<Eigen::Vector2d>& people_m,
-               double radius_m);
+  void Compute(const std::vector<ImageView<const uint8_t>>& classes, const std::vector<ImageView<const uint8_t>>& ratios,
+               const std::vector<Eigen::Vector2d>& people_m, double radius_m);
 
   const Image<uint8_t>& image(size_t camera) const { return images_[camera]; }
   int64_t teachers() const { return teachers_; }  // of the last Compute, over the cameras
@@ -118,6 +118,7 @@ class ShadowTeachers {
  private:
   const GroundLut& lut_;
   std::vector<uint8_t> pixels_;     // per global pixel id: its class, kAbstain when inactive
+  std::vector<uint8_t> ratios_;     // per global pixel id: its ratio (BackgroundModel::pixel_ratios)
   std::vector<uint8_t> cell_state_;  // per cell: kUnknown, kDark or kNotDark
   std::vector<uint32_t> touched_;    // cells whose state was set this frame
   std::vector<uint8_t> near_person_;  // per cell: within the radius of a person

@@ -323,15 +323,17 @@ TEST(ShadowTeachers, TheFloorEveryCameraSeesDarkTeachesClothingDoesNot) {
   auto lut = BuildGroundLut(inputs, room.grid, LutOptions{}, ctx);
   ASSERT_TRUE(lut.ok()) << lut.status().message();
   auto in_shadow = [](const Eigen::Vector2d& p) { return p.x() >= 1.0 && p.x() < 2.0 && p.y() >= 1.0 && p.y() < 1.6; };
-  std::vector<Image<uint8_t>> classes;
+  std::vector<Image<uint8_t>> classes, ratios;
   int64_t shadow_pixels = 0;
   for (size_t n = 0; n < room.cameras.size(); ++n) {
     Image<uint8_t>& c = classes.emplace_back(160, 120, BackgroundModel::kBackground);
+    Image<uint8_t>& r = ratios.emplace_back(160, 120, uint8_t{0});
     for (int y = 0; y < 120; ++y) {
       for (int x = 0; x < 160; ++x) {
         const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
         if (p && in_shadow(*p)) {
           c(x, y) = n % 2 == 0 ? BackgroundModel::kChanged : BackgroundModel::kShadow;
+          r(x, y) = static_cast<uint8_t>(110 + n * 3);  // 0.43-0.47 of the lit floor
           shadow_pixels += n == 0;
         }
       }
@@ -344,15 +346,17 @@ TEST(ShadowTeachers, TheFloorEveryCameraSeesDarkTeachesClothingDoesNot) {
       const auto p = room.cameras[0].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
       if (!p || p->x() < 3.0 || p->x() >= 3.4 || p->y() < 2.0 || p->y() >= 2.4) continue;
       classes[0](x, y) = BackgroundModel::kChanged;
+      ratios[0](x, y) = 115;
       ++clothing;
     }
   }
   ASSERT_GT(clothing, 50);
   ASSERT_GT(shadow_pixels, 200);
-  std::vector<ImageView<const uint8_t>> views;
+  std::vector<ImageView<const uint8_t>> views, ratio_views;
   for (const auto& c : classes) views.push_back(c.view());
+  for (const auto& r : ratios) ratio_views.push_back(r.view());
   ShadowTeachers teachers(*lut);
-  teachers.Compute(views, {}, 0.35);
+  teachers.Compute(views, ratio_views, {}, 0.35);
   int64_t taught_shadow = 0, taught_clothing = 0;
   for (int y = 0; y < 120; ++y) {
     for (int x = 0; x < 160; ++x) {
@@ -365,13 +369,22 @@ TEST(ShadowTeachers, TheFloorEveryCameraSeesDarkTeachesClothingDoesNot) {
   EXPECT_EQ(taught_clothing, 0);
   EXPECT_GT(taught_shadow, shadow_pixels * 8 / 10);  // its edge cells may hold lit pixels too
   // A camera that is not active abstains: the others still agree.
-  views[3] = {};
-  teachers.Compute(views, {}, 0.35);
-  EXPECT_GT(teachers.teachers(), 0);
+  views[3] = ratio_views[3] = {};
+  teachers.Compute(views, ratio_views, {}, 0.35);
+  const int64_t three = teachers.teachers();
+  EXPECT_GT(three, 0);
   EXPECT_EQ(teachers.image(3)(80, 60), 0);
   // Where a person stands, the dark cells are their feet.
-  teachers.Compute(views, {Eigen::Vector2d(1.5, 1.3)}, 1.0);
+  teachers.Compute(views, ratio_views, {Eigen::Vector2d(1.5, 1.3)}, 1.0);
   EXPECT_EQ(teachers.teachers(), 0);
+  // An object's sides, each lit its own way: camera 1 sees it far darker than the others.
+  for (int y = 0; y < 120; ++y) {
+    for (int x = 0; x < 160; ++x) {
+      if (ratios[1](x, y) != 0) ratios[1](x, y) = 40;
+    }
+  }
+  teachers.Compute(views, ratio_views, {}, 0.35);
+  EXPECT_LT(teachers.teachers(), three / 10);
 }
 
 }  // namespace

@@ -715,7 +715,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   std::optional<BackgroundProtection> protection;
   std::vector<ImageView<const uint8_t>> protection_changes(cams.size());
   std::optional<ShadowTeachers> teachers;
-  std::vector<ImageView<const uint8_t>> teacher_classes(cams.size());
+  std::vector<ImageView<const uint8_t>> teacher_classes(cams.size()), teacher_ratios(cams.size());
   int64_t last_frame_index = options.start_frame;
   if (adaptive) {
     std::vector<const CameraModel*> models;
@@ -823,8 +823,9 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       if (teachers) {  // the pixels that show the floor darkened, as the cameras agree
         for (size_t n = 0; n < cams.size(); ++n) {
           teacher_classes[n] = active[n] && cams[n].model ? cams[n].model->pixel_classes() : ImageView<const uint8_t>();
+          teacher_ratios[n] = active[n] && cams[n].model ? cams[n].model->pixel_ratios() : ImageView<const uint8_t>();
         }
-        teachers->Compute(teacher_classes, protection->person_positions(), kShadowTeacherPersonRadiusM);
+        teachers->Compute(teacher_classes, teacher_ratios, protection->person_positions(), kShadowTeacherPersonRadiusM);
       }
       ParallelFor(ctx, 0, static_cast<int64_t>(cams.size()), [&](int64_t b, int64_t e, int) {
         for (int64_t n = b; n < e; ++n) {
