@@ -96,9 +96,10 @@ class BackgroundProtection {
 // or already called a shadow), while clothing that one camera takes for a shadow stands above
 // the floor, whose cell the other cameras see unchanged beyond it. A teacher is a changed or
 // shadow pixel whose floor cell (L1) has every pixel that views it (L2, the cameras that are
-// active) changed or shadow, away from where people stand (their feet meet that test too).
-// Without cast shadows in a scene, little teaches (the foot of a low object that is not a
-// person), and no look is learned.
+// active) darker within the shadows' range and by one ratio (within 0.15: a matte floor looks
+// alike from every side, an object's sides are each lit their own way), away from where people
+// stand (their feet meet that test too). Without cast shadows in a scene little teaches, and
+// no look is learned.
 //
 //   ShadowTeachers teachers(lut);
 //   teachers.Compute(classes, protection.person_positions(), 0.3);   // after the fusion
