@@ -12,6 +12,7 @@
 #include "occmap/geometry/homography_camera.h"
 #include "occmap/geometry/rotation.h"
 #include "occmap/util/file_util.h"
+#include "occmap/util/safe_files.h"
 #include "occmap/util/yaml_util.h"
 
 namespace occmap {
@@ -194,7 +195,7 @@ Result<std::vector<FloorPoint>> ParseFloorPoints(std::string_view text, const st
 }
 
 Result<std::vector<FloorPoint>> ReadFloorPoints(const std::filesystem::path& path) {
-  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
+  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path, kMaxTextFileBytes));
   return ParseFloorPoints(text, path.string());
 }
 

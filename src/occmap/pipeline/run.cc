@@ -46,6 +46,7 @@
 #include "occmap/track/count_lines.h"
 #include "occmap/track/zones.h"
 #include "occmap/util/file_util.h"
+#include "occmap/util/safe_files.h"
 #include "occmap/util/hash.h"
 #include "occmap/util/image_io.h"
 
@@ -93,24 +94,6 @@ constexpr size_t kOutputQueue = 4;
 constexpr int64_t kWarmUpFrames = 10;
 // Around a person's position, cells are their feet: they never teach the shadow look.
 constexpr double kShadowTeacherPersonRadiusM = 0.35;
-
-// '.tmp-<name>-<pid>-<n>' files (util/file_util.h, io/video_writer.h) of processes that are
-// gone: what a killed run (kill -9) could not remove.
-void RemoveStaleTemporaries(const fs::path& out) {
-  std::error_code ec;
-  for (auto it = fs::recursive_directory_iterator(out, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    if (name.rfind(".tmp-", 0) != 0) continue;
-    const size_t last = name.rfind('-');
-    const size_t before = last == std::string::npos || last == 0 ? std::string::npos : name.rfind('-', last - 1);
-    if (before == std::string::npos) continue;
-    int pid = 0;
-    const char* first = name.data() + before + 1;
-    const char* end = name.data() + last;
-    if (std::from_chars(first, end, pid).ptr != end || pid <= 0) continue;
-    if (pid != ::getpid() && ::kill(pid, 0) != 0 && errno == ESRCH) fs::remove(it->path(), ec);
-  }
-}
 
 LatencyFigures Figures(const LatencyHistogram& h) {
   LatencyFigures f;
@@ -231,7 +214,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   // (pipeline/output_files.h), then the caller's (RunOptions::sinks).
   const fs::path out = options.out_dir;
   OCCMAP_RETURN_IF_ERROR(EnsureDirectory(out));
-  RemoveStaleTemporaries(out);
+  RemoveStaleTemporaries(out, /*recursive=*/true);  // of killed runs (util/file_util.h)
   OCCMAP_RETURN_IF_ERROR(EnsureDirectory(out / "backgrounds"));
   for (const auto& c : cams) {
     if (c.is_mask) continue;

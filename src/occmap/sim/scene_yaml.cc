@@ -6,6 +6,7 @@
 #include <set>
 
 #include "occmap/util/file_util.h"
+#include "occmap/util/safe_files.h"
 #include "occmap/util/yaml_util.h"
 
 namespace occmap::sim {
@@ -537,7 +538,7 @@ Result<SceneSpec> ParseSceneYaml(std::string_view text, const std::string& file_
 }
 
 Result<SceneSpec> LoadSceneYaml(const std::filesystem::path& path) {
-  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
+  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path, kMaxTextFileBytes));
   return ParseSceneYaml(text, path.string());
 }
 

@@ -2,6 +2,9 @@
 
 #include <fmt/core.h>
 
+#include "occmap/util/file_util.h"
+#include "occmap/util/safe_files.h"
+
 namespace occmap {
 namespace fs = std::filesystem;
 
@@ -14,6 +17,11 @@ fs::path SiteLutPath(const Site& site, const fs::path& cache_dir) {
 }
 
 Result<CachedLut> LoadOrBuildSiteLut(const Site& site, const fs::path& cache_dir, Context& ctx) {
+  if (!cache_dir.empty()) {
+    // Temporaries of killed runs (a table is up to tens of MB): the cache's own folders only.
+    RemoveStaleTemporaries(cache_dir, /*recursive=*/false);
+    RemoveStaleTemporaries(cache_dir / "backgrounds", /*recursive=*/false);
+  }
   return LoadOrBuildGroundLut(cache_dir.empty() ? fs::path() : SiteLutPath(site, cache_dir), site.LutInputs(),
                               site.grid, site.lut, ctx);
 }

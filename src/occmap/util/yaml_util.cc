@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <unordered_map>
 
 #include "occmap/util/file_util.h"
+#include "occmap/util/safe_files.h"
 
 namespace occmap {
 
@@ -199,10 +201,63 @@ int EditDistance(std::string_view a, std::string_view b) {
   return prev[b.size()];
 }
 
+namespace {
+
+// Bounds on the tree walk below: nesting (an alias inside its own anchor could loop) and nodes
+// visited (aliases of aliases multiply: a "billion laughs" file).
+constexpr int kMaxYamlDepth = 256;
+constexpr int64_t kMaxYamlNodes = 2'000'000;
+
+// yaml-cpp 0.7 keeps the first of two equal keys and drops the second without a word: a site
+// whose second `threshold:` is silently ignored. Every map is checked for repeated keys.
+Status CheckDuplicateKeys(const YAML::Node& node, const std::string& file, const std::string& path, int depth,
+                          int64_t& visited) {
+  if (++visited > kMaxYamlNodes) {
+    return InvalidInput(fmt::format("{}: expected at most {} YAML nodes (aliases included), found more", file, kMaxYamlNodes));
+  }
+  if (depth > kMaxYamlDepth) {
+    return InvalidInput(fmt::format("{}:{}: {}: expected at most {} levels of nesting, found more", file,
+                                    node.Mark().line + 1, path, kMaxYamlDepth));
+  }
+  if (node.IsSequence()) {
+    for (size_t i = 0; i < node.size(); ++i) {
+      OCCMAP_RETURN_IF_ERROR(CheckDuplicateKeys(node[i], file, fmt::format("{}[{}]", path, i), depth + 1, visited));
+    }
+  } else if (node.IsMap()) {
+    std::unordered_map<std::string, int> seen;  // key -> line
+    for (const auto& kv : node) {
+      std::string key = kv.first.IsScalar() ? kv.first.Scalar() : std::string();
+      const int line = kv.first.Mark().line + 1;
+      if (kv.first.IsScalar()) {
+        if (const auto [it, fresh] = seen.emplace(key, line); !fresh) {
+          return InvalidInput(fmt::format("{}:{}: {}{}duplicate key '{}' (first at line {}; YAML keys must be unique)",
+                                          file, line, path, path.empty() ? "" : ": ", key, it->second));
+        }
+      }
+      const std::string child = path.empty() ? key : fmt::format("{}.{}", path, key);
+      OCCMAP_RETURN_IF_ERROR(CheckDuplicateKeys(kv.second, file, child, depth + 1, visited));
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
 Result<YamlField> ParseYaml(std::string_view text, std::string file_name) {
   auto file = std::make_shared<const std::string>(std::move(file_name));
+  // YAML files are UTF-8; yaml-cpp passes any byte through, and a stray one in an id or a name
+  // would only fail much later (writing JSON), far from the file.
+  if (const auto bad = FindInvalidUtf8(text)) {
+    const std::string_view before = text.substr(0, *bad);
+    const size_t line = static_cast<size_t>(std::count(before.begin(), before.end(), '\n')) + 1;
+    const size_t line_start = before.rfind('\n') == std::string_view::npos ? 0 : before.rfind('\n') + 1;
+    return InvalidInput(fmt::format("{}:{}:{}: expected UTF-8 text, found the byte 0x{:02x}", *file, line,
+                                    *bad - line_start + 1, static_cast<unsigned char>(text[*bad])));
+  }
   try {
     YAML::Node root = YAML::Load(std::string(text));
+    int64_t visited = 0;
+    OCCMAP_RETURN_IF_ERROR(CheckDuplicateKeys(root, *file, "", 0, visited));
     return YamlField(root, file, "");
   } catch (const YAML::Exception& e) {
     return InvalidInput(fmt::format("{}:{}:{}: YAML syntax error: {}", *file, e.mark.line + 1,
@@ -211,7 +266,7 @@ Result<YamlField> ParseYaml(std::string_view text, std::string file_name) {
 }
 
 Result<YamlField> LoadYamlFile(const std::filesystem::path& path) {
-  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
+  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path, kMaxTextFileBytes));
   return ParseYaml(text, path.string());
 }
 

@@ -1,5 +1,6 @@
 #include "occmap/util/yaml_util.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 
 namespace occmap {
@@ -64,6 +65,41 @@ TEST(YamlField, SyntaxErrorNamesLineAndColumn) {
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().message().rfind("bad.yaml:", 0), 0u) << r.status().message();
   EXPECT_NE(r.status().message().find("YAML syntax error"), std::string::npos);
+}
+
+// yaml-cpp 0.7 keeps the first of two equal keys without a word: both are refused, at any depth.
+TEST(ParseYaml, DuplicateKeysAreRefusedWithBothLines) {
+  const auto top = ParseYaml("a: 1\nb: 2\na: 3\n", "d.yaml");
+  ASSERT_FALSE(top.ok());
+  EXPECT_EQ(top.status().message(), "d.yaml:3: duplicate key 'a' (first at line 1; YAML keys must be unique)");
+  const auto nested = ParseYaml("x:\n  - {k: 1}\n  - k: 1\n    j: 2\n    k: 3\n", "d.yaml");
+  ASSERT_FALSE(nested.ok());
+  EXPECT_EQ(nested.status().message(), "d.yaml:5: x[1]: duplicate key 'k' (first at line 3; YAML keys must be unique)");
+  EXPECT_TRUE(ParseYaml("a: {k: 1}\nb: {k: 1}\n", "d.yaml").ok());  // equal keys in different maps
+}
+
+TEST(ParseYaml, BytesThatAreNotUtf8AreRefusedWithLineAndColumn) {
+  const auto r = ParseYaml("a: 1\nname: ca\xffm\n", "u.yaml");
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().message(), "u.yaml:2:9: expected UTF-8 text, found the byte 0xff");
+  EXPECT_EQ(ExitCodeFor(r.status()), 2);
+  EXPECT_TRUE(ParseYaml("name: caf\xc3\xa9\n", "u.yaml").ok());
+}
+
+TEST(ParseYaml, AliasBombsAndDeepNestingAreRefused) {
+  std::string bomb = "a: &a [x, x, x, x, x, x, x, x, x, x]\n";
+  for (char c = 'b'; c <= 'h'; ++c) {
+    bomb += fmt::format("{0}: &{0} [", c);
+    for (int i = 0; i < 10; ++i) bomb += fmt::format("{}*{}", i ? ", " : "", static_cast<char>(c - 1));
+    bomb += "]\n";
+  }
+  const auto r = ParseYaml(bomb, "b.yaml");
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().message(), "b.yaml: expected at most 2000000 YAML nodes (aliases included), found more");
+  const auto deep = ParseYaml("a: " + std::string(300, '[') + std::string(300, ']') + "\n", "n.yaml");
+  ASSERT_FALSE(deep.ok());
+  EXPECT_NE(deep.status().message().find("expected at most 256 levels of nesting"), std::string::npos)
+      << deep.status().message();
 }
 
 TEST(ParseFiniteDouble, RejectsPartialAndNonFinite) {
