@@ -2,6 +2,8 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 #include <set>
@@ -15,6 +17,7 @@
 #include "occmap/geometry/pinhole_camera.h"
 #include "occmap/geometry/tsai_camera.h"
 #include "occmap/util/file_util.h"
+#include "occmap/util/safe_files.h"
 #include "occmap/util/image_io.h"
 #include "occmap/util/yaml_util.h"
 
@@ -75,6 +78,45 @@ std::vector<Eigen::Vector3d> FloorSamples(const FloorGrid& g, double z) {
     }
   }
   return pts;
+}
+
+// Text for a message: control bytes, DEL and bytes that are not UTF-8 as \xNN (a NUL or an
+// escape sequence would cut or garble the terminal line).
+std::string Printable(std::string_view text) {
+  std::string out;
+  for (size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    const size_t len = c < 0x80 ? 1 : c >= 0xF0 ? 4 : c >= 0xE0 ? 3 : 2;
+    const bool printable = len == 1 ? c >= 0x20 && c != 0x7F
+                                    : i + len <= text.size() && !FindInvalidUtf8(text.substr(i, len)).has_value();
+    if (printable) {
+      out += text.substr(i, len);
+      i += len;
+    } else {
+      out += fmt::format("\\x{:02x}", c);
+      ++i;
+    }
+  }
+  return out;
+}
+
+// Whether any point of a kGridSamples^2 lattice over the grid lands in the image (and on the mask's
+// floor pixels). Denser than the forward-sign vote: a camera seeing a corner of a big grid passes.
+constexpr int kGridSamples = 101;
+bool SeesTheGrid(const CameraModel& camera, const Image<uint8_t>& mask, const FloorGrid& g, double z) {
+  for (int i = 0; i < kGridSamples; ++i) {
+    for (int j = 0; j < kGridSamples; ++j) {
+      const Eigen::Vector3d p(g.origin_x_m + g.size_x_m() * i / (kGridSamples - 1),
+                              g.origin_y_m + g.size_y_m() * j / (kGridSamples - 1), z);
+      const auto px = camera.Project(p);
+      if (!px || !camera.InImage(*px)) continue;
+      if (mask.empty()) return true;
+      const int c = std::clamp(static_cast<int>(std::lround(px->x())), 0, mask.width() - 1);
+      const int r = std::clamp(static_cast<int>(std::lround(px->y())), 0, mask.height() - 1);
+      if (mask.row(r)[c] != 0) return true;
+    }
+  }
+  return false;
 }
 
 Result<std::unique_ptr<CameraModel>> ParsePinholeOptions(const YamlField& calib, PinholeParameters p,
@@ -246,6 +288,8 @@ Status ParseCamera(const YamlField& field, const PathContext& ctx, const FloorGr
   OCCMAP_ASSIGN_OR_RETURN(YamlField id, field.Get("id"));
   OCCMAP_ASSIGN_OR_RETURN(cam.id, id.AsString());
   if (cam.id.empty()) return id.Error("expected a non-empty camera id");
+  // The id names files (backgrounds/<id>.png): '../x' would write outside the output folder.
+  if (auto bad = CheckSafeFileName(cam.id)) return id.Error(fmt::format("camera id '{}': {}", Printable(cam.id), *bad));
   OCCMAP_ASSIGN_OR_RETURN(YamlField calib, field.Get("calibration"));
   if (!calib.IsMap()) return calib.Error("expected a map with 'format' and its files");
   OCCMAP_RETURN_IF_ERROR(ParseCalibration(calib, ctx, grid, plane_z, cam));
@@ -268,6 +312,14 @@ Status ParseCamera(const YamlField& field, const PathContext& ctx, const FloorGr
   }
   if (auto f = field.Find("mask")) {
     OCCMAP_ASSIGN_OR_RETURN(cam.mask, ParseMask(*f, ctx, cam.camera->image_size()));
+  }
+  // A camera that sees none of the grid adds nothing but unseen cells (one camera alone: a run
+  // of all-unseen maps); it is a wrong calibration, unit, grid or mask, told here, not after a run.
+  if (!SeesTheGrid(*cam.camera, cam.mask, grid, plane_z)) {
+    return field.Error(fmt::format("the camera sees none of the {} floor sample points {} (calibration, unit, grid "
+                                   "or mask wrong?)",
+                                   kGridSamples * kGridSamples,
+                                   cam.mask.empty() ? "in its image" : "in its image and mask"));
   }
   if (auto f = field.Find("source")) {
     OCCMAP_ASSIGN_OR_RETURN(cam.source, ParseSource(*f, ctx));
@@ -411,7 +463,19 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
   if (version != 1) return root.Find("version")->Error(fmt::format("expected site format version 1, found {}", version));
   Site site;
   site.file = path;
-  OCCMAP_ASSIGN_OR_RETURN(site.name, root.GetString("name", path.stem().string()));
+  if (auto f = root.Find("name")) {
+    // The name names cache files (<name>-<id>-<hash>.png) and MQTT topics, as an id does.
+    OCCMAP_ASSIGN_OR_RETURN(site.name, f->AsString());
+    if (auto bad = CheckSafeFileName(site.name)) return f->Error(fmt::format("site name '{}': {}", Printable(site.name), *bad));
+  } else {
+    // Without a name, the file's: its unsafe characters replaced (a file 'my site.yaml' is fine).
+    site.name = path.stem().string();
+    if (CheckSafeFileName(site.name)) {
+      std::string safe;
+      for (char c : site.name) safe += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_';
+      site.name = CheckSafeFileName(safe) ? "site" : safe;
+    }
+  }
   PathContext ctx;
   ctx.site_dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   ctx.data_root = ctx.site_dir;
@@ -472,7 +536,7 @@ Result<Site> ParseSite(std::string_view yaml_text, const fs::path& path, const S
 }
 
 Result<Site> LoadSite(const fs::path& path, const SiteLoadOptions& options) {
-  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
+  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path, kMaxTextFileBytes));
   return ParseSite(text, path, options);
 }
 

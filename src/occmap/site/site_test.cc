@@ -29,6 +29,8 @@ class SiteFixture : public ::testing::Test {
     Image<uint8_t> small(80, 60, 255);
     ASSERT_TRUE(WritePng(dir_ / "small.png", small.view()).ok());
     testing::WriteText(dir_ / "not_png.png", "garbage");
+    Image<uint8_t> black(160, 120, 0);
+    ASSERT_TRUE(WritePng(dir_ / "black.png", black.view()).ok());
   }
 
   std::string Valid() const {
@@ -263,6 +265,30 @@ INSTANTIATE_TEST_SUITE_P(
                 ":35: blobs.support_slack_m: expected >= 0 m, found -0.1"},
         BadSite{"no_cameras", "cameras:\n  - id: a", "cameras: []\nx:\n  - id: a",
                 ":8: unknown field 'x' (expected one of: version, name, data_root, floor, cameras, detection, backgrounds, fusion, blobs, lut, people, statics, tracking, outputs)"},
+        BadSite{"id_escapes_the_folder", "id: a", "id: x/../../escaped",
+                ":8: cameras[0].id: camera id 'x/../../escaped': character '/' (U+002F) at position 2 is not allowed "
+                "(letters, digits, '_', '-', '.')"},
+        BadSite{"id_dot_dot", "id: a", "id: ..",
+                ":8: cameras[0].id: camera id '..': character '.' (U+002E) at position 1 is not allowed first "
+                "(letters, digits, '_', '-', '.')"},
+        BadSite{"id_tab", "id: a", "id: \"a\\tb\"",
+                ":8: cameras[0].id: camera id 'a\\x09b': character (U+0009) at position 2 is not allowed "
+                "(letters, digits, '_', '-', '.')"},
+        BadSite{"id_nul", "id: a", "id: \"a\\0\"",
+                ":8: cameras[0].id: camera id 'a\\x00': character (U+0000) at position 2 is not allowed "
+                "(letters, digits, '_', '-', '.')"},
+        BadSite{"id_invalid_utf8", "id: a", "id: a\xff", ":8:10: expected UTF-8 text, found the byte 0xff"},
+        BadSite{"name_invalid_utf8", "name: room", "name: r\xc3\x28om", ":2:8: expected UTF-8 text, found the byte 0xc3"},
+        BadSite{"name_with_slash", "name: room", "name: ro/om",
+                ":2: name: site name 'ro/om': character '/' (U+002F) at position 3 is not allowed "
+                "(letters, digits, '_', '-', '.')"},
+        BadSite{"duplicate_key", "threshold: 25", "threshold: 25\n  threshold: 30",
+                ":26: detection: duplicate key 'threshold' (first at line 25; YAML keys must be unique)"},
+        BadSite{"duplicate_top_key", "version: 1", "version: 1\nversion: 1",
+                ":2: duplicate key 'version' (first at line 1; YAML keys must be unique)"},
+        BadSite{"camera_sees_nothing", "mask: mask.png", "mask: black.png",
+                ":8: cameras[0]: the camera sees none of the 10201 floor sample points in its image and mask "
+                "(calibration, unit, grid or mask wrong?)"},
         BadSite{"yaml_syntax", "origin_m: [0, 0]", "origin_m: [0, 0",
                 ":5:9: YAML syntax error: end of sequence flow not found"}),
     [](const ::testing::TestParamInfo<BadSite>& param_info) { return std::string(param_info.param.name); });
