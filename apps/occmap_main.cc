@@ -667,8 +667,12 @@ int main(int argc, char** argv) {
   CLI::App* run_cmd = app.add_subcommand("run", "the main job: occupancy, detections and mosaic from the site's cameras");
   run_cmd->add_option("site", run.site_path, "site file (YAML)")->required();
   run_cmd->add_option("--out", run.options.out_dir, "output folder")->capture_default_str();
-  run_cmd->add_option("--frames", run.options.max_frames, "process at most N frames");
-  run_cmd->add_option("--start", run.options.start_frame, "first frame of every source")->capture_default_str();
+  // -1 is the library's "until a source ends": not a count a user may give.
+  run_cmd->add_option("--frames", run.options.max_frames, "process at most N frames")
+      ->check(CLI::Range(int64_t{1}, int64_t{1'000'000'000'000}));
+  run_cmd->add_option("--start", run.options.start_frame, "first frame of every source")
+      ->capture_default_str()
+      ->check(CLI::Range(int64_t{0}, int64_t{1'000'000'000'000}));
   run_cmd->add_option("--cache-dir", run.cache_dir, "folder of cached tables and backgrounds (default: ~/.cache/occmap)");
   run_cmd->add_flag("--no-cache", run.no_cache, "never read or write cached tables or backgrounds");
   run_cmd->add_option("--sync", run.sync, "synchronise cameras by frame index or timestamp")
@@ -686,7 +690,8 @@ int main(int argc, char** argv) {
                     "appending whole lines per frame set");
   run_cmd->add_option("--summary-every-s", run.options.summary_every_s,
                       "rewrite summary.json with the running figures this often (0 = only at the end)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   run_cmd->add_option("--background-frames", run.options.background_frames,
                       "K: frames in the median background of a camera without one")->capture_default_str();
   run_cmd->add_option("--min-blob-area-m2", run.min_blob_area_m2, "drop detections with a smaller footprint (default: the site's blobs.min_area_m2)");
@@ -706,13 +711,15 @@ int main(int argc, char** argv) {
   int64_t demo_frames = -1;
   CLI::App* demo_cmd = app.add_subcommand("demo", "render the built-in lab scene, run on it and score the result");
   demo_cmd->add_option("--out", demo_out, "output folder")->capture_default_str();
-  demo_cmd->add_option("--frames", demo_frames, "frames to render (default: the scene's 100)");
+  demo_cmd->add_option("--frames", demo_frames, "frames to render (default: the scene's 100)")
+      ->check(CLI::Range(int64_t{1}, int64_t{10'000'000}));  // a scene's limit (sim/scene.cc)
 
   SynthCommand synth;
   CLI::App* synth_cmd = app.add_subcommand("synth", "render a scene with exact ground truth into a dataset folder");
   synth_cmd->add_option("--scene", synth.scene, "lab, clemson, wildtrack, plaza, or a scene YAML file")->capture_default_str();
   synth_cmd->add_option("--out", synth.out_dir, "dataset folder")->capture_default_str();
-  synth_cmd->add_option("--frames", synth.frames, "frames to render (default: the scene's length)");
+  synth_cmd->add_option("--frames", synth.frames, "frames to render (default: the scene's length)")
+      ->check(CLI::Range(int64_t{1}, int64_t{10'000'000}));  // a scene's limit (sim/scene.cc)
   synth_cmd->add_option("--seed", synth.seed, "random seed (clothing, noise)")->capture_default_str();
   synth_cmd->add_option("--scale", synth.scale, "image size as a fraction of the cameras' native size")
       ->capture_default_str();

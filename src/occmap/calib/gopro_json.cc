@@ -8,6 +8,7 @@
 
 #include "occmap/calib/units.h"
 #include "occmap/util/file_util.h"
+#include "occmap/util/safe_files.h"
 
 namespace occmap {
 namespace fs = std::filesystem;
@@ -15,13 +16,15 @@ using nlohmann::json;
 namespace {
 
 Result<json> ParseJson(const fs::path& path) {
-  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
+  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path, kMaxTextFileBytes));
   try {
     json j = json::parse(text);
     if (!j.is_object()) return InvalidInput(fmt::format("'{}': expected a JSON object", path.string()));
     return j;
   } catch (const json::parse_error& e) {
     return InvalidInput(fmt::format("'{}': JSON syntax error at byte {}: {}", path.string(), e.byte, e.what()));
+  } catch (const json::exception& e) {  // a number out of range (1e999): was an abort
+    return InvalidInput(fmt::format("'{}': JSON syntax error: {}", path.string(), e.what()));
   }
 }
 
@@ -111,7 +114,12 @@ Result<PinholeParameters> ReadGoProCalibration(const fs::path& intrinsic_path, c
   }
   p.cam_from_world_rotation << r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8];
   p.cam_from_world_translation_m = Eigen::Vector3d(t[0], t[1], t[2]) * m_per_unit;
-  OCCMAP_RETURN_IF_ERROR(p.Validate().WithContext(fmt::format("'{}'", intrinsic_path.string())));
+  // Each error names the file it comes from: R and t are the extrinsic file's.
+  if (Status s = p.Validate(); !s.ok()) {
+    const bool extrinsic = s.message().starts_with("extrinsics") || s.message().starts_with("rotation");
+    return s.WithContext(extrinsic ? fmt::format("'{}': R/t", extrinsic_path.string())
+                                   : fmt::format("'{}'", intrinsic_path.string()));
+  }
   return p;
 }
 

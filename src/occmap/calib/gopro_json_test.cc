@@ -85,7 +85,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadJson{"no_unit", kIntr, R"({"t": [1,2,3], "R": [[1,0,0],[0,1,0],[0,0,1]]})",
                 "no `unit` field; declare the calibration's unit in the site file"},
         BadJson{"not_rotation", kIntr, R"({"unit": "m", "t": [1,2,3], "R": [[2,0,0],[0,1,0],[0,0,1]]})",
-                "rotation: expected an orthonormal matrix"},
+                "e.json': R/t: rotation: expected an orthonormal matrix"},
         BadJson{"short_t", kIntr, R"({"unit": "m", "t": [1,2], "R": [[1,0,0],[0,1,0],[0,0,1]]})",
                 "t: expected 3 numbers, found 2"}),
     [](const ::testing::TestParamInfo<BadJson>& param_info) { return std::string(param_info.param.name); });

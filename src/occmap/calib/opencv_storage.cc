@@ -11,6 +11,7 @@
 #include "occmap/calib/units.h"
 #include "occmap/geometry/rotation.h"
 #include "occmap/util/file_util.h"
+#include "occmap/util/safe_files.h"
 #include "occmap/util/yaml_util.h"
 
 namespace occmap {
@@ -18,7 +19,7 @@ namespace fs = std::filesystem;
 namespace {
 
 Result<cv::FileStorage> Open(const fs::path& path) {
-  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
+  OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path, kMaxTextFileBytes));
   if (text.find_first_not_of(" \t\r\n") == std::string::npos) {
     return InvalidInput(fmt::format("'{}': empty file, expected an OpenCV FileStorage calibration",
                                     path.string()));
@@ -42,7 +43,42 @@ Result<std::vector<double>> Numbers(const cv::FileNode& node, const fs::path& pa
   if (node.empty() || node.isNone()) return InvalidInput(fmt::format("{}: missing", where()));
   std::vector<double> values;
   try {
-    if (node.isMap()) {
+    if (node.isMap() && node["rows"].isInt() && node["cols"].isInt() && !node["data"].empty()) {
+      // An opencv-matrix read here, not by OpenCV: a wrong count or a 'nan' gets its own message
+      // instead of OpenCV's internal assertion text.
+      const int r = static_cast<int>(node["rows"]), c = static_cast<int>(node["cols"]);
+      if (r < 0 || c < 0 || r > 10000 || c > 10000) {
+        return InvalidInput(fmt::format("{}: expected rows and cols in 0..10000, found {}x{}", where(), r, c));
+      }
+      const cv::FileNode data = node["data"];
+      auto add = [&](const cv::FileNode& e) -> Status {
+        if (e.isReal() || e.isInt()) {
+          values.push_back(static_cast<double>(e));
+        } else if (e.isString()) {
+          std::istringstream in(static_cast<std::string>(e));
+          std::string token;
+          while (in >> token) {
+            auto v = ParseFiniteDouble(token);
+            if (!v) return InvalidInput(fmt::format("{}: data: expected a finite number, found '{}'", where(), token));
+            values.push_back(*v);
+          }
+        } else {
+          return InvalidInput(fmt::format("{}: data: expected numbers, found a non-number element", where()));
+        }
+        return Status::Ok();
+      };
+      if (data.isSeq()) {
+        for (const auto& e : data) OCCMAP_RETURN_IF_ERROR(add(e));
+      } else {
+        OCCMAP_RETURN_IF_ERROR(add(data));
+      }
+      if (values.size() != static_cast<size_t>(r) * static_cast<size_t>(c)) {
+        return InvalidInput(fmt::format("{}: expected rows x cols = {} x {} = {} numbers in data, found {}", where(), r,
+                                        c, static_cast<size_t>(r) * static_cast<size_t>(c), values.size()));
+      }
+      if (rows) *rows = r;
+      if (cols) *cols = c;
+    } else if (node.isMap()) {
       cv::Mat m;
       node >> m;
       if (m.empty()) return InvalidInput(fmt::format("{}: expected a matrix, found an empty or unreadable one", where()));
@@ -142,6 +178,11 @@ Result<OpenCvExtrinsics> ReadOpenCvExtrinsics(const fs::path& path) {
   if (r.size() != 3) return InvalidInput(fmt::format("'{}': rvec: expected 3 numbers, found {}", path.string(), r.size()));
   if (t.size() != 3) return InvalidInput(fmt::format("'{}': tvec: expected 3 numbers, found {}", path.string(), t.size()));
   e.rvec = Eigen::Vector3d(r[0], r[1], r[2]);
+  // Angles past a few turns lose all precision in sin/cos (and 1e300 overflows the norm to inf).
+  if (!(e.rvec.norm() <= 1000)) {
+    return InvalidInput(fmt::format("'{}': rvec: expected a rotation vector of at most 1000 rad, found [{}, {}, {}]",
+                                    path.string(), r[0], r[1], r[2]));
+  }
   e.tvec_in_file_units = Eigen::Vector3d(t[0], t[1], t[2]);
   return e;
 }
@@ -169,7 +210,12 @@ Result<PinholeParameters> ReadOpenCvCalibration(const fs::path& intrinsic_path,
   p.distortion = intr.distortion;
   p.cam_from_world_rotation = RotationFromRodrigues(extr.rvec);
   p.cam_from_world_translation_m = extr.tvec_in_file_units * metres_per_unit;
-  OCCMAP_RETURN_IF_ERROR(p.Validate().WithContext(fmt::format("'{}'", intrinsic_path.string())));
+  // Each error names the file it comes from: extrinsics and rotation from the extrinsic file.
+  if (Status s = p.Validate(); !s.ok()) {
+    const bool extrinsic = s.message().starts_with("extrinsics") || s.message().starts_with("rotation");
+    return s.WithContext(extrinsic ? fmt::format("'{}': rvec/tvec", extrinsic_path.string())
+                                   : fmt::format("'{}'", intrinsic_path.string()));
+  }
   return p;
 }
 

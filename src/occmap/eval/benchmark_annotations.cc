@@ -185,6 +185,8 @@ Result<std::vector<AnnotatedPerson>> ParseAnnotationFile(std::string_view text, 
     j = json::parse(text);
   } catch (const json::parse_error& e) {
     return InvalidInput(fmt::format("{}: expected a JSON list of people, found invalid JSON at byte {}", source_name, e.byte));
+  } catch (const json::exception& e) {  // a number out of range (1e999)
+    return InvalidInput(fmt::format("{}: expected a JSON list of people, found invalid JSON: {}", source_name, e.what()));
   }
   if (!j.is_array()) return InvalidInput(fmt::format("{}: expected a list of people, found {}", source_name, Found(&j)));
   const int64_t cells = grid.cells_x * grid.cells_y;

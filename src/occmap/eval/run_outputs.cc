@@ -99,6 +99,8 @@ Status ForEachJsonLine(std::string_view text, std::string_view source, const Par
       j = json::parse(line_text);
     } catch (const json::parse_error& e) {
       return line.Error("", "a JSON object", fmt::format("invalid JSON at column {}", e.byte));
+    } catch (const json::exception& e) {  // a number out of range (1e999)
+      return line.Error("", "a JSON object", fmt::format("invalid JSON: {}", e.what()));
     }
     OCCMAP_RETURN_IF_ERROR(parse_line(line, j));
   }

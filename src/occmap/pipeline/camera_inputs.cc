@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "occmap/detect/background.h"
+#include "occmap/site/site_location.h"
 #include "occmap/util/file_util.h"
 #include "occmap/util/hash.h"
 #include "occmap/util/image_io.h"
@@ -307,17 +308,24 @@ Result<std::vector<CameraState>> OpenCameras(const Site& site, const RunOptions&
       return InvalidInput(fmt::format("camera {}: no source (give cameras[{}].source in the site file)", c.cam->id, n));
     }
     c.is_mask = c.cam->source.kind == FrameSourceSpec::Kind::kMasks;
+    // Errors found only now still name the site file's line (site/site_location.h).
     auto src = OpenFrameSource(c.cam->source, src_opts);
-    if (!src.ok()) return src.status().WithContext(fmt::format("camera {}", c.cam->id));
+    if (!src.ok()) {
+      return src.status().WithContext(fmt::format("{}: camera {}", SiteCameraLocation(site, n, "source"), c.cam->id));
+    }
     c.source = std::move(src).value();
     c.info.source = c.source->Describe();
-    if (plan.adaptive && !c.is_mask) {
-      OCCMAP_RETURN_IF_ERROR(PrepareAdaptiveBackground(site, options, plan.chroma, background_opts, c));
-    } else {
-      OCCMAP_RETURN_IF_ERROR(PrepareBackground(site, options, plan.colour, background_opts, c));
+    const Status background = plan.adaptive && !c.is_mask
+                                  ? PrepareAdaptiveBackground(site, options, plan.chroma, background_opts, c)
+                                  : PrepareBackground(site, options, plan.colour, background_opts, c);
+    if (!background.ok()) {
+      return background.WithContext(SiteCameraLocation(site, n, c.cam->background ? "background" : "source"));
     }
     if (options.start_frame > 0) {
-      OCCMAP_RETURN_IF_ERROR(c.source->SkipTo(options.start_frame).WithContext(fmt::format("camera {}", c.cam->id)));
+      if (Status s = c.source->SkipTo(options.start_frame); !s.ok()) {
+        return s.WithContext(
+            fmt::format("{}: --start {}: camera {}", SiteCameraLocation(site, n, "source"), options.start_frame, c.cam->id));
+      }
     }
     const ImageSize size = c.cam->camera->image_size();
     c.raw_changes = Image<uint8_t>(size.width, size.height);

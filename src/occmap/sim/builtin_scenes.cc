@@ -10,6 +10,7 @@
 #include "occmap/calib/opencv_storage.h"
 #include "occmap/site/demo_scene.h"
 #include "occmap/util/file_util.h"
+#include "occmap/util/safe_files.h"
 
 namespace occmap::sim {
 namespace fs = std::filesystem;
@@ -67,11 +68,17 @@ const PinholeParameters& PinholeOf(const CameraModel& cam) {
 
 }  // namespace
 
+// SceneSpec::Validate's bound (sim/scene.cc), checked here first: MakeLabSceneSpec treats a
+// failed SceneSpec::Validate as a bug (an abort), so a user's count must never reach it.
+constexpr int64_t kMaxSceneFrames = 10'000'000;
+
 Status BuiltinSceneOptions::Validate() const {
   if (!(image_scale > 0.01 && image_scale <= 4)) {
     return InvalidInput(fmt::format("image scale: expected 0.01 < scale <= 4, found {}", image_scale));
   }
-  if (num_frames == 0 || num_frames < -1) return InvalidInput(fmt::format("frames: expected a positive count, found {}", num_frames));
+  if (num_frames == 0 || num_frames < -1 || num_frames > kMaxSceneFrames) {
+    return InvalidInput(fmt::format("frames: expected 1 .. {}, found {}", kMaxSceneFrames, num_frames));
+  }
   if (!(noise_sigma == -1 || (noise_sigma >= 0 && noise_sigma <= 50))) {
     return InvalidInput(fmt::format("noise sigma: expected 0..50 grey levels, found {}", noise_sigma));
   }
@@ -308,11 +315,11 @@ Result<std::vector<WildtrackAnnotation>> ReadWildtrackAnnotations(const fs::path
   std::sort(files.begin(), files.end());
   std::vector<WildtrackAnnotation> out;
   for (const auto& [frame, path] : files) {
-    OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path));
+    OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path, kMaxTextFileBytes));
     nlohmann::json j;
     try {
       j = nlohmann::json::parse(text);
-    } catch (const nlohmann::json::parse_error& e) {
+    } catch (const nlohmann::json::exception& e) {  // syntax, and numbers out of range (1e999)
       return InvalidInput(fmt::format("'{}': JSON syntax error: {}", path.string(), e.what()));
     }
     if (!j.is_array()) return InvalidInput(fmt::format("'{}': expected a list of people", path.string()));

@@ -53,7 +53,7 @@ Result<std::vector<GroundTruthFrame>> ReadGroundTruth(const fs::path& path) {
     json j;
     try {
       j = json::parse(line);
-    } catch (const json::parse_error& e) {
+    } catch (const json::exception& e) {  // syntax, and numbers out of range (1e999)
       return bad(fmt::format("JSON syntax error: {}", e.what()));
     }
     if (!j.is_object()) return bad("expected a JSON object per line");

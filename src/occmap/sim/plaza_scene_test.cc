@@ -209,10 +209,16 @@ TEST(PlazaScene, InvalidOptionsAreRejectedWithTheirNameAndValue) {
   o = {};
   o.exposure_drift = 0.7;
   cases.push_back({o, "exposure drift: expected 0..0.5 (or -1 for the scene's default), found 0.7"});
+  o = {};
+  o.num_frames = 10'000'001;  // was an internal check (abort, exit 134) in MakeLabSceneSpec
+  cases.push_back({o, "frames: expected 1 .. 10000000, found 10000001"});
   for (const Case& c : cases) {
     EXPECT_EQ(c.options.Validate().message(), c.message);
     EXPECT_EQ(MakeBuiltinSceneSpec("plaza", c.options).status().message(), c.message);
   }
+  o = {};
+  o.num_frames = 10'000'001;
+  EXPECT_EQ(MakeBuiltinSceneSpec("lab", o).status().message(), "frames: expected 1 .. 10000000, found 10000001");
 }
 
 TEST(PlazaScene, OtherScenesRefuseThePlazasOptions) {

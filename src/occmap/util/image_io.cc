@@ -5,6 +5,10 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <vector>
+#include <array>
+#include <cstdint>
+#include <cstring>
+#include <string_view>
 
 #include "occmap/util/file_util.h"
 
@@ -12,9 +16,58 @@ namespace occmap {
 namespace fs = std::filesystem;
 namespace {
 
+uint32_t Crc32(const unsigned char* p, size_t n) {
+  static const auto table = [] {
+    std::array<uint32_t, 256> t{};
+    for (uint32_t i = 0; i < 256; ++i) {
+      uint32_t c = i;
+      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+      t[i] = c;
+    }
+    return t;
+  }();
+  uint32_t c = 0xFFFFFFFFu;
+  for (size_t i = 0; i < n; ++i) c = table[(c ^ p[i]) & 0xFF] ^ (c >> 8);
+  return c ^ 0xFFFFFFFFu;
+}
+
+// The chunks of a PNG walked before OpenCV sees it: libpng prints its own "libpng error: ..."
+// line on stderr for a truncated or corrupt file, before our message. Lengths, CRCs, IHDR
+// first and IEND last are checked here; only a corrupt compressed stream reaches libpng.
+Status CheckPngChunks(const fs::path& path, std::string_view bytes) {
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
+  size_t at = 8;
+  bool first = true;
+  while (true) {
+    if (bytes.size() - at < 12) {
+      return DataLoss(fmt::format("'{}': truncated PNG: {} bytes, no IEND chunk", path.string(), bytes.size()));
+    }
+    const uint32_t length = (uint32_t{p[at]} << 24) | (uint32_t{p[at + 1]} << 16) | (uint32_t{p[at + 2]} << 8) | p[at + 3];
+    const std::string type(bytes.substr(at + 4, 4));
+    if (length > bytes.size() - at - 12) {
+      return DataLoss(fmt::format("'{}': truncated PNG: chunk '{}' at byte {} needs {} bytes, {} left", path.string(),
+                                  type, at, length, bytes.size() - at - 12));
+    }
+    if (first && type != "IHDR") {
+      return DataLoss(fmt::format("'{}': expected the PNG's IHDR chunk first, found '{}'", path.string(), type));
+    }
+    first = false;
+    const uint32_t crc = (uint32_t{p[at + 8 + length]} << 24) | (uint32_t{p[at + 9 + length]} << 16) |
+                         (uint32_t{p[at + 10 + length]} << 8) | p[at + 11 + length];
+    if (Crc32(p + at + 4, length + 4) != crc) {
+      return DataLoss(fmt::format("'{}': corrupt PNG: chunk '{}' at byte {} fails its CRC", path.string(), type, at));
+    }
+    at += 12 + length;
+    if (type == "IEND") return Status::Ok();
+  }
+}
+
 Result<cv::Mat> Decode(const fs::path& path, int flags) {
   OCCMAP_ASSIGN_OR_RETURN(std::string bytes, ReadFileToString(path));
   if (bytes.empty()) return DataLoss(fmt::format("'{}': empty file, expected an image", path.string()));
+  if (bytes.size() >= 8 && std::memcmp(bytes.data(), "\x89PNG\r\n\x1a\n", 8) == 0) {
+    OCCMAP_RETURN_IF_ERROR(CheckPngChunks(path, bytes));
+  }
   cv::Mat mat;
   try {
     mat = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, bytes.data()), flags);

@@ -1,5 +1,6 @@
 #include "occmap/util/image.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 
 #include <cstdint>
@@ -95,6 +96,14 @@ TEST(ImageIo, TruncatedPngIsRejected) {
   auto cut = ReadGrayImage(dir / "cut.png");
   ASSERT_FALSE(cut.ok());
   EXPECT_EQ(cut.status().code(), StatusCode::kDataLoss);
+  // Told by our own chunk walk, before libpng (which would print "libpng error: ..." itself).
+  EXPECT_NE(cut.status().message().find("truncated PNG: chunk 'IDAT'"), std::string::npos) << cut.status().message();
+  std::string flipped = bytes;
+  flipped[20] = static_cast<char>(flipped[20] ^ 0x01);  // IHDR's width
+  ASSERT_TRUE(WriteFileAtomic(dir / "crc.png", flipped).ok());
+  auto crc = ReadGrayImage(dir / "crc.png");
+  ASSERT_FALSE(crc.ok());
+  EXPECT_EQ(crc.status().message(), fmt::format("'{}': corrupt PNG: chunk 'IHDR' at byte 8 fails its CRC", (dir / "crc.png").string()));
 }
 
 }  // namespace
