@@ -24,6 +24,11 @@ Result<cv::FileStorage> Open(const fs::path& path) {
     return InvalidInput(fmt::format("'{}': empty file, expected an OpenCV FileStorage calibration",
                                     path.string()));
   }
+  // OpenCV 4.6's parser reads past a NUL byte (a SEGV found by fuzz/opencv_calibration_fuzzer).
+  if (const size_t nul = text.find('\0'); nul != std::string::npos) {
+    return InvalidInput(fmt::format("'{}': expected an OpenCV FileStorage text file, found a NUL byte at offset {}",
+                                    path.string(), nul));
+  }
   try {
     cv::FileStorage storage(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
     if (!storage.isOpened()) {

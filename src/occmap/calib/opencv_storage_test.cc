@@ -146,6 +146,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadCalibration{"rational_model_term", Intrinsic(kGoodK, "<rows>3</rows><cols>3</cols>",
                                                         "<rows>8</rows><cols>1</cols><dt>d</dt><data>0 0 0 0 0 0.5 0 0</data>"),
                        Extrinsic(kGoodR, kGoodT), "only k1 k2 p1 p2 k3 are supported, found coefficient 6 = 0.5"},
+        BadCalibration{"nul_byte", Intrinsic(kGoodK), std::string("<?xml version=\0\0\"1.0\"?>\n<opencv_storage>\n", 41),
+                       "e.xml': expected an OpenCV FileStorage text file, found a NUL byte at offset 14"},
         BadCalibration{"short_data", Intrinsic("1000 0 320 0 1000 240 0 0"), Extrinsic(kGoodR, kGoodT),
                        "camera_matrix: expected rows x cols = 3 x 3 = 9 numbers in data, found 8"},
         BadCalibration{"lowercase_nan", Intrinsic("1000 0 nan 0 1000 240 0 0 1"), Extrinsic(kGoodR, kGoodT),

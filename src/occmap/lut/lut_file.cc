@@ -88,7 +88,7 @@ class LutFileCodec {
       uint64_t n = 0;
       if (!Pod(n) || n > (in.size() - pos) / sizeof(T)) return false;
       v.resize(n);
-      std::memcpy(v.data(), in.data() + pos, n * sizeof(T));
+      if (n > 0) std::memcpy(v.data(), in.data() + pos, n * sizeof(T));  // memcpy(nullptr, ..., 0) is UB
       pos += n * sizeof(T);
       return true;
     }
