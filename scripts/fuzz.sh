@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# Runs every libFuzzer target of fuzz/ (the readers: site and scene YAML, OpenCV/GoPro/Tsai
+# calibrations, the table cache, run outputs, ground truth) for SECONDS each (default 60).
+# Usage: scripts/fuzz.sh [SECONDS] [TARGET...]
+# Installs clang-14 and libclang-rt-14-dev when missing, builds the `fuzz` preset (clang,
+# -fsanitize=fuzzer,address,undefined; build/fuzz, apart from the main build), seeds each
+# target from its committed corpus fuzz/corpus/NAME and, at run time, from the shared datasets
+# ($OCCMAP_DATASETS, default ../shared/datasets; never copied into the repository). The corpus
+# a run grows stays in build/fuzz/corpus/NAME; crashes go to build/fuzz/artifacts/. Prints per
+# target the executions, the coverage (libFuzzer's cov: edges, ft: features) and the verdict.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds=${1:-60}
+shift || true
+all=(site_yaml scene_yaml opencv_calibration gopro_calibration tsai_calibration lut_file run_outputs ground_truth)
+[ $# -gt 0 ] && targets=("$@") || targets=("${all[@]}")
+
+missing=()
+for p in clang-14 libclang-rt-14-dev; do
+  [ "$(dpkg-query -W -f='${db:Status-Status}' "$p" 2>/dev/null || true)" = installed ] || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  SUDO=""
+  [ "$(id -u)" -ne 0 ] && SUDO=sudo
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+cmake --preset fuzz >/dev/null
+cmake --build --preset fuzz
+
+datasets=${OCCMAP_DATASETS:-../shared/datasets}
+build=build/fuzz
+seeds=$build/seeds
+rm -rf "$seeds"
+mkdir -p "$seeds" "$build/artifacts"
+# Seeds from the datasets, made at run time (two-file calibrations joined at a NUL byte).
+if [ -d "$datasets" ]; then
+  mkdir -p "$seeds"/{opencv_calibration,gopro_calibration,tsai_calibration,ground_truth,site_yaml}
+  for i in 1 2 3; do
+    intr=$(ls "$datasets"/wildtrack/calibrations/intrinsic_zero/*"$i".xml 2>/dev/null | head -1 || true)
+    extr=$(ls "$datasets"/wildtrack/calibrations/extrinsic/*"$i".xml 2>/dev/null | head -1 || true)
+    [ -n "$intr" ] && [ -n "$extr" ] && { cat "$intr"; printf '\0'; cat "$extr"; } >"$seeds/opencv_calibration/wildtrack_$i"
+  done
+  for intr in "$datasets"/multiviewx/calibrations/intrinsic/*.xml; do
+    [ -f "$intr" ] || continue
+    extr="$datasets/multiviewx/calibrations/extrinsic/$(basename "$intr" | sed 's/^intr_/extr_/')"
+    [ -f "$extr" ] && { cat "$intr"; printf '\0'; cat "$extr"; } >"$seeds/opencv_calibration/multiviewx_$(basename "$intr")"
+  done
+  for intr in "$datasets"/gopro4/calibration/intrinsics_*.json; do
+    [ -f "$intr" ] || continue
+    extr="$datasets/gopro4/calibration/$(basename "$intr" | sed 's/^intrinsics_/extrinsics_/')"
+    [ -f "$extr" ] && { cat "$intr"; printf '\0'; cat "$extr"; } >"$seeds/gopro_calibration/$(basename "$intr")"
+  done
+  cp "$datasets"/tsai-terrace/*.yaml "$seeds/tsai_calibration/" 2>/dev/null || true
+  ls "$datasets"/wildtrack/annotations_positions/*.json 2>/dev/null | head -20 | xargs -r cp -t "$seeds/ground_truth/"
+  cp sites/*.yaml "$seeds/site_yaml/"
+fi
+
+printf '%-20s %12s %8s %8s %8s  %s\n' target executions exec/s cov ft result
+status=0
+for t in "${targets[@]}"; do
+  bin=$build/fuzz/occmap_${t}_fuzzer
+  corpus=$build/corpus/$t
+  mkdir -p "$corpus" "$seeds/$t"
+  log=$build/$t.log
+  set +e
+  "$bin" "$corpus" "fuzz/corpus/$t" "$seeds/$t" -max_total_time="$seconds" -print_final_stats=1 -rss_limit_mb=4096 \
+    -timeout=20 -max_len=65536 -artifact_prefix="$build/artifacts/$t-" >"$log" 2>&1
+  rc=$?
+  set -e
+  execs=$(grep -m1 'stat::number_of_executed_units' "$log" | awk '{print $2}')
+  rate=$(grep -m1 'stat::average_exec_per_sec' "$log" | awk '{print $2}')
+  cov=$(grep -E '^#[0-9]+' "$log" | grep -o 'cov: [0-9]*' | tail -1 | awk '{print $2}')
+  ft=$(grep -E '^#[0-9]+' "$log" | grep -o 'ft: [0-9]*' | tail -1 | awk '{print $2}')
+  if [ $rc -eq 0 ]; then verdict=ok; else verdict="FAILED (exit $rc, see $log)"; status=1; fi
+  printf '%-20s %12s %8s %8s %8s  %s\n' "$t" "${execs:-?}" "${rate:-?}" "${cov:-?}" "${ft:-?}" "$verdict"
+done
+exit $status
