@@ -31,10 +31,12 @@ uint32_t Crc32(const unsigned char* p, size_t n) {
   return c ^ 0xFFFFFFFFu;
 }
 
-// The chunks of a PNG walked before OpenCV sees it: libpng prints its own "libpng error: ..."
+// The chunks of a PNG (other images pass) walked before OpenCV sees it: libpng prints its own "libpng error: ..."
 // line on stderr for a truncated or corrupt file, before our message. Lengths, CRCs, IHDR
 // first and IEND last are checked here; only a corrupt compressed stream reaches libpng.
-Status CheckPngChunks(const fs::path& path, std::string_view bytes) {
+// Not inlined: inlined into Decode, GCC 12 warns (-Wmaybe-uninitialized) about the Result's string.
+[[gnu::noinline]] Status CheckPngChunks(const fs::path& path, std::string_view bytes) {
+  if (bytes.size() < 8 || std::memcmp(bytes.data(), "\x89PNG\r\n\x1a\n", 8) != 0) return Status::Ok();  // not a PNG
   const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
   size_t at = 8;
   bool first = true;
@@ -65,9 +67,7 @@ Status CheckPngChunks(const fs::path& path, std::string_view bytes) {
 Result<cv::Mat> Decode(const fs::path& path, int flags) {
   OCCMAP_ASSIGN_OR_RETURN(std::string bytes, ReadFileToString(path));
   if (bytes.empty()) return DataLoss(fmt::format("'{}': empty file, expected an image", path.string()));
-  if (bytes.size() >= 8 && std::memcmp(bytes.data(), "\x89PNG\r\n\x1a\n", 8) == 0) {
-    OCCMAP_RETURN_IF_ERROR(CheckPngChunks(path, bytes));
-  }
+  OCCMAP_RETURN_IF_ERROR(CheckPngChunks(path, bytes));
   cv::Mat mat;
   try {
     mat = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, bytes.data()), flags);
