@@ -7,7 +7,7 @@
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string_view text = occmap::fuzz::AsText(data, size);
   const auto path = occmap::fuzz::WriteScratch("ground_truth.jsonl", text);
-  (void)occmap::sim::ReadGroundTruth(path);
+  (void)occmap::ReadGroundTruth(path);
   (void)occmap::ParseAnnotationFile(text, "00000000.json", occmap::BenchmarkFormat::kWildtrack);
   return 0;
 }
