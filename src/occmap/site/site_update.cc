@@ -43,7 +43,169 @@ size_t LineStart(std::string_view text, size_t pos) {
   return nl == std::string_view::npos ? 0 : nl + 1;
 }
 
+Result<YAML::Node> ParseYamlText(std::string_view text, const std::string& name) {
+  try {
+    return YAML::Load(std::string(text));
+  } catch (const YAML::Exception& e) {
+    return InvalidInput(fmt::format("{}:{}: not valid YAML: {}", name, e.mark.line + 1, e.msg));
+  }
+}
+
+size_t LineEnd(std::string_view text, size_t pos) {
+  const size_t nl = text.find('\n', pos);
+  return nl == std::string_view::npos ? text.size() : nl;
+}
+
+// The entry from its key at key_pos to its value's end removed: in a flow map with its comma,
+// in a block map with its lines.
+Result<std::string> RemoveEntry(std::string_view text, size_t map_pos, size_t key_pos, size_t end,
+                                const std::string& name, int line) {
+  if (map_pos < text.size() && text[map_pos] == '{') {
+    size_t b = key_pos, e = end;
+    const size_t after = text.find_first_not_of(" \t\r\n", e);
+    if (after != std::string_view::npos && text[after] == ',') {
+      e = text.find_first_not_of(" \t\r\n", after + 1);
+    } else {
+      const size_t before = text.find_last_not_of(" \t\r\n", b == 0 ? 0 : b - 1);
+      if (before != std::string_view::npos && text[before] == ',') b = before;
+    }
+    return std::string(text.substr(0, b)) + std::string(text.substr(e));
+  }
+  const size_t start = LineStart(text, key_pos);
+  if (text.substr(start, key_pos - start).find_first_not_of(" \t") != std::string_view::npos) {
+    return InvalidInput(fmt::format("{}:{}: cannot remove the first key of a list item; edit the file", name, line));
+  }
+  const size_t stop = end < text.size() ? end + 1 : end;  // with its line break
+  return std::string(text.substr(0, start)) + std::string(text.substr(stop));
+}
+
+// `map` (a node of `text`) with `key` set to `flow` (removed when `flow` is empty): the value replaced in place (a flow
+// collection between its brackets, a block one with its more-indented lines, a scalar to the
+// end of its line), or the key added after the map's last entry.
+Result<std::string> SetMapValue(std::string_view text, const YAML::Node& map, std::string_view key,
+                                std::string_view flow, const std::string& name) {
+  const size_t map_pos = static_cast<size_t>(std::max(0, map.Mark().pos));
+  for (auto it = map.begin(); it != map.end(); ++it) {
+    if (!it->first.IsScalar() || it->first.as<std::string>() != key) continue;
+    const size_t key_pos = static_cast<size_t>(it->first.Mark().pos);
+    const YAML::Node value = it->second;
+    const size_t colon = text.find(':', key_pos);
+    if (colon == std::string_view::npos) {
+      return InvalidInput(fmt::format("{}:{}: cannot find {}'s value", name, it->first.Mark().line + 1, key));
+    }
+    const int vpos = value.Mark().pos;
+    const size_t value_pos = vpos < 0 ? colon + 1 : static_cast<size_t>(vpos);
+    size_t begin = colon + 1, end = LineEnd(text, colon);
+    if (value.IsDefined() && !value.IsNull() && value_pos < text.size() &&
+        (text[value_pos] == '{' || text[value_pos] == '[') && value.Style() == YAML::EmitterStyle::Flow) {
+      begin = value_pos;
+      end = EndOfFlow(text, value_pos);
+      if (end == std::string_view::npos) {
+        return InvalidInput(fmt::format("{}:{}: {}'s value does not close", name, value.Mark().line + 1, key));
+      }
+      if (flow.empty()) return RemoveEntry(text, map_pos, key_pos, end, name, it->first.Mark().line + 1);
+      return std::string(text.substr(0, begin)) + std::string(flow) + std::string(text.substr(end));
+    }
+    const bool flow_parent = map_pos < text.size() && text[map_pos] == '{';
+    if (flow_parent && !value.IsMap() && !value.IsSequence()) {
+      // A plain scalar in a flow map ends at the next ',' or '}'.
+      end = std::min(text.find_first_of(",}", value_pos), LineEnd(text, value_pos));
+      while (end > value_pos && (text[end - 1] == ' ' || text[end - 1] == '\t')) --end;
+    } else if (value.IsMap() || value.IsSequence()) {
+      const size_t key_col = key_pos - LineStart(text, key_pos);
+      size_t line = end;
+      while (line < text.size()) {
+        const size_t start = line + 1;
+        const size_t stop = LineEnd(text, start);
+        const std::string_view l = text.substr(start, stop - start);
+        const size_t first = l.find_first_not_of(" \t\r");
+        line = stop;
+        if (first == std::string_view::npos || l[first] == '#') continue;
+        if (first > key_col || (first == key_col && value.IsSequence() && l[first] == '-')) {
+          end = stop;
+          continue;
+        }
+        break;
+      }
+    }
+    if (flow.empty()) return RemoveEntry(text, map_pos, key_pos, end, name, it->first.Mark().line + 1);
+    return std::string(text.substr(0, begin)) + " " + std::string(flow) + std::string(text.substr(end));
+  }
+  if (flow.empty()) return std::string(text);  // nothing to remove
+  // Missing: added.
+  if (map_pos < text.size() && text[map_pos] == '{') {
+    const size_t close = EndOfFlow(text, map_pos);
+    if (close == std::string_view::npos) return InvalidInput(fmt::format("{}:{}: a {{...}} does not close", name, map.Mark().line + 1));
+    const std::string_view inside = text.substr(map_pos + 1, close - 1 - (map_pos + 1));
+    const bool empty = inside.find_first_not_of(" \t\r\n") == std::string_view::npos;
+    return std::string(text.substr(0, close - 1)) + (empty ? "" : ", ") + std::string(key) + ": " + std::string(flow) +
+           std::string(text.substr(close - 1));
+  }
+  const size_t col = map_pos - LineStart(text, map_pos);
+  size_t last = LineEnd(text, map_pos);  // the end of the map's last content line
+  size_t line = last;
+  while (line < text.size()) {
+    const size_t start = line + 1;
+    const size_t stop = LineEnd(text, start);
+    const std::string_view l = text.substr(start, stop - start);
+    const size_t first = l.find_first_not_of(" \t\r");
+    line = stop;
+    if (first == std::string_view::npos || l[first] == '#') continue;
+    if (l.substr(first, 3) == "---" || l.substr(first, 3) == "...") break;
+    if (first < col) break;
+    last = stop;
+  }
+  return std::string(text.substr(0, last)) + "\n" + std::string(col, ' ') + std::string(key) + ": " +
+         std::string(flow) + std::string(text.substr(last));
+}
+
 }  // namespace
+
+Result<std::string> SetCameraValue(std::string_view text, const fs::path& site_path, std::string_view camera_id,
+                                   std::string_view key, std::string_view flow) {
+  const std::string name = site_path.string();
+  OCCMAP_ASSIGN_OR_RETURN(YAML::Node root, ParseYamlText(text, name));
+  if (!root.IsMap() || !root["cameras"] || !root["cameras"].IsSequence()) {
+    return InvalidInput(fmt::format("{}: expected a site file with a list of cameras", name));
+  }
+  std::string list;
+  for (const YAML::Node& cam : root["cameras"]) {
+    if (!cam.IsMap() || !cam["id"] || !cam["id"].IsScalar()) continue;
+    const std::string id = cam["id"].as<std::string>();
+    if (id == camera_id) return SetMapValue(text, cam, key, flow, name);
+    list += (list.empty() ? "" : ", ") + id;
+  }
+  return InvalidInput(fmt::format("{}: no camera '{}' (the site's cameras: {})", name, camera_id, list));
+}
+
+Result<std::string> SetTrackingValue(std::string_view text, const fs::path& site_path, std::string_view key,
+                                     std::string_view flow) {
+  const std::string name = site_path.string();
+  OCCMAP_ASSIGN_OR_RETURN(YAML::Node root, ParseYamlText(text, name));
+  if (!root.IsMap()) return InvalidInput(fmt::format("{}: expected a site file (a map)", name));
+  const YAML::Node tracking = root["tracking"];
+  if (tracking && tracking.IsMap()) return SetMapValue(text, tracking, key, flow, name);
+  if (tracking && !tracking.IsNull()) {
+    return InvalidInput(fmt::format("{}:{}: tracking: expected a map", name, tracking.Mark().line + 1));
+  }
+  return SetMapValue(text, root, "tracking", fmt::format("{{{}: {}}}", key, flow), name);
+}
+
+Result<SiteUpdate> WriteSiteText(const fs::path& site_path, std::string_view old_text, std::string new_text,
+                                 const SiteLoadOptions& options) {
+  auto site = ParseSite(new_text, site_path, options);
+  if (!site.ok()) {
+    return Status(site.status().code(),
+                  fmt::format("the edited site does not load; nothing written: {}", site.status().message()));
+  }
+  SiteUpdate u;
+  u.text = std::move(new_text);
+  u.backup = site_path;
+  u.backup += ".bak";
+  OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(u.backup, old_text));
+  OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(site_path, u.text));
+  return u;
+}
 
 Result<fs::path> SiteDataRoot(const fs::path& site_path, const SiteLoadOptions& options) {
   if (options.data_root) return *options.data_root;

@@ -32,6 +32,16 @@ Result<std::string> ReplaceCameraCalibration(std::string_view site_text, const s
                                              std::string_view camera_id, std::string_view calibration_flow_yaml,
                                              const SiteLoadOptions& options = {});
 
+// Generalised edits of the site text, each keeping the rest of the file (comments, layout):
+// `key`'s value in camera `camera_id`'s entry, or in the `tracking:` section (created when
+// missing), set to `flow_yaml` (a YAML flow value: a map, a list or a scalar), added when the
+// key is missing; an empty `flow_yaml` removes the key. Not validated: validate the whole edit
+// with WriteSiteText.
+Result<std::string> SetCameraValue(std::string_view site_text, const std::filesystem::path& site_path,
+                                   std::string_view camera_id, std::string_view key, std::string_view flow_yaml);
+Result<std::string> SetTrackingValue(std::string_view site_text, const std::filesystem::path& site_path,
+                                     std::string_view key, std::string_view flow_yaml);
+
 struct SiteUpdate {
   std::filesystem::path backup;  // the previous file's copy
   std::string text;              // the new file's text
@@ -41,5 +51,10 @@ struct SiteUpdate {
 Result<SiteUpdate> UpdateSiteCameraCalibration(const std::filesystem::path& site_path, std::string_view camera_id,
                                                std::string_view calibration_flow_yaml,
                                                const SiteLoadOptions& options = {});
+
+// Validates `new_text` with ParseSite (nothing written on error; the message is the loader's),
+// then writes SITE.bak (the `old_text`) and SITE atomically.
+Result<SiteUpdate> WriteSiteText(const std::filesystem::path& site_path, std::string_view old_text,
+                                 std::string new_text, const SiteLoadOptions& options = {});
 
 }  // namespace occmap

@@ -144,5 +144,119 @@ TEST(SiteUpdate, AnEntryTheLoaderRefusesIsNotWritten) {
   EXPECT_EQ(ReadFileToString(site).value(), kSite);
 }
 
+
+TEST(SiteUpdate, SetsAMaskOnABlockCameraAndKeepsTheRest) {
+  testing::TempDir dir;
+  const fs::path site = dir / "site.yaml";
+  auto text = SetCameraValue(kSite, site, "A", "mask", "{polygons: [[[0, 0], [639, 0], [639, 479]]]}");
+  ASSERT_TRUE(text.ok()) << text.status().message();
+  // Added after A's last line (its comment stays where it was, B untouched).
+  EXPECT_NE(text->find("      image_size: [640, 480]\n    mask: {polygons: [[[0, 0], [639, 0], [639, 479]]]}\n"
+                       "    # the mask comes later\n  - id: B\n"),
+            std::string::npos)
+      << *text;
+  auto loaded = ParseSite(*text, site);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+  EXPECT_FALSE(loaded->cameras[0].mask.empty());
+  EXPECT_TRUE(loaded->cameras[1].mask.empty());
+  // Set again: replaced, not added twice.
+  auto again = SetCameraValue(*text, site, "A", "mask", "{polygon: [[0, 0], [10, 0], [10, 10]]}");
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(again->find("polygons"), std::string::npos) << *again;
+  EXPECT_TRUE(ParseSite(*again, site).ok());
+}
+
+TEST(SiteUpdate, SetsTrackingZonesAndLinesInAFlowMapAndInABlockMap) {
+  testing::TempDir dir;
+  const fs::path site = dir / "site.yaml";
+  const std::string zones = "[{name: \"door\", polygon: [[0, 0], [1, 0], [1, 1]]}]";
+  auto flow = SetTrackingValue(kSite, site, "zones", zones);
+  ASSERT_TRUE(flow.ok()) << flow.status().message();
+  EXPECT_NE(flow->find("tracking: {max_speed_mps: 2.0, zones: " + zones + "}"), std::string::npos) << *flow;
+  auto lines = SetTrackingValue(*flow, site, "lines", "[{name: \"gate\", from: [0, 0], to: [0, 2]}]");
+  ASSERT_TRUE(lines.ok());
+  auto loaded = ParseSite(*lines, site);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().message();
+  ASSERT_EQ(loaded->tracking.zones.size(), 1u);
+  EXPECT_EQ(loaded->tracking.zones[0].name, "door");
+  ASSERT_EQ(loaded->tracking.lines.size(), 1u);
+  // Replacing the zones keeps one list.
+  auto replaced = SetTrackingValue(*lines, site, "zones", "[]");
+  ASSERT_TRUE(replaced.ok());
+  auto reloaded = ParseSite(*replaced, site);
+  ASSERT_TRUE(reloaded.ok()) << reloaded.status().message();
+  EXPECT_TRUE(reloaded->tracking.zones.empty());
+  EXPECT_EQ(reloaded->tracking.lines.size(), 1u);
+
+  // A block `tracking:` with a block list of zones, then no tracking at all.
+  std::string block = kSite;
+  block.replace(block.find("tracking: {max_speed_mps: 2.0}\n"), std::string::npos,
+                "tracking:\n  max_speed_mps: 2.0\n  zones:\n  - name: old\n    polygon: [[0, 0], [2, 0], [2, 2]]\n"
+                "  # end of zones\n  report_coasting_s: 0.5\n");
+  auto b = SetTrackingValue(block, site, "zones", zones);
+  ASSERT_TRUE(b.ok()) << b.status().message();
+  EXPECT_EQ(b->find("name: old"), std::string::npos) << *b;
+  EXPECT_NE(b->find("  zones: " + zones + "\n  # end of zones\n  report_coasting_s: 0.5\n"), std::string::npos) << *b;
+  ASSERT_TRUE(ParseSite(*b, site).ok()) << ParseSite(*b, site).status().message();
+  std::string none = kSite;
+  none.erase(none.find("tracking:"));
+  auto n = SetTrackingValue(none, site, "zones", zones);
+  ASSERT_TRUE(n.ok());
+  auto nl = ParseSite(*n, site);
+  ASSERT_TRUE(nl.ok()) << nl.status().message() << "\n" << *n;
+  EXPECT_EQ(nl->tracking.zones.size(), 1u);
+}
+
+TEST(SiteUpdate, WriteSiteTextValidatesThenKeepsABackup) {
+  testing::TempDir dir;
+  const fs::path site = dir / "site.yaml";
+  testing::WriteText(site, kSite);
+  // A zone with two points: the loader's message, nothing written.
+  auto bad = SetTrackingValue(kSite, site, "zones", "[{name: z, polygon: [[0, 0], [1, 0]]}]");
+  ASSERT_TRUE(bad.ok());
+  auto w = WriteSiteText(site, kSite, *bad);
+  ASSERT_FALSE(w.ok());
+  EXPECT_NE(w.status().message().find("site.yaml:"), std::string::npos) << w.status().message();
+  EXPECT_NE(w.status().message().find("nothing written"), std::string::npos);
+  EXPECT_EQ(ReadFileToString(site).value(), kSite);
+  EXPECT_FALSE(fs::exists(dir / "site.yaml.bak"));
+  auto good = SetTrackingValue(kSite, site, "zones", "[{name: z, polygon: [[0, 0], [1, 0], [1, 1]]}]");
+  ASSERT_TRUE(good.ok());
+  auto ok = WriteSiteText(site, kSite, *good);
+  ASSERT_TRUE(ok.ok()) << ok.status().message();
+  EXPECT_EQ(ReadFileToString(dir / "site.yaml.bak").value(), kSite);
+  EXPECT_EQ(ReadFileToString(site).value(), *good);
+}
+
+TEST(SiteUpdate, AnEmptyValueRemovesTheKey) {
+  const fs::path site = "site.yaml";
+  auto with = SetCameraValue(kSite, site, "A", "mask", "{polygon: [[0, 0], [10, 0], [10, 10]]}");
+  ASSERT_TRUE(with.ok());
+  auto without = SetCameraValue(*with, site, "A", "mask", "");
+  ASSERT_TRUE(without.ok()) << without.status().message();
+  EXPECT_EQ(*without, kSite);
+  // In a flow map, with its comma; a missing key stays missing.
+  auto flow = SetCameraValue(kSite, site, "B", "image_size", "");
+  ASSERT_TRUE(flow.ok());
+  EXPECT_EQ(flow->find("image_size: [640, 480]", flow->find("- id: B")), std::string::npos) << *flow;
+  auto unit = SetTrackingValue(kSite, site, "max_speed_mps", "");
+  ASSERT_TRUE(unit.ok());
+  EXPECT_NE(unit->find("tracking: {}\n"), std::string::npos) << *unit;
+  auto speed = SetTrackingValue(kSite, site, "max_speed_mps", "3");
+  ASSERT_TRUE(speed.ok());
+  EXPECT_NE(speed->find("tracking: {max_speed_mps: 3}\n"), std::string::npos) << *speed;
+  auto none = SetCameraValue(kSite, site, "A", "mask", "");
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(*none, kSite);
+  EXPECT_TRUE(ParseSite(*flow, site).ok());
+}
+
+TEST(SiteUpdate, SetCameraValueNamesAMissingCamera) {
+  auto r = SetCameraValue(kSite, "site.yaml", "Z", "mask", "{polygon: [[0, 0], [1, 0], [1, 1]]}");
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("no camera 'Z' (the site's cameras: A, B)"), std::string::npos)
+      << r.status().message();
+}
+
 }  // namespace
 }  // namespace occmap
