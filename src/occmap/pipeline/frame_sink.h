@@ -92,6 +92,12 @@ struct FrameRecord {
   // Pictures drawn by the run when an output asks for them, else empty.
   Image<Rgb8> mosaic;                          // the mosaic (RunOptions::mosaic_video)
   std::vector<Image<uint8_t>> change_pictures;  // per camera, 255 changed (RunOptions::change_pngs)
+  // Per camera with RunOptions::sink_frames (empty images for a camera not in this set): the
+  // frame as decoded (grey; colour only when the run reads colour) and its changes after the
+  // tolerance (non-zero changed, at the frame's size).
+  std::vector<Image<uint8_t>> frames_gray;
+  std::vector<Image<Rgb8>> frames_rgb;
+  std::vector<Image<uint8_t>> change_masks;
 };
 
 class FrameSink {

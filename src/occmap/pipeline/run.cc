@@ -11,6 +11,7 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <mutex>
 #include <optional>
@@ -142,6 +143,31 @@ Status RunOptions::Validate() const {
   return Status::Ok();
 }
 
+namespace {
+
+// RunOptions::sink_frames: each active camera's frame and its changes (after the tolerance),
+// copied into the record (the slot is reused once the post stage is done with it).
+void CopyFramesForSinks(const FrameSet& set, const GroundLut& lut, FrameRecord& record) {
+  const size_t n_cams = set.frames.size();
+  record.frames_gray.resize(n_cams);
+  record.frames_rgb.resize(n_cams);
+  record.change_masks.resize(n_cams);
+  for (size_t n = 0; n < n_cams; ++n) {
+    if (!set.active[n]) continue;
+    const Frame& f = set.frames[n];
+    record.frames_gray[n] = f.gray;
+    record.frames_rgb[n] = f.rgb;
+    if (!set.changes_ready) continue;
+    const int w = f.gray.width(), h = f.gray.height();
+    Image<uint8_t>& mask = record.change_masks[n];
+    mask = Image<uint8_t>(w, h);
+    const uint8_t* src = set.changes.data() + lut.pixel_offset(static_cast<int>(n));
+    for (int y = 0; y < h; ++y) std::memcpy(mask.row(y), src + static_cast<ptrdiff_t>(y) * w, static_cast<size_t>(w));
+  }
+}
+
+}  // namespace
+
 Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context& ctx, const ProgressCallback& progress) {
   OCCMAP_RETURN_IF_ERROR(options.Validate());
   OCCMAP_RETURN_IF_ERROR(site.detection.Validate());
@@ -151,7 +177,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   auto stop_requested = [&] { return options.stop != nullptr && options.stop->load(); };
   OCCMAP_RETURN_IF_ERROR(site.backgrounds.Validate());
   // How changes are computed and fused: one choice (pipeline/fusion_path.h).
-  const FusionPlan plan = ChooseFusionPath(site, options.mosaic_video || options.change_pngs);
+  const FusionPlan plan = ChooseFusionPath(site, options.mosaic_video || options.change_pngs || options.sink_frames);
   const bool adaptive = plan.adaptive;
   const bool colour = plan.colour;
   const bool chroma = plan.chroma;
@@ -632,6 +658,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
             if (active[n]) record.change_pictures[n] = set.change_pictures[n];
           }
         }
+        if (options.sink_frames) CopyFramesForSinks(set, lut, record);
         const bool first = options.mosaic_video ? best_mosaic.empty() : !best_frame.kept;
         const bool best = first || blobs.size() > best_blobs;
         if (options.mosaic_video) {

@@ -73,6 +73,9 @@ struct RunOptions {
   bool occupancy_pngs = false;
   bool change_pngs = false;  // changes/<camera>/NNNNNN.png: each camera's changed pixels (255), before the tolerance
   bool mosaic_video = true;
+  // Every FrameRecord carries each camera's frame and change mask (frames_gray, frames_rgb,
+  // change_masks), for a sink that shows them (`occmap serve`). Costs a copy per frame set.
+  bool sink_frames = false;
   int background_frames = 25;  // K of the median background, when a camera has none
   int background_step = 4;     // take every n-th frame for the median
   bool track = true;  // run the site's tracker and write tracks.jsonl, tracks_mot.csv, events.jsonl
