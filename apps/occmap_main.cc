@@ -20,6 +20,8 @@
 #include <thread>
 
 #include "calibrate_command.h"
+#include "run_support.h"
+#include "serve_command.h"
 #include "occmap/lut/visibility_image.h"
 #include "occmap/eval/benchmark_annotations.h"
 #include "occmap/eval/evaluate_run.h"
@@ -59,13 +61,6 @@ struct LutCommand {
   std::optional<double> plane_height_m;
   bool json_to_stdout = false;
 };
-
-// The default cache folder: $XDG_CACHE_HOME/occmap, else ~/.cache/occmap, else ./.occmap-cache.
-fs::path DefaultCacheDir() {
-  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg != nullptr && *xdg != '\0') return fs::path(xdg) / "occmap";
-  if (const char* home = std::getenv("HOME"); home != nullptr && *home != '\0') return fs::path(home) / ".cache" / "occmap";
-  return ".occmap-cache";
-}
 
 json CoverageJson(const Site& site, const CachedLut& cached, const fs::path& cache_path) {
   const GroundLut& lut = cached.lut;
@@ -226,64 +221,6 @@ class ProgressBar {
   bool started_ = false;
   std::chrono::steady_clock::time_point start_;
   double drawn_s_ = 0;
-};
-
-// SIGINT and SIGTERM during `occmap run`: blocked in every thread (from before the run starts
-// any) and taken by one thread with sigwait, so no handler runs inside the pipeline. The first
-// asks the run to stop (RunOptions::stop: the frame sets in flight are finished, every output
-// closed, exit 0); the second removes this process's temporary files in the output folder and
-// exits at once (128 + the signal), the outputs valid up to their last whole line.
-class StopOnSignals {
- public:
-  explicit StopOnSignals(fs::path out_dir) : out_dir_(std::move(out_dir)) {
-    sigemptyset(&signals_);
-    sigaddset(&signals_, SIGINT);
-    sigaddset(&signals_, SIGTERM);
-    pthread_sigmask(SIG_BLOCK, &signals_, nullptr);
-    thread_ = std::thread([this] { Loop(); });
-  }
-  ~StopOnSignals() {
-    done_ = true;
-    pthread_kill(thread_.native_handle(), SIGTERM);  // wakes the sigwait; pending on that thread only
-    thread_.join();
-  }
-  StopOnSignals(const StopOnSignals&) = delete;
-  StopOnSignals& operator=(const StopOnSignals&) = delete;
-  const std::atomic<bool>* stop() const { return &stop_; }
-
- private:
-  void Loop() {
-    int count = 0;
-    while (true) {
-      int sig = 0;
-      if (sigwait(&signals_, &sig) != 0) continue;
-      if (done_) return;
-      if (++count == 1) {
-        stop_ = true;
-        std::fputs("\noccmap: stopping: finishing the frame sets in flight (again to quit at once)\n", stderr);
-        continue;
-      }
-      RemoveOwnTemporaries();
-      std::fflush(stderr);
-      ::_exit(128 + sig);
-    }
-  }
-  // '.tmp-<name>-<pid>-<n>' files of this process (util/file_util.h, io/video_writer.h).
-  void RemoveOwnTemporaries() const {
-    const std::string mark = fmt::format("-{}-", ::getpid());
-    std::error_code ec;
-    for (auto it = fs::recursive_directory_iterator(out_dir_, ec); !ec && it != fs::recursive_directory_iterator();
-         it.increment(ec)) {
-      const std::string name = it->path().filename().string();
-      if (name.rfind(".tmp-", 0) == 0 && name.find(mark) != std::string::npos) ::unlink(it->path().c_str());
-    }
-  }
-
-  fs::path out_dir_;
-  sigset_t signals_;
-  std::atomic<bool> stop_{false};
-  std::atomic<bool> done_{false};
-  std::thread thread_;
 };
 
 // `occmap run`'s outputs for other software: MQTT (with the site's outputs.mqtt) and ROS maps.
@@ -787,6 +724,8 @@ int main(int argc, char** argv) {
 
   CalibrateCommand calibrate;
   CLI::App* calibrate_cmd = AddCalibrateCommand(app, calibrate);
+  ServeCommand serve;
+  CLI::App* serve_cmd = AddServeCommand(app, serve);
 
   try {
     app.parse(argc, argv);
@@ -803,5 +742,6 @@ int main(int argc, char** argv) {
   if (eval_cmd->parsed()) status = RunEval(common, eval);
   if (bench_cmd->parsed()) status = RunBenchCommand(common, bench_opts);
   if (calibrate_cmd->parsed()) status = RunCalibrate(calibrate, common.data_root);
+  if (serve_cmd->parsed()) status = RunServe(serve, common.threads, common.data_root);
   return status.ok() ? 0 : Fail(status);
 }

@@ -10,6 +10,7 @@ packages=(
   libfmt-dev libspdlog-dev libtbb-dev libhwy-dev
   googletest libgtest-dev libgmock-dev libbenchmark-dev
   libmosquitto-dev mosquitto mosquitto-clients
+  libcpp-httplib-dev curl
   ffmpeg
   chromium-headless-shell
 )

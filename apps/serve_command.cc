@@ -1,0 +1,120 @@
+#include "serve_command.h"
+
+#include <fmt/core.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <thread>
+
+#include "occmap/serve/serve_session.h"
+#include "occmap/serve/web_api.h"
+#include "occmap/serve/web_assets.h"
+#include "occmap/serve/web_server.h"
+#include "occmap/util/file_util.h"
+#include "run_support.h"
+
+namespace occmap {
+
+CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd) {
+  CLI::App* c = app.add_subcommand(
+      "serve", "run the site live with a web view: map, tracks, cameras, setup (calibration, masks, zones) in the browser");
+  c->add_option("site", cmd.site_path, "site file (YAML)")->required();
+  c->add_option("--listen", cmd.listen, "HOST:PORT to serve on (port 0: any free port, printed)")->capture_default_str();
+  c->add_option("--token", cmd.token, "every request needs this token (Authorization: Bearer T or ?token=T)");
+  c->add_option("--token-file", cmd.token_file, "file whose first line is the token");
+  c->add_option("--out", cmd.out_dir, "output folder of the run")->capture_default_str();
+  c->add_option("--frames", cmd.max_frames, "process at most N frames");
+  c->add_option("--start", cmd.start_frame, "first frame of every source")->capture_default_str();
+  c->add_option("--cache-dir", cmd.cache_dir, "folder of cached tables and backgrounds (default: ~/.cache/occmap)");
+  c->add_flag("--no-cache", cmd.no_cache, "never read or write cached tables or backgrounds");
+  c->add_option("--sync", cmd.sync, "synchronise cameras by frame index or timestamp")
+      ->check(CLI::IsMember({"index", "timestamp"}))
+      ->capture_default_str();
+  c->add_flag("--continue-without-camera", cmd.continue_without_camera,
+              "when a camera's stream ends or fails, go on without it (its cells become unseen)");
+  c->add_flag("--occupancy-pngs", cmd.occupancy_pngs, "also write occupancy/NNNNNN.png per frame");
+  c->add_flag("--no-video", cmd.no_video, "do not write occupancy.mp4 and mosaic.mp4");
+  c->add_flag("--no-wall-clock", cmd.no_wall_clock, "leave t_unix out of the JSON lines");
+  c->add_option("--summary-every-s", cmd.summary_every_s, "rewrite summary.json this often (0 = only at the end)")
+      ->capture_default_str();
+  c->add_option("--background-frames", cmd.background_frames, "K: frames in the median background of a camera without one")
+      ->capture_default_str();
+  c->add_option("--min-blob-area-m2", cmd.min_blob_area_m2, "drop detections with a smaller footprint");
+  c->add_flag("--no-pace", cmd.no_pace,
+              "file inputs as fast as they decode (default: at their frame rate, as a live view)");
+  return c;
+}
+
+Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_root) {
+  namespace fs = std::filesystem;
+  OCCMAP_ASSIGN_OR_RETURN(ListenAddress listen, ParseListen(cmd.listen));
+  if (!cmd.token.empty() && !cmd.token_file.empty()) return InvalidInput("--token, --token-file: give one of them");
+  std::string token = cmd.token;
+  if (!cmd.token_file.empty()) {
+    auto text = ReadFileToString(cmd.token_file);
+    if (!text.ok()) return NotFound(fmt::format("--token-file: cannot read '{}'", cmd.token_file));
+    token = text->substr(0, text->find('\n'));
+    while (!token.empty() && (token.back() == '\r' || token.back() == ' ')) token.pop_back();
+    if (token.empty()) return InvalidInput(fmt::format("--token-file '{}': the first line is empty", cmd.token_file));
+  }
+  for (char ch : token) {
+    if (ch < 0x21 || ch > 0x7e) return InvalidInput("--token: expected printable ASCII without spaces");
+  }
+  if (!IsLoopbackHost(listen.host) && token.empty()) {
+    return InvalidInput(fmt::format("--listen {}: serving beyond this machine needs --token or --token-file",
+                                    cmd.listen));
+  }
+  if (cmd.min_blob_area_m2 && !(*cmd.min_blob_area_m2 >= 0)) return InvalidInput("--min-blob-area-m2: expected >= 0");
+
+  ServeSessionOptions so;
+  so.site_path = cmd.site_path;
+  if (!data_root.empty()) so.load.data_root = fs::path(data_root);
+  so.threads = threads;
+  so.pace = !cmd.no_pace;
+  RunOptions& o = so.run;
+  o.out_dir = cmd.out_dir;
+  o.max_frames = cmd.max_frames;
+  o.start_frame = cmd.start_frame;
+  o.cache_dir = cmd.no_cache ? fs::path() : cmd.cache_dir.empty() ? DefaultCacheDir() : fs::path(cmd.cache_dir);
+  o.sync = cmd.sync == "timestamp" ? FrameSync::kTimestamp : FrameSync::kIndex;
+  o.on_camera_failure = cmd.continue_without_camera ? OnCameraFailure::kContinue : OnCameraFailure::kStop;
+  o.occupancy_pngs = cmd.occupancy_pngs;
+  if (cmd.no_video) o.occupancy_video = o.mosaic_video = false;
+  o.wall_clock_times = !cmd.no_wall_clock;
+  o.summary_every_s = cmd.summary_every_s;
+  o.background_frames = cmd.background_frames;
+  OCCMAP_RETURN_IF_ERROR(o.Validate());
+  if (cmd.min_blob_area_m2) {
+    const double area = *cmd.min_blob_area_m2;
+    so.adjust_site = [area](Site& site) {
+      site.objects.min_area_m2 = area;
+      return Status::Ok();
+    };
+  }
+  // Before any thread starts, so that every thread inherits the blocked signals.
+  StopOnSignals signals(cmd.out_dir);
+  OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<ServeSession> session, ServeSession::Create(so));
+  WebServerOptions wo;
+  wo.listen = listen;
+  wo.token = token;
+  WebServer server(wo, *session, EmbeddedWebAssets());
+  OCCMAP_ASSIGN_OR_RETURN(int port, server.Bind());
+  server.Start();
+  const std::string host = listen.host.find(':') != std::string::npos ? "[" + listen.host + "]" : listen.host;
+  std::fputs(fmt::format("occmap serve: listening on http://{}:{}/\n", host, port).c_str(), stdout);
+  std::fflush(stdout);
+  session->Start();
+  // With file inputs the run ends on its own; the server stays up with the last state until
+  // a signal.
+  while (!signals.stop()->load()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  server.Stop();
+  session->Stop();
+  if (auto s = session->last_summary()) {
+    std::fputs(fmt::format("{} frames in {:.2f} s: {}\n", s->frames, s->seconds, s->stop_reason).c_str(), stdout);
+  }
+  std::fputs(fmt::format("wrote {}\n", (fs::path(cmd.out_dir) / "summary.json").string()).c_str(), stdout);
+  return Status::Ok();
+}
+
+}  // namespace occmap

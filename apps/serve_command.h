@@ -1,0 +1,40 @@
+// `occmap serve`: the site's pipeline with a web server (src/occmap/serve/): live view, setup
+// in the browser, JSON API, metrics. The command parses and wires; the library does the work.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <optional>
+#include <string>
+
+#include "occmap/util/status.h"
+
+namespace occmap {
+
+struct ServeCommand {
+  std::string site_path;
+  std::string listen = "127.0.0.1:8080";
+  std::string token;
+  std::string token_file;
+  std::string out_dir = "occmap-out";
+  // The run's input and output options (as `occmap run`'s).
+  int64_t max_frames = -1;
+  int64_t start_frame = 0;
+  std::string cache_dir;
+  bool no_cache = false;
+  std::string sync = "index";
+  bool continue_without_camera = false;
+  bool occupancy_pngs = false;
+  bool no_video = false;
+  bool no_wall_clock = false;
+  double summary_every_s = 5;
+  int background_frames = 25;
+  std::optional<double> min_blob_area_m2;
+  bool no_pace = false;
+};
+
+CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd);
+
+Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_root);
+
+}  // namespace occmap

@@ -1,0 +1,124 @@
+#include "occmap/serve/live_state.h"
+
+namespace occmap {
+
+LiveState::LiveState() : latest_(std::make_shared<LiveSnapshot>()), start_(std::chrono::steady_clock::now()) {}
+
+std::shared_ptr<const LiveSnapshot> LiveState::Latest() const {
+  std::lock_guard lock(mu_);
+  return latest_;
+}
+
+std::shared_ptr<const LiveSnapshot> LiveState::WaitNewer(int64_t version, std::chrono::milliseconds timeout) const {
+  std::unique_lock lock(mu_);
+  const int64_t woken = wakes_;
+  cv_.wait_for(lock, timeout, [&] { return latest_->version > version || wakes_ != woken; });
+  return latest_;
+}
+
+void LiveState::Publish(std::shared_ptr<const LiveSnapshot> snapshot) {
+  {
+    std::lock_guard lock(mu_);
+    latest_ = std::move(snapshot);
+  }
+  cv_.notify_all();
+}
+
+void LiveState::Wake() {
+  {
+    std::lock_guard lock(mu_);
+    ++wakes_;
+  }
+  cv_.notify_all();
+}
+
+void LiveState::SetRunning(bool running, const std::string& ended) {
+  std::lock_guard lock(mu_);
+  running_ = running;
+  ended_ = ended;
+}
+
+bool LiveState::running() const {
+  std::lock_guard lock(mu_);
+  return running_;
+}
+
+std::string LiveState::ended() const {
+  std::lock_guard lock(mu_);
+  return ended_;
+}
+
+double LiveState::uptime_s() const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+}
+
+int64_t LiveState::next_version() {
+  std::lock_guard lock(mu_);
+  return ++version_;
+}
+
+Status LiveStateSink::Open(const SinkStart& start) {
+  camera_ids_ = start.camera_ids;
+  zone_names_.clear();
+  line_names_.clear();
+  if (start.site != nullptr) {
+    for (const auto& z : start.site->tracking.zones) zone_names_.push_back(z.name);
+    for (const auto& l : start.site->tracking.lines) line_names_.push_back(l.name);
+  }
+  state_->SetFps(start.fps);
+  state_->SetRunning(true);
+  return Status::Ok();
+}
+
+Status LiveStateSink::Consume(const FrameRecord& record, const RunStats& stats) {
+  // The copy happens here, on the run's writer thread, without the state's lock; the swap is
+  // a pointer under it.
+  const std::shared_ptr<const LiveSnapshot> previous = state_->Latest();
+  auto s = std::make_shared<LiveSnapshot>();
+  s->frame = record.frame;
+  s->time_s = record.time_s;
+  s->t_unix = record.t_unix;
+  s->map = record.map;
+  s->detections = record.detections;
+  s->tracks = record.tracks;
+  s->zone_names = zone_names_;
+  s->zone_counts = record.zones.counts;
+  s->zone_counts.resize(zone_names_.size(), 0);
+  s->line_names = line_names_;
+  s->line_counts = record.lines.counts;
+  s->line_counts.resize(line_names_.size());
+  s->stats = stats;
+  s->camera_ids = camera_ids_;
+  const size_t n = camera_ids_.size();
+  const bool same_cameras = previous->camera_ids == camera_ids_;
+  s->frames_gray.resize(n);
+  s->frames_rgb.resize(n);
+  s->change_masks.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const bool here = i < record.frames_gray.size() && !record.frames_gray[i].empty();
+    if (here) {
+      s->frames_gray[i] = record.frames_gray[i];
+      if (i < record.frames_rgb.size()) s->frames_rgb[i] = record.frames_rgb[i];
+      if (i < record.change_masks.size()) s->change_masks[i] = record.change_masks[i];
+    } else if (same_cameras) {  // the camera missed this set: its last picture stays
+      s->frames_gray[i] = previous->frames_gray[i];
+      s->frames_rgb[i] = previous->frames_rgb[i];
+      s->change_masks[i] = previous->change_masks[i];
+    }
+  }
+  s->version = state_->next_version();
+  state_->Publish(std::move(s));
+  return Status::Ok();
+}
+
+Status LiveStateSink::Close(const RunStats& stats) {
+  const std::shared_ptr<const LiveSnapshot> previous = state_->Latest();
+  auto s = std::make_shared<LiveSnapshot>(*previous);
+  s->stats = stats;
+  s->version = state_->next_version();
+  state_->Publish(std::move(s));
+  state_->SetRunning(false, stats.stop_reason);
+  return Status::Ok();
+}
+
+}  // namespace occmap

@@ -1,0 +1,89 @@
+// LiveState: the latest results of a run, for `occmap serve`'s pages and API. LiveStateSink is
+// the run's FrameSink that fills it: per frame set it copies what the pages show (map,
+// detections, tracks, zone and line counts, the running figures, each camera's frame and change
+// mask) into a new immutable snapshot and swaps it in; readers (the HTTP threads) take the
+// current snapshot without copying and never block the run. Nothing queues: a reader that is
+// slower than the run sees only the newest snapshot (drop to newest).
+//
+//   auto state = std::make_shared<LiveState>();
+//   options.sink_frames = true;  options.sinks.push_back(std::make_shared<LiveStateSink>(state));
+//   std::shared_ptr<const LiveSnapshot> s = state->Latest();   // any thread
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "occmap/pipeline/frame_sink.h"
+
+namespace occmap {
+
+struct LiveSnapshot {
+  int64_t version = 0;   // increases with every snapshot (also across restarts of the run)
+  int64_t frame = -1;    // the run's frame index; -1 before the first frame set
+  double time_s = 0, t_unix = 0;
+  OccupancyMap map;
+  std::vector<Detection> detections;
+  std::vector<Track> tracks;
+  std::vector<std::string> zone_names;
+  std::vector<int> zone_counts;        // per zone: tracks inside (0 without tracking)
+  std::vector<std::string> line_names;
+  std::vector<LineCounts> line_counts;  // per line: crossings so far
+  RunStats stats;
+  std::vector<std::string> camera_ids;
+  // Per camera: the latest frame seen (kept when the camera is missing from a frame set).
+  std::vector<Image<uint8_t>> frames_gray;
+  std::vector<Image<Rgb8>> frames_rgb;  // empty unless the run reads colour
+  std::vector<Image<uint8_t>> change_masks;
+};
+
+class LiveState {
+ public:
+  LiveState();
+  std::shared_ptr<const LiveSnapshot> Latest() const;
+  // The latest snapshot once its version exceeds `version`, or after `timeout`, or Wake().
+  std::shared_ptr<const LiveSnapshot> WaitNewer(int64_t version, std::chrono::milliseconds timeout) const;
+  void Publish(std::shared_ptr<const LiveSnapshot> snapshot);
+  // Wakes every WaitNewer (the server stopping, the site changed).
+  void Wake();
+
+  // The run's life: running between Open and Close; `ended` says why it stopped.
+  void SetRunning(bool running, const std::string& ended = "");
+  bool running() const;
+  std::string ended() const;
+  double uptime_s() const;
+  int64_t next_version();
+  // The run's frame rate (SinkStart::fps), 0 before it opens.
+  void SetFps(double fps) { fps_ = fps; }
+  double fps() const { return fps_.load(); }
+
+ private:
+  mutable std::mutex mu_;
+  mutable std::condition_variable cv_;
+  std::shared_ptr<const LiveSnapshot> latest_;
+  bool running_ = false;
+  std::string ended_;
+  int64_t version_ = 0;
+  int64_t wakes_ = 0;
+  std::atomic<double> fps_{0};
+  std::chrono::steady_clock::time_point start_;
+};
+
+class LiveStateSink : public FrameSink {
+ public:
+  explicit LiveStateSink(std::shared_ptr<LiveState> state) : state_(std::move(state)) {}
+  Status Open(const SinkStart& start) override;
+  Status Consume(const FrameRecord& record, const RunStats& stats) override;
+  Status Close(const RunStats& stats) override;
+
+ private:
+  std::shared_ptr<LiveState> state_;
+  std::vector<std::string> camera_ids_, zone_names_, line_names_;
+};
+
+}  // namespace occmap

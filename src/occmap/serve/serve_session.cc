@@ -1,0 +1,406 @@
+#include "occmap/serve/serve_session.h"
+
+#include <fmt/core.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "occmap/calib/calibration_overlay.h"
+#include "occmap/calib/opencv_storage.h"
+#include "occmap/geometry/pinhole_camera.h"
+#include "occmap/serve/web_api.h"
+#include "occmap/site/site_update.h"
+#include "occmap/util/file_util.h"
+
+namespace occmap {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+Result<double> Number(const json& j, const std::string& where) {
+  if (!j.is_number()) return InvalidInput(fmt::format("{}: expected a number, found {}", where, j.dump()));
+  const double v = j.get<double>();
+  if (!std::isfinite(v)) return InvalidInput(fmt::format("{}: expected a finite number", where));
+  return v;
+}
+
+Result<std::array<double, 2>> Pair(const json& j, const std::string& where) {
+  if (!j.is_array() || j.size() != 2) return InvalidInput(fmt::format("{}: expected [x, y], found {}", where, j.dump()));
+  OCCMAP_ASSIGN_OR_RETURN(double a, Number(j[0], where + "[0]"));
+  OCCMAP_ASSIGN_OR_RETURN(double b, Number(j[1], where + "[1]"));
+  return std::array<double, 2>{a, b};
+}
+
+Result<std::string> PolygonFlow(const json& j, const std::string& where) {
+  if (!j.is_array()) return InvalidInput(fmt::format("{}: expected a polygon [[x, y], ...], found {}", where, j.dump()));
+  std::string out = "[";
+  for (size_t i = 0; i < j.size(); ++i) {
+    OCCMAP_ASSIGN_OR_RETURN(auto p, Pair(j[i], fmt::format("{}[{}]", where, i)));
+    out += fmt::format("{}[{}, {}]", i ? ", " : "", p[0], p[1]);
+  }
+  return out + "]";
+}
+
+Result<std::string> NameFlow(const json& j, const std::string& where) {
+  if (!j.is_string() || j.get<std::string>().empty()) {
+    return InvalidInput(fmt::format("{}: expected a non-empty string, found {}", where, j.dump()));
+  }
+  return j.dump();  // a JSON string is a YAML double-quoted scalar
+}
+
+Result<std::string> ZonesFlow(const json& zones) {
+  if (!zones.is_array()) return InvalidInput(fmt::format("zones: expected a list, found {}", zones.dump()));
+  std::string out = "[";
+  for (size_t i = 0; i < zones.size(); ++i) {
+    const json& z = zones[i];
+    const std::string where = fmt::format("zones[{}]", i);
+    if (!z.is_object() || !z.contains("name") || !z.contains("polygon_m")) {
+      return InvalidInput(fmt::format("{}: expected {{\"name\", \"polygon_m\"}}, found {}", where, z.dump()));
+    }
+    OCCMAP_ASSIGN_OR_RETURN(std::string name, NameFlow(z["name"], where + ".name"));
+    OCCMAP_ASSIGN_OR_RETURN(std::string poly, PolygonFlow(z["polygon_m"], where + ".polygon_m"));
+    out += fmt::format("{}{{name: {}, polygon: {}", i ? ", " : "", name, poly);
+    if (z.contains("dwell_s") && !z["dwell_s"].is_null()) {
+      OCCMAP_ASSIGN_OR_RETURN(double d, Number(z["dwell_s"], where + ".dwell_s"));
+      out += fmt::format(", dwell_s: {}", d);
+    }
+    out += "}";
+  }
+  return out + "]";
+}
+
+Result<std::string> LinesFlow(const json& lines) {
+  if (!lines.is_array()) return InvalidInput(fmt::format("lines: expected a list, found {}", lines.dump()));
+  std::string out = "[";
+  for (size_t i = 0; i < lines.size(); ++i) {
+    const json& l = lines[i];
+    const std::string where = fmt::format("lines[{}]", i);
+    if (!l.is_object() || !l.contains("name") || !l.contains("a_m") || !l.contains("b_m")) {
+      return InvalidInput(fmt::format("{}: expected {{\"name\", \"a_m\", \"b_m\"}}, found {}", where, l.dump()));
+    }
+    OCCMAP_ASSIGN_OR_RETURN(std::string name, NameFlow(l["name"], where + ".name"));
+    OCCMAP_ASSIGN_OR_RETURN(auto a, Pair(l["a_m"], where + ".a_m"));
+    OCCMAP_ASSIGN_OR_RETURN(auto b, Pair(l["b_m"], where + ".b_m"));
+    out += fmt::format("{}{{name: {}, from: [{}, {}], to: [{}, {}]}}", i ? ", " : "", name, a[0], a[1], b[0], b[1]);
+  }
+  return out + "]";
+}
+
+json Finite(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+bool SafeId(const std::string& id) {
+  if (id.empty()) return false;
+  for (char c : id) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '-' && c != '.') return false;
+  }
+  return id.front() != '.';
+}
+
+}  // namespace
+
+ServeSession::ServeSession(ServeSessionOptions options)
+    : options_(std::move(options)), state_(std::make_shared<LiveState>()), ctx_(options_.threads) {}
+
+ServeSession::~ServeSession() { Stop(); }
+
+Result<std::unique_ptr<ServeSession>> ServeSession::Create(ServeSessionOptions options) {
+  std::unique_ptr<ServeSession> s(new ServeSession(std::move(options)));
+  OCCMAP_ASSIGN_OR_RETURN(s->site_, s->LoadCurrentSite());
+  OCCMAP_ASSIGN_OR_RETURN(s->site_text_, ReadFileToString(s->options_.site_path));
+  return s;
+}
+
+Result<std::shared_ptr<const Site>> ServeSession::LoadCurrentSite() const {
+  OCCMAP_ASSIGN_OR_RETURN(Site site, LoadSite(options_.site_path, options_.load));
+  if (options_.adjust_site) OCCMAP_RETURN_IF_ERROR(options_.adjust_site(site));
+  return std::make_shared<const Site>(std::move(site));
+}
+
+std::shared_ptr<const Site> ServeSession::site() const {
+  std::lock_guard lock(mu_);
+  return site_;
+}
+
+void ServeSession::Start() {
+  std::lock_guard lock(run_mu_);
+  StartLocked();
+}
+
+void ServeSession::Stop() {
+  std::lock_guard lock(run_mu_);
+  StopLocked();
+}
+
+void ServeSession::StopLocked() {
+  stop_run_ = true;
+  if (thread_.joinable()) thread_.join();
+  stop_run_ = false;
+}
+
+void ServeSession::StartLocked() {
+  std::shared_ptr<const Site> site = this->site();
+  thread_ = std::thread([this, site] {
+    RunOptions o = options_.run;
+    o.sink_frames = true;
+    o.stop = &stop_run_;
+    o.sinks.insert(o.sinks.begin(), std::make_shared<LiveStateSink>(state_));
+    // Pacing: the progress callback (the run's post stage) waits for the frame's time, which
+    // holds the reader back through the run's bounded queues.
+    // Live streams come at their own rate: only files are paced.
+    bool files = true;
+    for (const SiteCamera& c : site->cameras) files = files && c.source.kind != FrameSourceSpec::Kind::kStream;
+    ProgressCallback progress;
+    if (options_.pace && files) {
+      // From the first frame set on (tables and backgrounds take their time before it).
+      progress = [this, t0 = std::optional<std::chrono::steady_clock::time_point>()](const RunProgress& p) mutable {
+        const auto now = std::chrono::steady_clock::now();
+        if (!t0) t0 = now;
+        const double fps = state_->fps() > 0 ? state_->fps() : 10.0;
+        const auto due = *t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                   std::chrono::duration<double>(static_cast<double>(p.frames_done - 1) / fps));
+        while (!stop_run_.load() && std::chrono::steady_clock::now() < due) {
+          std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(
+              due - std::chrono::steady_clock::now(), std::chrono::milliseconds(50)));
+        }
+      };
+    }
+    auto summary = RunSite(*site, o, ctx_, progress);
+    std::lock_guard lock(mu_);
+    if (summary.ok()) {
+      summary_ = *summary;
+      error_ = Status::Ok();
+      state_->SetRunning(false, summary->stop_reason);
+    } else {
+      error_ = summary.status();
+      state_->SetRunning(false, "error: " + summary.status().message());
+      std::fputs(fmt::format("occmap serve: the pipeline stopped: {}\n", summary.status().message()).c_str(), stderr);
+    }
+    state_->Wake();
+  });
+}
+
+std::optional<RunSummary> ServeSession::last_summary() const {
+  std::lock_guard lock(mu_);
+  return summary_;
+}
+
+Status ServeSession::last_error() const {
+  std::lock_guard lock(mu_);
+  return error_;
+}
+
+json ServeSession::SiteJson() const {
+  std::lock_guard lock(mu_);
+  return occmap::SiteJson(*site_, site_text_);
+}
+
+json ServeSession::StatsJson() const {
+  auto text = ReadFileToString(options_.run.out_dir / "summary.json");
+  if (!text.ok()) return json::object();
+  json j = json::parse(*text, nullptr, false);
+  return j.is_discarded() ? json::object() : j;
+}
+
+Result<json> ServeSession::Calibrate(const json& body) {
+  if (!body.is_object()) return InvalidInput("expected a JSON object {\"camera\", \"points\", \"method\"}");
+  if (!body.contains("camera") || !body["camera"].is_string()) return InvalidInput("camera: expected a camera id");
+  const std::string id = body["camera"].get<std::string>();
+  const std::shared_ptr<const Site> site = this->site();
+  const SiteCamera* cam = nullptr;
+  for (const SiteCamera& c : site->cameras) {
+    if (c.id == id) cam = &c;
+  }
+  if (cam == nullptr) return InvalidInput(fmt::format("camera: no camera '{}' in the site", id));
+  if (!body.contains("points") || !body["points"].is_array()) {
+    return InvalidInput("points: expected a list of {\"u_px\", \"v_px\", \"x_m\", \"y_m\"}");
+  }
+  std::vector<FloorPoint> points;
+  for (size_t i = 0; i < body["points"].size(); ++i) {
+    const json& p = body["points"][i];
+    const std::string where = fmt::format("points[{}]", i);
+    if (!p.is_object()) return InvalidInput(fmt::format("{}: expected an object, found {}", where, p.dump()));
+    FloorPoint fp;
+    double v[4];
+    const char* keys[4] = {"u_px", "v_px", "x_m", "y_m"};
+    for (int k = 0; k < 4; ++k) {
+      if (!p.contains(keys[k])) return InvalidInput(fmt::format("{}.{}: missing", where, keys[k]));
+      OCCMAP_ASSIGN_OR_RETURN(v[k], Number(p[keys[k]], fmt::format("{}.{}", where, keys[k])));
+    }
+    fp.pixel = {v[0], v[1]};
+    fp.floor_m = {v[2], v[3]};
+    if (p.contains("label") && p["label"].is_string()) fp.label = p["label"].get<std::string>();
+    fp.where = where;
+    points.push_back(std::move(fp));
+  }
+  const auto* pinhole = dynamic_cast<const PinholeCamera*>(cam->camera.get());
+  std::string method = pinhole != nullptr ? "pnp" : "homography";
+  if (body.contains("method")) {
+    if (!body["method"].is_string()) return InvalidInput("method: expected \"pnp\" or \"homography\"");
+    method = body["method"].get<std::string>();
+  }
+  FloorCalibrationOptions fo;
+  fo.image_size = cam->camera->image_size();
+  if (method == "pnp") {
+    if (pinhole == nullptr) {
+      return InvalidInput(fmt::format("method: pnp needs the camera's intrinsics; camera '{}' has a {} calibration "
+                                      "(use \"homography\")", id, cam->calibration_format));
+    }
+    const PinholeParameters& p = pinhole->params();
+    CameraIntrinsics in;
+    in.image_size = p.image_size;
+    in.fx_px = p.fx_px;
+    in.fy_px = p.fy_px;
+    in.cx_px = p.cx_px;
+    in.cy_px = p.cy_px;
+    in.skew_px = p.skew_px;
+    in.distortion = p.distortion;
+    fo.intrinsics = in;
+  } else if (method != "homography") {
+    return InvalidInput(fmt::format("method: expected \"pnp\" or \"homography\", found \"{}\"", method));
+  }
+  OCCMAP_ASSIGN_OR_RETURN(FloorCalibration cal, CalibrateFromFloorPoints(points, fo));
+  json jp = json::array();
+  for (size_t i = 0; i < points.size(); ++i) {
+    const FloorPointError& e = cal.errors[i];
+    jp.push_back({{"u_px", points[i].pixel.x()}, {"v_px", points[i].pixel.y()}, {"x_m", points[i].floor_m.x()},
+                  {"y_m", points[i].floor_m.y()}, {"error_px", Finite(e.reprojection_px)},
+                  {"floor_error_m", Finite(e.floor_m)},
+                  {"reprojected_px", {Finite(e.reprojected_px.x()), Finite(e.reprojected_px.y())}}});
+  }
+  json out = {{"camera", id},
+              {"method", method},
+              {"kind", cal.kind()},
+              {"rms_px", Finite(cal.rms_reprojection_px)},
+              {"max_px", Finite(cal.max_reprojection_px)},
+              {"floor_rms_m", Finite(cal.rms_floor_m)},
+              {"floor_max_m", Finite(cal.max_floor_m)},
+              {"points", jp},
+              {"warnings", cal.warnings},
+              {"overlay_url", fmt::format("/api/cameras/{}/frame.jpg?overlay=grid&calibration=pending", id)}};
+  std::lock_guard lock(mu_);
+  pending_[id] = Pending{std::move(cal), std::move(points)};
+  return out;
+}
+
+Result<json> ServeSession::UpdateSite(const json& body) {
+  if (!body.is_object()) return InvalidInput("expected a JSON object with calibrations, mask_polygons_px, zones, lines");
+  for (const auto& [key, value] : body.items()) {
+    (void)value;
+    if (key != "calibrations" && key != "mask_polygons_px" && key != "zones" && key != "lines") {
+      return InvalidInput(fmt::format("{}: unknown key (expected calibrations, mask_polygons_px, zones, lines)", key));
+    }
+  }
+  std::lock_guard run_lock(run_mu_);  // one edit at a time, and the restart with it
+  const fs::path& path = options_.site_path;
+  OCCMAP_ASSIGN_OR_RETURN(std::string old_text, ReadFileToString(path));
+  std::string text = old_text;
+  std::vector<std::string> saved_pending;
+  if (body.contains("calibrations")) {
+    const json& cals = body["calibrations"];
+    if (!cals.is_object()) return InvalidInput("calibrations: expected {\"<camera>\": \"pending\"}");
+    for (const auto& [id, what] : cals.items()) {
+      if (what != "pending") return InvalidInput(fmt::format("calibrations.{}: expected \"pending\"", id));
+      if (!SafeId(id)) return InvalidInput(fmt::format("calibrations: '{}' is not a camera id", id));
+      std::optional<Pending> p;
+      {
+        std::lock_guard lock(mu_);
+        if (auto it = pending_.find(id); it != pending_.end()) p = it->second;
+      }
+      if (!p) return InvalidInput(fmt::format("calibrations.{}: no pending calibration (POST /api/calibrate first)", id));
+      std::string flow;
+      if (p->calibration.pinhole) {
+        // Beside the site file, in calib/, as serve_*.xml: the files the previous site (SITE.bak)
+        // names stay as they were.
+        const fs::path dir = (path.parent_path().empty() ? fs::path(".") : path.parent_path()) / "calib";
+        OCCMAP_RETURN_IF_ERROR(EnsureDirectory(dir));
+        const fs::path intr = dir / fmt::format("serve_intr_{}.xml", id), extr = dir / fmt::format("serve_extr_{}.xml", id);
+        OCCMAP_RETURN_IF_ERROR(WriteOpenCvCalibration(*p->calibration.pinhole, 1.0, intr, extr));
+        OCCMAP_ASSIGN_OR_RETURN(std::string ri, SitePathFor(path, intr));
+        OCCMAP_ASSIGN_OR_RETURN(std::string re, SitePathFor(path, extr));
+        flow = fmt::format("{{format: opencv, intrinsic: {}, extrinsic: {}, unit: m, forward: +z}}", json(ri).dump(),
+                           json(re).dump());
+      } else {
+        flow = HomographyCalibrationYaml(*p->calibration.floor_from_image, p->calibration.image_size);
+      }
+      OCCMAP_ASSIGN_OR_RETURN(text, SetCameraValue(text, path, id, "calibration", flow));
+      saved_pending.push_back(id);
+    }
+  }
+  if (body.contains("mask_polygons_px")) {
+    const json& masks = body["mask_polygons_px"];
+    if (!masks.is_object()) return InvalidInput("mask_polygons_px: expected {\"<camera>\": [[[u, v], ...], ...]}");
+    for (const auto& [id, polys] : masks.items()) {
+      const std::string where = "mask_polygons_px." + id;
+      if (!polys.is_array()) {
+        return InvalidInput(fmt::format("{}: expected a list of polygons [[[u, v], ...], ...]", where));
+      }
+      if (polys.empty()) {  // no polygon: no mask, every pixel is floor
+        OCCMAP_ASSIGN_OR_RETURN(text, SetCameraValue(text, path, id, "mask", ""));
+        continue;
+      }
+      std::string flow = "{polygons: [";
+      for (size_t i = 0; i < polys.size(); ++i) {
+        OCCMAP_ASSIGN_OR_RETURN(std::string poly, PolygonFlow(polys[i], fmt::format("{}[{}]", where, i)));
+        flow += (i ? ", " : "") + poly;
+      }
+      flow += "]}";
+      OCCMAP_ASSIGN_OR_RETURN(text, SetCameraValue(text, path, id, "mask", flow));
+    }
+  }
+  if (body.contains("zones")) {
+    OCCMAP_ASSIGN_OR_RETURN(std::string flow, ZonesFlow(body["zones"]));
+    OCCMAP_ASSIGN_OR_RETURN(text, SetTrackingValue(text, path, "zones", flow));
+  }
+  if (body.contains("lines")) {
+    OCCMAP_ASSIGN_OR_RETURN(std::string flow, LinesFlow(body["lines"]));
+    OCCMAP_ASSIGN_OR_RETURN(text, SetTrackingValue(text, path, "lines", flow));
+  }
+  OCCMAP_ASSIGN_OR_RETURN(SiteUpdate u, WriteSiteText(path, old_text, text, options_.load));
+  OCCMAP_ASSIGN_OR_RETURN(std::shared_ptr<const Site> site, LoadCurrentSite());
+  StopLocked();
+  {
+    std::lock_guard lock(mu_);
+    site_ = std::move(site);
+    site_text_ = u.text;
+    for (const auto& id : saved_pending) pending_.erase(id);
+  }
+  ++site_version_;
+  StartLocked();
+  state_->Wake();
+  return json{{"ok", true}, {"backup", u.backup.string()}, {"site", SiteJson()}};
+}
+
+Result<std::string> ServeSession::GridJpeg(const std::string& camera_id, bool pending) {
+  const std::shared_ptr<const Site> site = this->site();
+  size_t n = site->cameras.size();
+  for (size_t i = 0; i < site->cameras.size(); ++i) {
+    if (site->cameras[i].id == camera_id) n = i;
+  }
+  if (n == site->cameras.size()) return NotFound(fmt::format("no camera '{}'", camera_id));
+  const std::shared_ptr<const LiveSnapshot> snap = state_->Latest();
+  Image<Rgb8> picture = CameraRgb(*snap, n);
+  if (picture.empty()) return NotFound(fmt::format("camera '{}' has no frame yet", camera_id));
+  std::unique_ptr<CameraModel> model;
+  std::vector<FloorPoint> points;
+  if (pending) {
+    std::optional<Pending> p;
+    {
+      std::lock_guard lock(mu_);
+      if (auto it = pending_.find(camera_id); it != pending_.end()) p = it->second;
+    }
+    if (!p) return NotFound(fmt::format("camera '{}' has no pending calibration", camera_id));
+    OCCMAP_ASSIGN_OR_RETURN(model, p->calibration.Model());
+    points = p->points;
+  }
+  const CameraModel& camera = model ? *model : *site->cameras[n].camera;
+  OverlayOptions oo;
+  oo.area_min_m = {site->grid.origin_x_m, site->grid.origin_y_m};
+  oo.area_max_m = {site->grid.origin_x_m + site->grid.size_x_m(), site->grid.origin_y_m + site->grid.size_y_m()};
+  oo.caption = fmt::format("{}{}", camera_id, pending ? " (pending)" : "");
+  const Image<Rgb8> drawn = DrawCalibrationOverlay(picture.view(), camera, points, oo);
+  return EncodeJpeg(drawn);
+}
+
+}  // namespace occmap

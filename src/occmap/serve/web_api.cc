@@ -1,0 +1,400 @@
+#include "occmap/serve/web_api.h"
+
+#include <fmt/core.h>
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace occmap {
+namespace {
+
+using nlohmann::json;
+
+json Num(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+std::string Lower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return out;
+}
+
+// Prometheus label values: backslash, quote and newline escaped.
+std::string Label(std::string_view v) {
+  std::string out;
+  for (char c : v) {
+    if (c == '\\' || c == '"') out += '\\';
+    if (c == '\n') {
+      out += "\\n";
+      continue;
+    }
+    out += c;
+  }
+  return out;
+}
+
+std::string Encode(const cv::Mat& bgr, const char* ext, std::vector<int> params) {
+  std::vector<uint8_t> buf;
+  if (!cv::imencode(ext, bgr, buf, params)) return {};
+  return std::string(buf.begin(), buf.end());
+}
+
+cv::Mat ToBgr(const Image<Rgb8>& image) {
+  cv::Mat bgr(image.height(), image.width(), CV_8UC3);
+  for (int y = 0; y < image.height(); ++y) {
+    const Rgb8* src = image.row(y);
+    uint8_t* dst = bgr.ptr<uint8_t>(y);
+    for (int x = 0; x < image.width(); ++x) {
+      dst[3 * x] = src[x].b;
+      dst[3 * x + 1] = src[x].g;
+      dst[3 * x + 2] = src[x].r;
+    }
+  }
+  return bgr;
+}
+
+}  // namespace
+
+Result<ListenAddress> ParseListen(std::string_view text, std::string_view option) {
+  ListenAddress a;
+  std::string_view host = text, port;
+  if (!text.empty() && text.front() == '[') {
+    const size_t close = text.find(']');
+    if (close == std::string_view::npos) {
+      return InvalidInput(fmt::format("{}: expected [IPv6]:PORT, found '{}'", option, text));
+    }
+    host = text.substr(1, close - 1);
+    if (close + 1 < text.size()) {
+      if (text[close + 1] != ':') return InvalidInput(fmt::format("{}: expected [IPv6]:PORT, found '{}'", option, text));
+      port = text.substr(close + 2);
+    }
+  } else if (const size_t colon = text.rfind(':'); colon != std::string_view::npos) {
+    if (text.find(':') != colon) {
+      return InvalidInput(fmt::format("{}: an IPv6 address goes in brackets ([::1]:8080), found '{}'", option, text));
+    }
+    host = text.substr(0, colon);
+    port = text.substr(colon + 1);
+  }
+  if (!host.empty()) a.host = std::string(host);
+  if (!port.empty() || text.find(':') != std::string_view::npos) {
+    int p = -1;
+    const auto [end, ec] = std::from_chars(port.data(), port.data() + port.size(), p);
+    if (ec != std::errc() || end != port.data() + port.size() || p < 0 || p > 65535) {
+      return InvalidInput(fmt::format("{}: expected HOST:PORT with a port 0..65535, found '{}'", option, text));
+    }
+    a.port = p;
+  }
+  for (char c : a.host) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '-' && c != ':') {
+      return InvalidInput(fmt::format("{}: expected a host name or address, found '{}'", option, a.host));
+    }
+  }
+  return a;
+}
+
+bool IsLoopbackHost(std::string_view host) {
+  if (host == "localhost" || host == "::1") return true;
+  return host.substr(0, 4) == "127." && host.find_first_not_of("0123456789.") == std::string_view::npos;
+}
+
+bool TokenEquals(std::string_view expected, std::string_view given) {
+  unsigned diff = expected.size() == given.size() ? 0u : 1u;
+  for (size_t i = 0; i < expected.size(); ++i) {
+    const char g = i < given.size() ? given[i] : '\0';
+    diff |= static_cast<unsigned>(static_cast<unsigned char>(expected[i]) ^ static_cast<unsigned char>(g));
+  }
+  return diff == 0 && !expected.empty();
+}
+
+std::string RequestToken(std::string_view authorization, std::string_view query_token) {
+  constexpr std::string_view kBearer = "Bearer ";
+  if (authorization.size() > kBearer.size() && Lower(authorization.substr(0, kBearer.size())) == "bearer ") {
+    std::string_view t = authorization.substr(kBearer.size());
+    while (!t.empty() && t.front() == ' ') t.remove_prefix(1);
+    while (!t.empty() && (t.back() == ' ' || t.back() == '\r')) t.remove_suffix(1);
+    return std::string(t);
+  }
+  return std::string(query_token);
+}
+
+bool IsTraversal(std::string_view raw) {
+  const std::string t = Lower(raw);
+  if (t.find('\0') != std::string::npos || t.find('\\') != std::string::npos) return true;
+  for (const char* bad : {"..", "%2e%2e", "%2e.", ".%2e", "%5c", "%00", "%252e", "%255c"}) {
+    if (t.find(bad) != std::string::npos) return true;
+  }
+  return false;
+}
+
+std::string StaticFileName(std::string_view path) {
+  if (path.empty() || path.front() != '/') return {};
+  std::string_view name = path.substr(1);
+  if (name.empty()) return "index.html";
+  if (name.front() == '.') return {};
+  for (char c : name) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '-' && c != '_') return {};
+  }
+  return std::string(name);
+}
+
+std::string ContentTypeFor(std::string_view name) {
+  const size_t dot = name.rfind('.');
+  const std::string ext = dot == std::string_view::npos ? "" : Lower(name.substr(dot + 1));
+  if (ext == "html") return "text/html; charset=utf-8";
+  if (ext == "js" || ext == "mjs") return "text/javascript; charset=utf-8";
+  if (ext == "css") return "text/css; charset=utf-8";
+  if (ext == "json" || ext == "map") return "application/json";
+  if (ext == "svg") return "image/svg+xml";
+  if (ext == "png") return "image/png";
+  if (ext == "jpg" || ext == "jpeg") return "image/jpeg";
+  if (ext == "ico") return "image/x-icon";
+  if (ext == "woff2") return "font/woff2";
+  if (ext == "woff") return "font/woff";
+  if (ext == "txt") return "text/plain; charset=utf-8";
+  return "application/octet-stream";
+}
+
+std::string SseEvent(std::string_view event, std::string_view data) {
+  std::string out = fmt::format("event: {}\n", event);
+  size_t start = 0;
+  while (true) {
+    size_t nl = data.find('\n', start);
+    std::string_view line = data.substr(start, nl == std::string_view::npos ? std::string_view::npos : nl - start);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    out += "data: ";
+    out += line;
+    out += '\n';
+    if (nl == std::string_view::npos) break;
+    start = nl + 1;
+  }
+  out += '\n';
+  return out;
+}
+
+json FrameEventJson(const LiveSnapshot& s) {
+  json dets = json::array();
+  for (const Detection& d : s.detections) {
+    json j = {{"x_m", Num(d.x_m)}, {"y_m", Num(d.y_m)}, {"area_m2", Num(d.area_m2)}};
+    if (!d.class_hint.empty()) j["kind"] = d.class_hint;
+    dets.push_back(std::move(j));
+  }
+  json tracks = json::array();
+  for (const Track& t : s.tracks) {
+    tracks.push_back({{"id", t.id}, {"x_m", Num(t.x_m)}, {"y_m", Num(t.y_m)}, {"vx_mps", Num(t.vx_mps)},
+                      {"vy_mps", Num(t.vy_mps)}, {"kind", t.object_class}, {"coasting", t.coasting}});
+  }
+  json zones = json::array();
+  for (size_t i = 0; i < s.zone_names.size(); ++i) {
+    zones.push_back({{"name", s.zone_names[i]}, {"count", i < s.zone_counts.size() ? s.zone_counts[i] : 0}});
+  }
+  json lines = json::array();
+  for (size_t i = 0; i < s.line_names.size(); ++i) {
+    const LineCounts c = i < s.line_counts.size() ? s.line_counts[i] : LineCounts{};
+    lines.push_back({{"name", s.line_names[i]}, {"in", c.in}, {"out", c.out}});
+  }
+  return {{"frame", s.frame}, {"time_s", Num(s.time_s)}, {"t_unix", Num(s.t_unix)},
+          {"fps", Num(s.stats.frames_per_second)}, {"map_version", s.frame}, {"detections", dets},
+          {"tracks", tracks}, {"zones", zones}, {"lines", lines}};
+}
+
+json StateJson(const LiveSnapshot& s, bool running, double uptime_s) {
+  json cams = json::array();
+  for (const CameraStats& c : s.stats.cameras) {
+    const double fps = s.stats.elapsed_s > 0 ? static_cast<double>(c.frames) / s.stats.elapsed_s : 0.0;
+    cams.push_back({{"id", c.id}, {"active", c.active}, {"connected", c.connected}, {"fps", Num(fps)},
+                    {"frames", c.frames}, {"dropped", c.dropped}, {"reconnects", c.reconnects},
+                    {"background_age_s", nullptr}});
+  }
+  const LatencyFigures& l = s.stats.latency;
+  return {{"frame", s.frame},
+          {"fps", Num(s.stats.frames_per_second)},
+          {"running", running},
+          {"uptime_s", uptime_s},
+          {"frames", s.stats.frames},
+          {"elapsed_s", Num(s.stats.elapsed_s)},
+          {"latency_ms", {{"p50", Num(l.p50_ms)}, {"p95", Num(l.p95_ms)}, {"p99", Num(l.p99_ms)}, {"max", Num(l.max_ms)}}},
+          {"cameras", cams},
+          {"tracks_total", s.stats.tracks},
+          {"zone_events", s.stats.zone_events},
+          {"stop_reason", s.stats.stop_reason},
+          // Cumulative stage seconds are not in a run's running figures (RunStats) yet.
+          {"stages_s", json::object()}};
+}
+
+std::vector<std::vector<std::vector<std::array<double, 2>>>> MaskPolygonsFromText(const Site& site,
+                                                                                   std::string_view text) {
+  std::vector<std::vector<std::vector<std::array<double, 2>>>> out(site.cameras.size());
+  YAML::Node root;
+  try {
+    root = YAML::Load(std::string(text));
+  } catch (const YAML::Exception&) {
+    return out;
+  }
+  if (!root.IsMap() || !root["cameras"] || !root["cameras"].IsSequence()) return out;
+  auto polygon = [](const YAML::Node& p) {
+    std::vector<std::array<double, 2>> pts;
+    if (!p.IsSequence()) return pts;
+    for (const YAML::Node& v : p) {
+      if (v.IsSequence() && v.size() == 2) pts.push_back({v[0].as<double>(0), v[1].as<double>(0)});
+    }
+    return pts;
+  };
+  try {
+    for (const YAML::Node& cam : root["cameras"]) {
+      if (!cam.IsMap() || !cam["id"] || !cam["mask"] || !cam["mask"].IsMap()) continue;
+      const std::string id = cam["id"].as<std::string>();
+      for (size_t n = 0; n < site.cameras.size(); ++n) {
+        if (site.cameras[n].id != id) continue;
+        const YAML::Node mask = cam["mask"];
+        if (mask["polygon"]) out[n].push_back(polygon(mask["polygon"]));
+        if (mask["polygons"] && mask["polygons"].IsSequence()) {
+          for (const YAML::Node& p : mask["polygons"]) out[n].push_back(polygon(p));
+        }
+      }
+    }
+  } catch (const YAML::Exception&) {
+  }
+  return out;
+}
+
+json SiteJson(const Site& site, std::string_view text) {
+  const FloorGrid& g = site.grid;
+  const auto polygons = MaskPolygonsFromText(site, text);
+  json cams = json::array();
+  for (size_t n = 0; n < site.cameras.size(); ++n) {
+    const SiteCamera& c = site.cameras[n];
+    const ImageSize size = c.camera->image_size();
+    cams.push_back({{"id", c.id}, {"width_px", size.width}, {"height_px", size.height},
+                    {"has_calibration", c.camera != nullptr}, {"calibration_format", c.calibration_format},
+                    {"has_mask", !c.mask.empty()}, {"mask_polygons_px", polygons[n]}});
+  }
+  json zones = json::array();
+  for (const ZoneOptions& z : site.tracking.zones) {
+    json poly = json::array();
+    for (const auto& p : z.polygon_m) poly.push_back({p.x(), p.y()});
+    json j = {{"name", z.name}, {"polygon_m", poly}};
+    if (z.dwell_s) j["dwell_s"] = *z.dwell_s;
+    zones.push_back(std::move(j));
+  }
+  json lines = json::array();
+  for (const LineOptions& l : site.tracking.lines) {
+    lines.push_back({{"name", l.name}, {"a_m", {l.from_m.x(), l.from_m.y()}}, {"b_m", {l.to_m.x(), l.to_m.y()}}});
+  }
+  return {{"name", site.name},
+          {"path", site.file.string()},
+          {"grid", {{"x_min_m", g.origin_x_m}, {"y_min_m", g.origin_y_m}, {"cell_size_m", g.cell_size_m},
+                    {"cols", g.cells_x}, {"rows", g.cells_y}}},
+          {"cameras", cams},
+          {"zones", zones},
+          {"lines", lines},
+          {"yaml", std::string(text)}};
+}
+
+std::string MetricsText(const LiveSnapshot& s, bool running) {
+  std::string o;
+  auto head = [&](const char* name, const char* type, const char* help) {
+    o += fmt::format("# HELP {} {}\n# TYPE {} {}\n", name, help, name, type);
+  };
+  head("occmap_up", "gauge", "1 while the pipeline runs");
+  o += fmt::format("occmap_up {}\n", running ? 1 : 0);
+  head("occmap_frames_total", "counter", "frame sets processed");
+  o += fmt::format("occmap_frames_total {}\n", s.stats.frames);
+  head("occmap_frames_per_second", "gauge", "steady-state frame sets per second");
+  o += fmt::format("occmap_frames_per_second {:g}\n", s.stats.frames_per_second);
+  head("occmap_camera_frames_per_second", "gauge", "frames used per second, per camera");
+  for (const CameraStats& c : s.stats.cameras) {
+    const double fps = s.stats.elapsed_s > 0 ? static_cast<double>(c.frames) / s.stats.elapsed_s : 0.0;
+    o += fmt::format("occmap_camera_frames_per_second{{camera=\"{}\"}} {:g}\n", Label(c.id), fps);
+  }
+  head("occmap_camera_up", "gauge", "1 while the camera's frames arrive");
+  for (const CameraStats& c : s.stats.cameras) {
+    o += fmt::format("occmap_camera_up{{camera=\"{}\"}} {}\n", Label(c.id), running && c.active && c.connected ? 1 : 0);
+  }
+  head("occmap_frames_dropped_total", "counter", "frames a live stream dropped to stay on the newest");
+  for (const CameraStats& c : s.stats.cameras) {
+    o += fmt::format("occmap_frames_dropped_total{{camera=\"{}\"}} {}\n", Label(c.id), c.dropped);
+  }
+  head("occmap_camera_reconnects_total", "counter", "times a live stream was opened again");
+  for (const CameraStats& c : s.stats.cameras) {
+    o += fmt::format("occmap_camera_reconnects_total{{camera=\"{}\"}} {}\n", Label(c.id), c.reconnects);
+  }
+  head("occmap_latency_seconds", "summary", "frame set arrival to outputs written");
+  const LatencyFigures& l = s.stats.latency;
+  o += fmt::format("occmap_latency_seconds{{quantile=\"0.5\"}} {:g}\n", l.p50_ms / 1000);
+  o += fmt::format("occmap_latency_seconds{{quantile=\"0.95\"}} {:g}\n", l.p95_ms / 1000);
+  o += fmt::format("occmap_latency_seconds{{quantile=\"0.99\"}} {:g}\n", l.p99_ms / 1000);
+  o += fmt::format("occmap_latency_seconds_count {}\n", l.count);
+  head("occmap_tracks", "gauge", "tracks reported in the latest frame set");
+  o += fmt::format("occmap_tracks {}\n", s.tracks.size());
+  head("occmap_zone_objects", "gauge", "tracks inside each zone");
+  for (size_t i = 0; i < s.zone_names.size(); ++i) {
+    o += fmt::format("occmap_zone_objects{{zone=\"{}\"}} {}\n", Label(s.zone_names[i]),
+                     i < s.zone_counts.size() ? s.zone_counts[i] : 0);
+  }
+  head("occmap_line_crossings_total", "counter", "crossings of each counting line, by direction");
+  for (size_t i = 0; i < s.line_names.size(); ++i) {
+    const LineCounts c = i < s.line_counts.size() ? s.line_counts[i] : LineCounts{};
+    o += fmt::format("occmap_line_crossings_total{{line=\"{}\",direction=\"in\"}} {}\n", Label(s.line_names[i]), c.in);
+    o += fmt::format("occmap_line_crossings_total{{line=\"{}\",direction=\"out\"}} {}\n", Label(s.line_names[i]), c.out);
+  }
+  return o;
+}
+
+std::string MapPng(const OccupancyMap& map) {
+  const FloorGrid& g = map.grid();
+  if (g.num_cells() == 0 || map.states().size() != static_cast<size_t>(g.num_cells())) return {};
+  cv::Mat bgr(g.cells_y, g.cells_x, CV_8UC3);
+  for (int j = 0; j < g.cells_y; ++j) {
+    uint8_t* row = bgr.ptr<uint8_t>(g.cells_y - 1 - j);
+    for (int i = 0; i < g.cells_x; ++i) {
+      const CellState st = map.state(int64_t{j} * g.cells_x + i);
+      const uint8_t v = st == CellState::kFree ? 255 : st == CellState::kOccupied ? 0 : 205;
+      row[3 * i] = row[3 * i + 1] = row[3 * i + 2] = v;
+    }
+  }
+  return Encode(bgr, ".png", {});
+}
+
+Image<Rgb8> CameraRgb(const LiveSnapshot& s, size_t n) {
+  if (n < s.frames_rgb.size() && !s.frames_rgb[n].empty()) return s.frames_rgb[n];
+  if (n >= s.frames_gray.size() || s.frames_gray[n].empty()) return {};
+  const Image<uint8_t>& g = s.frames_gray[n];
+  Image<Rgb8> rgb(g.width(), g.height());
+  for (int y = 0; y < g.height(); ++y) {
+    const uint8_t* src = g.row(y);
+    Rgb8* dst = rgb.row(y);
+    for (int x = 0; x < g.width(); ++x) dst[x] = {src[x], src[x], src[x]};
+  }
+  return rgb;
+}
+
+std::string EncodeJpeg(const Image<Rgb8>& image, int quality) {
+  if (image.empty()) return {};
+  return Encode(ToBgr(image), ".jpg", {cv::IMWRITE_JPEG_QUALITY, quality});
+}
+
+std::string CameraJpeg(const LiveSnapshot& s, size_t n, bool change_overlay, int quality) {
+  Image<Rgb8> rgb = CameraRgb(s, n);
+  if (rgb.empty()) return {};
+  if (change_overlay && n < s.change_masks.size()) {
+    const Image<uint8_t>& m = s.change_masks[n];
+    if (m.width() == rgb.width() && m.height() == rgb.height()) {
+      for (int y = 0; y < rgb.height(); ++y) {
+        const uint8_t* mr = m.row(y);
+        Rgb8* p = rgb.row(y);
+        for (int x = 0; x < rgb.width(); ++x) {
+          if (mr[x] == 0) continue;
+          p[x] = {static_cast<uint8_t>((p[x].r + 255) / 2), static_cast<uint8_t>(p[x].g / 2),
+                  static_cast<uint8_t>(p[x].b / 2)};
+        }
+      }
+    }
+  }
+  return EncodeJpeg(rgb, quality);
+}
+
+}  // namespace occmap

@@ -1,0 +1,65 @@
+// The pieces of `occmap serve`'s HTTP API that need no socket (serve/server.h uses them; the
+// tests check them alone): the listen address and the loopback rule, the token check, the
+// request targets refused as path traversal, Server-Sent Events framing, the JSON bodies of
+// /events and /api (docs/formats.md, "Web API"), the Prometheus text of /metrics, pictures
+// (the map as PNG, a camera's frame with its change overlay as JPEG).
+#pragma once
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "occmap/serve/live_state.h"
+#include "occmap/site/site.h"
+#include "occmap/util/status.h"
+
+namespace occmap {
+
+struct ListenAddress {
+  std::string host = "127.0.0.1";
+  int port = 8080;  // 0: an ephemeral port
+};
+
+// "HOST:PORT", "[V6]:PORT", ":PORT" (127.0.0.1) or "HOST" (port 8080); `option` names it in messages.
+Result<ListenAddress> ParseListen(std::string_view text, std::string_view option = "--listen");
+// 127.0.0.0/8, ::1 and "localhost".
+bool IsLoopbackHost(std::string_view host);
+// Compares in time independent of where they differ.
+bool TokenEquals(std::string_view expected, std::string_view given);
+// The token of a request: "Authorization: Bearer T", else the query's token= (already decoded).
+std::string RequestToken(std::string_view authorization_header, std::string_view query_token);
+// A request target (path and query as sent, before decoding) that names anything outside the
+// served files: "..", its percent-encodings, a backslash (or %5c), NUL (or %00).
+bool IsTraversal(std::string_view raw_target);
+// A static file's name from a decoded path: "/" -> "index.html", "/app.js" -> "app.js"; empty
+// for names with a '/' after the first or any other unsafe character.
+std::string StaticFileName(std::string_view path);
+std::string ContentTypeFor(std::string_view file_name);
+
+// One Server-Sent Event: "event: NAME\ndata: LINE\n...\n\n" (a data line per line of `data`).
+std::string SseEvent(std::string_view event, std::string_view data);
+
+nlohmann::json FrameEventJson(const LiveSnapshot& s);
+// `running`, `uptime_s`: the run's life (LiveState).
+nlohmann::json StateJson(const LiveSnapshot& s, bool running, double uptime_s);
+// The site as the pages need it; `site_text` is the file's text (its mask polygons are read
+// from it: the loaded site keeps only the rasterised masks).
+nlohmann::json SiteJson(const Site& site, std::string_view site_text);
+// The mask polygons of each camera in the site text, by camera id (empty for image masks).
+std::vector<std::vector<std::vector<std::array<double, 2>>>> MaskPolygonsFromText(const Site& site,
+                                                                                   std::string_view site_text);
+std::string MetricsText(const LiveSnapshot& s, bool running);
+
+// The map as an RGB PNG, one pixel per cell, row 0 = the largest y: free white, occupied
+// black, unseen (205, 205, 205). Empty string before the first map.
+std::string MapPng(const OccupancyMap& map);
+// Camera n's latest frame as JPEG, changed pixels tinted red when `change_overlay`; empty when
+// the camera has no frame yet.
+std::string CameraJpeg(const LiveSnapshot& s, size_t camera, bool change_overlay, int quality = 80);
+std::string EncodeJpeg(const Image<Rgb8>& image, int quality = 80);
+// The frame in colour (grey expanded when the run reads grey).
+Image<Rgb8> CameraRgb(const LiveSnapshot& s, size_t camera);
+
+}  // namespace occmap

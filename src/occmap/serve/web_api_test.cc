@@ -1,0 +1,208 @@
+#include "occmap/serve/web_api.h"
+
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+namespace occmap {
+namespace {
+
+using nlohmann::json;
+
+TEST(WebApi, ParsesListenAddresses) {
+  auto a = ParseListen("127.0.0.1:0");
+  ASSERT_TRUE(a.ok());
+  EXPECT_EQ(a->host, "127.0.0.1");
+  EXPECT_EQ(a->port, 0);
+  auto b = ParseListen("[::1]:9000");
+  ASSERT_TRUE(b.ok());
+  EXPECT_EQ(b->host, "::1");
+  EXPECT_EQ(b->port, 9000);
+  auto c = ParseListen(":8081");
+  ASSERT_TRUE(c.ok());
+  EXPECT_EQ(c->host, "127.0.0.1");
+  EXPECT_EQ(c->port, 8081);
+  auto d = ParseListen("0.0.0.0");
+  ASSERT_TRUE(d.ok());
+  EXPECT_EQ(d->port, 8080);
+  for (const char* bad : {"host:", "host:70000", "host:x", "::1:80", "[::1", "a b:80", "h:-1"}) {
+    auto r = ParseListen(bad);
+    ASSERT_FALSE(r.ok()) << bad;
+    EXPECT_NE(r.status().message().find("--listen"), std::string::npos);
+  }
+}
+
+TEST(WebApi, LoopbackHosts) {
+  EXPECT_TRUE(IsLoopbackHost("127.0.0.1"));
+  EXPECT_TRUE(IsLoopbackHost("127.1.2.3"));
+  EXPECT_TRUE(IsLoopbackHost("::1"));
+  EXPECT_TRUE(IsLoopbackHost("localhost"));
+  EXPECT_FALSE(IsLoopbackHost("0.0.0.0"));
+  EXPECT_FALSE(IsLoopbackHost("::"));
+  EXPECT_FALSE(IsLoopbackHost("192.168.1.2"));
+  EXPECT_FALSE(IsLoopbackHost("127.example.com"));
+}
+
+TEST(WebApi, TokensFromHeaderOrQuery) {
+  EXPECT_TRUE(TokenEquals("s3cret", "s3cret"));
+  EXPECT_FALSE(TokenEquals("s3cret", "s3cre"));
+  EXPECT_FALSE(TokenEquals("s3cret", "s3cret2"));
+  EXPECT_FALSE(TokenEquals("s3cret", ""));
+  EXPECT_FALSE(TokenEquals("", ""));  // no token configured never matches (the gate is off then)
+  EXPECT_EQ(RequestToken("Bearer abc", ""), "abc");
+  EXPECT_EQ(RequestToken("bearer  abc ", "zzz"), "abc");
+  EXPECT_EQ(RequestToken("", "q"), "q");
+  EXPECT_EQ(RequestToken("Basic xyz", "q"), "q");
+}
+
+TEST(WebApi, RefusesTraversalInEveryEncoding) {
+  for (const char* bad : {"/../etc/passwd", "/a/..", "/%2e%2e/x", "/%2E%2E/x", "/.%2e/x", "/%2e./x", "/a\\b",
+                          "/a%5cb", "/a%00b", "/%252e%252e/x", "/api/cameras/..%2fc1/frame.jpg"}) {
+    EXPECT_TRUE(IsTraversal(bad)) << bad;
+  }
+  EXPECT_TRUE(IsTraversal(std::string_view("/a\0b", 4)));
+  for (const char* good : {"/", "/app.js", "/api/site", "/?token=a.b", "/api/cameras/c.1/frame.jpg?overlay=grid"}) {
+    EXPECT_FALSE(IsTraversal(good)) << good;
+  }
+}
+
+TEST(WebApi, StaticFileNames) {
+  EXPECT_EQ(StaticFileName("/"), "index.html");
+  EXPECT_EQ(StaticFileName("/app.js"), "app.js");
+  EXPECT_EQ(StaticFileName("/a/b.js"), "");
+  EXPECT_EQ(StaticFileName("/.env"), "");
+  EXPECT_EQ(StaticFileName("app.js"), "");
+  EXPECT_EQ(ContentTypeFor("index.html"), "text/html; charset=utf-8");
+  EXPECT_EQ(ContentTypeFor("app.JS"), "text/javascript; charset=utf-8");
+  EXPECT_EQ(ContentTypeFor("app.css"), "text/css; charset=utf-8");
+  EXPECT_EQ(ContentTypeFor("x.png"), "image/png");
+  EXPECT_EQ(ContentTypeFor("blob"), "application/octet-stream");
+}
+
+TEST(WebApi, SseFraming) {
+  EXPECT_EQ(SseEvent("frame", "{\"a\":1}"), "event: frame\ndata: {\"a\":1}\n\n");
+  // A line break in the data cannot end the event early: each line gets its own data field.
+  EXPECT_EQ(SseEvent("site", "a\nb\r\nc"), "event: site\ndata: a\ndata: b\ndata: c\n\n");
+  EXPECT_EQ(SseEvent("x", ""), "event: x\ndata: \n\n");
+}
+
+LiveSnapshot TestSnapshot() {
+  LiveSnapshot s;
+  s.version = 7;
+  s.frame = 12;
+  s.time_s = 1.2;
+  s.t_unix = 1.7e9;
+  FloorGrid g;
+  g.origin_x_m = -1;
+  g.origin_y_m = 0;
+  g.cells_x = 3;
+  g.cells_y = 2;
+  g.cell_size_m = 0.5;
+  s.map = OccupancyMap(g);
+  s.map.states()[0] = CellState::kFree;      // cell (0, 0): bottom-left of the picture
+  s.map.states()[5] = CellState::kOccupied;  // cell (2, 1): top-right
+  Detection d;
+  d.x_m = 1;
+  d.y_m = 2;
+  d.class_hint = "person";
+  s.detections.push_back(d);
+  Track t;
+  t.id = 3;
+  t.x_m = 1.5;
+  t.vx_mps = 0.5;
+  t.object_class = "person";
+  s.tracks.push_back(t);
+  s.zone_names = {"door", "desk \"A\""};
+  s.zone_counts = {2, 0};
+  s.line_names = {"gate"};
+  s.line_counts = {LineCounts{4, 1}};
+  s.stats.frames = 13;
+  s.stats.elapsed_s = 2;
+  s.stats.frames_per_second = 6.5;
+  s.stats.cameras = {CameraStats{"c1", true, true, 13, 2, 1}, CameraStats{"c2", true, false, 10, 0, 3}};
+  s.stats.latency = {13, 20, 40, 50, 60};
+  s.camera_ids = {"c1", "c2"};
+  return s;
+}
+
+TEST(WebApi, FrameAndStateJson) {
+  const LiveSnapshot s = TestSnapshot();
+  const json f = FrameEventJson(s);
+  EXPECT_EQ(f["frame"], 12);
+  EXPECT_EQ(f["map_version"], 12);
+  EXPECT_EQ(f["detections"][0]["kind"], "person");
+  EXPECT_EQ(f["tracks"][0]["id"], 3);
+  EXPECT_EQ(f["tracks"][0]["vx_mps"], 0.5);
+  EXPECT_EQ(f["zones"][0], (json{{"name", "door"}, {"count", 2}}));
+  EXPECT_EQ(f["lines"][0], (json{{"name", "gate"}, {"in", 4}, {"out", 1}}));
+  const json st = StateJson(s, true, 5);
+  EXPECT_EQ(st["running"], true);
+  EXPECT_EQ(st["cameras"][1]["connected"], false);
+  EXPECT_EQ(st["cameras"][0]["fps"], 6.5);
+  EXPECT_EQ(st["cameras"][0]["dropped"], 2);
+  EXPECT_EQ(st["latency_ms"]["p95"], 40);
+}
+
+TEST(WebApi, MetricsText) {
+  const std::string m = MetricsText(TestSnapshot(), true);
+  for (const char* line :
+       {"occmap_frames_total 13\n", "occmap_camera_frames_per_second{camera=\"c1\"} 6.5\n",
+        "occmap_camera_up{camera=\"c1\"} 1\n", "occmap_camera_up{camera=\"c2\"} 0\n",
+        "occmap_frames_dropped_total{camera=\"c1\"} 2\n", "occmap_latency_seconds{quantile=\"0.95\"} 0.04\n",
+        "occmap_zone_objects{zone=\"door\"} 2\n", "occmap_zone_objects{zone=\"desk \\\"A\\\"\"} 0\n",
+        "occmap_line_crossings_total{line=\"gate\",direction=\"in\"} 4\n",
+        "occmap_line_crossings_total{line=\"gate\",direction=\"out\"} 1\n", "# TYPE occmap_latency_seconds summary\n"}) {
+    EXPECT_NE(m.find(line), std::string::npos) << line << "\n" << m;
+  }
+  // Every sample line: name{labels} value.
+  size_t start = 0;
+  while (start < m.size()) {
+    const size_t end = m.find('\n', start);
+    ASSERT_NE(end, std::string::npos);
+    const std::string l = m.substr(start, end - start);
+    if (l[0] != '#') {
+      EXPECT_EQ(l.rfind("occmap_", 0), 0u) << l;
+    }
+    start = end + 1;
+  }
+}
+
+TEST(WebApi, MapPngIsNorthUp) {
+  const std::string png = MapPng(TestSnapshot().map);
+  ASSERT_FALSE(png.empty());
+  const cv::Mat img = cv::imdecode(std::vector<uint8_t>(png.begin(), png.end()), cv::IMREAD_COLOR);
+  ASSERT_EQ(img.cols, 3);
+  ASSERT_EQ(img.rows, 2);
+  EXPECT_EQ(img.at<cv::Vec3b>(1, 0), cv::Vec3b(255, 255, 255));  // cell (0, 0), free: bottom row
+  EXPECT_EQ(img.at<cv::Vec3b>(0, 2), cv::Vec3b(0, 0, 0));        // cell (2, 1), occupied: top row
+  EXPECT_EQ(img.at<cv::Vec3b>(0, 0), cv::Vec3b(205, 205, 205));  // unseen
+  EXPECT_TRUE(MapPng(OccupancyMap()).empty());
+}
+
+TEST(WebApi, CameraJpegTintsChanges) {
+  LiveSnapshot s = TestSnapshot();
+  s.frames_gray.assign(2, Image<uint8_t>());
+  s.frames_rgb.assign(2, Image<Rgb8>());
+  s.change_masks.assign(2, Image<uint8_t>());
+  s.frames_gray[0] = Image<uint8_t>(64, 48, 100);
+  s.change_masks[0] = Image<uint8_t>(64, 48, 0);
+  for (int y = 0; y < 24; ++y) {
+    for (int x = 0; x < 64; ++x) s.change_masks[0].row(y)[x] = 1;
+  }
+  EXPECT_TRUE(CameraJpeg(s, 1, true).empty());  // no frame yet
+  const std::string jpeg = CameraJpeg(s, 0, true, 95);
+  ASSERT_FALSE(jpeg.empty());
+  const cv::Mat img = cv::imdecode(std::vector<uint8_t>(jpeg.begin(), jpeg.end()), cv::IMREAD_COLOR);
+  ASSERT_EQ(img.cols, 64);
+  const cv::Vec3b top = img.at<cv::Vec3b>(5, 30), bottom = img.at<cv::Vec3b>(40, 30);  // BGR
+  EXPECT_NEAR(top[2], 177, 4);
+  EXPECT_NEAR(top[1], 50, 4);
+  EXPECT_NEAR(bottom[2], 100, 4);
+  EXPECT_NEAR(bottom[1], 100, 4);
+  const std::string plain = CameraJpeg(s, 0, false, 95);
+  const cv::Mat p = cv::imdecode(std::vector<uint8_t>(plain.begin(), plain.end()), cv::IMREAD_COLOR);
+  EXPECT_NEAR(p.at<cv::Vec3b>(5, 30)[2], 100, 4);
+}
+
+}  // namespace
+}  // namespace occmap

@@ -1,0 +1,242 @@
+#include "occmap/serve/web_server.h"
+
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/time.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <string>
+#include <thread>
+
+namespace occmap {
+namespace {
+
+using nlohmann::json;
+
+class FakeBackend : public ServeBackend {
+ public:
+  LiveState& state() override { return state_; }
+  int64_t site_version() const override { return 1; }
+  json SiteJson() const override { return {{"name", "fake"}, {"cameras", json::array({{{"id", "c1"}, {"width_px", 8}, {"height_px", 6}}})}}; }
+  json StatsJson() const override { return {{"frames", 3}}; }
+  Result<json> Calibrate(const json& body) override {
+    if (!body.contains("camera")) return InvalidInput("camera: missing");
+    return json{{"rms_px", 0.1}};
+  }
+  Result<json> UpdateSite(const json& body) override {
+    last_put = body;
+    return json{{"ok", true}};
+  }
+  Result<std::string> GridJpeg(const std::string&, bool) override { return NotFound("no frame"); }
+  LiveState state_;
+  json last_put;
+};
+
+// One HTTP exchange on a raw socket (so that the target goes out exactly as written): the
+// whole response until the server closes, or `stop_after` is seen, or 10 s pass.
+std::string Exchange(int port, const std::string& request, const std::string& stop_after = "") {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return "";
+  }
+  timeval tv{10, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  size_t sent = 0;
+  while (sent < request.size()) {
+    const ssize_t n = ::send(fd, request.data() + sent, request.size() - sent, MSG_NOSIGNAL);
+    if (n <= 0) break;  // the server may refuse before reading everything
+    sent += static_cast<size_t>(n);
+  }
+  std::string response;
+  char buf[4096];
+  while (true) {
+    const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+    if (n <= 0) break;
+    response.append(buf, static_cast<size_t>(n));
+    if (!stop_after.empty() && response.find(stop_after) != std::string::npos) break;
+  }
+  ::close(fd);
+  return response;
+}
+
+// Opens a stream and reads its headers: the socket when they say 200, else -1.
+int OpenStream(int port, const std::string& target) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  timeval tv{10, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  const std::string request = "GET " + target + " HTTP/1.1\r\nHost: x\r\n\r\n";
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 ||
+      ::send(fd, request.data(), request.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(request.size())) {
+    ::close(fd);
+    return -1;
+  }
+  std::string head;
+  char c;
+  while (head.find("\r\n\r\n") == std::string::npos && ::recv(fd, &c, 1, 0) == 1) head += c;
+  if (head.rfind("HTTP/1.1 200", 0) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+std::string Get(int port, const std::string& target, const std::string& headers = "") {
+  return Exchange(port, "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n" + headers + "\r\n");
+}
+
+int StatusOf(const std::string& response) {
+  if (response.size() < 12) return -1;
+  return std::atoi(response.substr(9, 3).c_str());
+}
+
+class WebServerTest : public ::testing::Test {
+ protected:
+  void StartServer(const std::string& token) {
+    WebServerOptions o;
+    o.listen = {"127.0.0.1", 0};
+    o.token = token;
+    o.threads = 8;
+    o.max_streams = 2;
+    server_ = std::make_unique<WebServer>(o, backend_, assets_);
+    auto port = server_->Bind();
+    ASSERT_TRUE(port.ok()) << port.status().message();
+    port_ = *port;
+    server_->Start();
+  }
+  void TearDown() override {
+    if (server_) server_->Stop();
+  }
+  void PublishFrame(int64_t frame) {
+    auto s = std::make_shared<LiveSnapshot>();
+    s->version = backend_.state().next_version();
+    s->frame = frame;
+    s->camera_ids = {"c1"};
+    backend_.state().Publish(s);
+  }
+
+  FakeBackend backend_;
+  const WebAsset assets_[2] = {{"index.html", "<html>hi</html>"}, {"app.js", "let a = 1;"}};
+  std::unique_ptr<WebServer> server_;
+  int port_ = 0;
+};
+
+TEST_F(WebServerTest, ServesPagesAndApi) {
+  StartServer("");
+  const std::string index = Get(port_, "/");
+  EXPECT_EQ(StatusOf(index), 200) << index;
+  EXPECT_NE(index.find("text/html"), std::string::npos);
+  EXPECT_NE(index.find("<html>hi</html>"), std::string::npos);
+  const std::string js = Get(port_, "/app.js");
+  EXPECT_NE(js.find("text/javascript"), std::string::npos);
+  EXPECT_EQ(StatusOf(Get(port_, "/missing.js")), 404);
+  const std::string site = Get(port_, "/api/site");
+  EXPECT_EQ(StatusOf(site), 200);
+  EXPECT_NE(site.find("\"name\":\"fake\""), std::string::npos);
+  EXPECT_EQ(StatusOf(Get(port_, "/api/state")), 200);
+  EXPECT_NE(Get(port_, "/metrics").find("occmap_frames_total 0"), std::string::npos);
+  EXPECT_EQ(StatusOf(Get(port_, "/api/cameras/c9/frame.jpg")), 404);
+  EXPECT_EQ(StatusOf(Get(port_, "/api/cameras/c1/frame.jpg?overlay=bogus")), 400);
+}
+
+TEST_F(WebServerTest, RefusesTraversal) {
+  StartServer("");
+  for (const char* target : {"/../etc/passwd", "/%2e%2e/%2e%2e/etc/passwd", "/..%2fapp.js", "/a%5c..%5cb",
+                             "/app.js%00.png", "/api/cameras/..%2f..%2fc1/frame.jpg"}) {
+    const std::string r = Get(port_, target);
+    EXPECT_EQ(StatusOf(r), 400) << target << "\n" << r;
+  }
+}
+
+TEST_F(WebServerTest, RefusesBodiesOverOneMebibyte) {
+  StartServer("");
+  const std::string big(size_t{1} << 20 | 1, 'x');
+  const std::string r = Exchange(port_, "PUT /api/site HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                                        "Content-Length: " + std::to_string(big.size()) + "\r\nConnection: close\r\n\r\n" + big);
+  EXPECT_EQ(StatusOf(r), 413) << r.substr(0, 200);
+  EXPECT_TRUE(backend_.last_put.is_null());
+  // With "Expect: 100-continue" the refusal comes before the body is sent.
+  const std::string e = Exchange(port_, "PUT /api/site HTTP/1.1\r\nHost: x\r\nExpect: 100-continue\r\n"
+                                        "Content-Length: 5000000\r\nConnection: close\r\n\r\n");
+  EXPECT_EQ(StatusOf(e), 413) << e;
+  const std::string small = R"({"zones": []})";
+  const std::string ok = Exchange(port_, "PUT /api/site HTTP/1.1\r\nHost: x\r\nContent-Length: " +
+                                             std::to_string(small.size()) + "\r\nConnection: close\r\n\r\n" + small);
+  EXPECT_EQ(StatusOf(ok), 200) << ok;
+  EXPECT_EQ(backend_.last_put, json::parse(small));
+  const std::string bad = Exchange(port_, "POST /api/calibrate HTTP/1.1\r\nHost: x\r\nContent-Length: 3\r\nConnection: close\r\n\r\n{x}");
+  EXPECT_EQ(StatusOf(bad), 400);
+  EXPECT_NE(bad.find("\"error\""), std::string::npos);
+}
+
+TEST_F(WebServerTest, TokenOnEveryRequest) {
+  StartServer("s3cret");
+  for (const char* target : {"/", "/app.js", "/api/site", "/api/state", "/metrics", "/events", "/api/map.png",
+                             "/api/cameras/c1/mjpeg"}) {
+    const std::string r = Get(port_, target);
+    EXPECT_EQ(StatusOf(r), 401) << target;
+    EXPECT_NE(r.find("\"error\""), std::string::npos) << target;
+    EXPECT_EQ(StatusOf(Get(port_, std::string(target) + "?token=wrong")), 401) << target;
+  }
+  EXPECT_EQ(StatusOf(Get(port_, "/api/site?token=s3cret")), 200);
+  EXPECT_EQ(StatusOf(Get(port_, "/api/site", "Authorization: Bearer s3cret\r\n")), 200);
+  EXPECT_EQ(StatusOf(Get(port_, "/?token=s3cret")), 200);
+}
+
+TEST_F(WebServerTest, NonLoopbackNeedsAToken) {
+  WebServerOptions o;
+  o.listen = {"0.0.0.0", 0};
+  WebServer server(o, backend_, assets_);
+  auto port = server.Bind();
+  ASSERT_FALSE(port.ok());
+  EXPECT_NE(port.status().message().find("needs --token"), std::string::npos);
+}
+
+TEST_F(WebServerTest, EventsDeliverFramesAndStreamsAreCapped) {
+  StartServer("");
+  PublishFrame(41);
+  const std::string events = Exchange(port_, "GET /events HTTP/1.1\r\nHost: x\r\n\r\n", "event: state");
+  EXPECT_EQ(StatusOf(events), 200) << events;
+  EXPECT_NE(events.find("text/event-stream"), std::string::npos);
+  EXPECT_NE(events.find("event: frame\ndata: {"), std::string::npos) << events;
+  EXPECT_NE(events.find("\"frame\":41"), std::string::npos) << events;
+  // The stream above ends once the server's next writes find the socket closed.
+  for (int i = 0; i < 400 && server_->open_streams() > 0; ++i) {
+    PublishFrame(100 + i);
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ASSERT_EQ(server_->open_streams(), 0);
+  // max_streams 2: two held open, the third refused; one closed, a new one served.
+  int held[2];
+  for (int& fd : held) {
+    fd = OpenStream(port_, "/events");
+    ASSERT_GE(fd, 0);
+  }
+  EXPECT_EQ(StatusOf(Get(port_, "/events")), 503);
+  EXPECT_EQ(StatusOf(Get(port_, "/api/state")), 200);  // the API still answers
+  ::close(held[0]);
+  bool served = false;
+  for (int i = 0; i < 100 && !served; ++i) {  // the server notices the closed stream on its next write
+    PublishFrame(42 + i);
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    const int fd = OpenStream(port_, "/events");
+    served = fd >= 0;
+    if (fd >= 0) ::close(fd);
+  }
+  EXPECT_TRUE(served);
+  ::close(held[1]);
+}
+
+}  // namespace
+}  // namespace occmap
