@@ -57,6 +57,13 @@ cv::Mat ToBgr(const Image<Rgb8>& image) {
   return bgr;
 }
 
+// A camera's frames per second: the run's steady rate times the share of frame sets it took
+// part in (frames over the whole run would count the start-up).
+double CameraFps(const RunStats& stats, const CameraStats& c) {
+  if (stats.frames <= 0) return 0;
+  return stats.frames_per_second * static_cast<double>(c.frames) / static_cast<double>(stats.frames);
+}
+
 }  // namespace
 
 Result<ListenAddress> ParseListen(std::string_view text, std::string_view option) {
@@ -204,7 +211,7 @@ json FrameEventJson(const LiveSnapshot& s) {
 json StateJson(const LiveSnapshot& s, bool running, double uptime_s) {
   json cams = json::array();
   for (const CameraStats& c : s.stats.cameras) {
-    const double fps = s.stats.elapsed_s > 0 ? static_cast<double>(c.frames) / s.stats.elapsed_s : 0.0;
+    const double fps = CameraFps(s.stats, c);
     cams.push_back({{"id", c.id}, {"active", c.active}, {"connected", c.connected}, {"fps", Num(fps)},
                     {"frames", c.frames}, {"dropped", c.dropped}, {"reconnects", c.reconnects},
                     {"background_age_s", nullptr}});
@@ -307,7 +314,7 @@ std::string MetricsText(const LiveSnapshot& s, bool running) {
   o += fmt::format("occmap_frames_per_second {:g}\n", s.stats.frames_per_second);
   head("occmap_camera_frames_per_second", "gauge", "frames used per second, per camera");
   for (const CameraStats& c : s.stats.cameras) {
-    const double fps = s.stats.elapsed_s > 0 ? static_cast<double>(c.frames) / s.stats.elapsed_s : 0.0;
+    const double fps = CameraFps(s.stats, c);
     o += fmt::format("occmap_camera_frames_per_second{{camera=\"{}\"}} {:g}\n", Label(c.id), fps);
   }
   head("occmap_camera_up", "gauge", "1 while the camera's frames arrive");

@@ -139,6 +139,7 @@ TEST(WebApi, FrameAndStateJson) {
   EXPECT_EQ(st["running"], true);
   EXPECT_EQ(st["cameras"][1]["connected"], false);
   EXPECT_EQ(st["cameras"][0]["fps"], 6.5);
+  EXPECT_EQ(st["cameras"][1]["fps"], 5.0);  // in 10 of the 13 frame sets
   EXPECT_EQ(st["cameras"][0]["dropped"], 2);
   EXPECT_EQ(st["latency_ms"]["p95"], 40);
 }
