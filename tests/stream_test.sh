@@ -50,8 +50,6 @@ echo "camera 1 frames: $during0 -> $during1 while stopped, $after after it came 
 if [ "$during1" -le $((during0 + 2)) ]; then ok; else fail "camera 1 kept getting frames while its stream was stopped"; fi
 if [ "$lines_during1" -gt "$lines_during0" ]; then ok; else fail "the run stopped while camera 1 was away"; fi
 if [ "$after" -gt $((during1 + 10)) ]; then ok; else fail "camera 1 did not rejoin ($during1 -> $after frames)"; fi
-reconnects=$(summary_field "$out" "s['cameras'][0]['reconnects']")
-if [ "$reconnects" -ge 1 ]; then ok; else fail "camera 1's reconnect not counted ($reconnects)"; fi
 
 t0=$(date +%s.%N)
 kill -INT $pid
