@@ -505,21 +505,35 @@ frame_case("frame_wrong_size", lambda w: read(w, "lutout/visibility.png"), ["000
 frame_case("frame_empty", b"", ["000001.png"])
 
 
-def video_case(name, content, words):
+def video_case(name, content, words, file_name="v.mp4"):
     def setup(case_dir, work):
         data = content(work) if callable(content) else content
-        with open(os.path.join(case_dir, "v.mp4"), "wb") as f:
+        with open(os.path.join(case_dir, file_name), "wb") as f:
             f.write(data)
-        text = with_data_root(LAB_SITE.replace("{images: frames/cam1/%06d.png}", "{video: " + os.path.join(case_dir, "v.mp4") + "}", 1), "lab")
+        text = with_data_root(LAB_SITE.replace("{images: frames/cam1/%06d.png}", "{video: " + os.path.join(case_dir, file_name) + "}", 1), "lab")
         with open(os.path.join(case_dir, "site.yaml"), "w") as f:
             f.write(text.replace("{w}", work))
     add(name, ["{bin}", "run", "{c}/site.yaml", "--frames", "2", "--no-video", "--no-cache", "--out", "{c}/out"],
-        ["v.mp4"] + words, setup=setup)
+        [file_name] + words, setup=setup)
+
+
+def tiny_bmp():
+    """A 4x2 24-bit BMP."""
+    import struct
+    pixels = b"\x40" * 24
+    return (b"BM" + struct.pack("<IHHI", 54 + len(pixels), 0, 0, 54)
+            + struct.pack("<IiiHHIIiiII", 40, 4, 2, 1, 24, 0, len(pixels), 0, 0, 0, 0) + pixels)
 
 
 video_case("video_empty", b"", [])
 video_case("video_garbage", b"not a video at all" * 100, [])
-# Not refused yet (exit 0): a PNG given as a video is one frame to FFmpeg (issue 19, open).
+# Still images: FFmpeg would read each as a video of one frame.
+STILL = ["site.yaml:13: cameras[0].source", "expected a video file, found"]
+video_case("video_is_png", lambda w: read(w, "lab/frames/cam1/000000.png"), STILL + ["a PNG image"])
+video_case("video_is_png_named_png", lambda w: read(w, "lab/frames/cam1/000000.png"), STILL + ["a PNG image"],
+           file_name="v.png")
+video_case("video_is_mask_png", lambda w: read(w, "lab/masks/cam1.png"), STILL + ["a PNG image"])
+video_case("video_is_bmp", tiny_bmp(), STILL + ["a BMP image"], file_name="v.bmp")
 video_case("video_truncated_header", lambda w: read(w, "labvid/frames/cam1.mp4")[:500], [])
 video_case("video_wrong_size", lambda w: read(w, "labvid/frames/cam1.mp4") if False else b"\0" * 4096, [])
 

@@ -23,6 +23,7 @@ extern "C" {
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <utility>
 
@@ -58,6 +59,23 @@ std::string RedactUrl(const std::string& url) {
   const size_t colon = url.find(':', host_start);
   if (colon == std::string::npos || colon > at) return url;
   return url.substr(0, colon + 1) + "***" + url.substr(at);
+}
+
+// "a PNG image" when FFmpeg's demuxer is one of its still-image readers ("png_pipe", "image2",
+// "gif", ...), or nullptr: FFmpeg would decode an image as a video of one frame.
+const char* ImageFormatName(const AVInputFormat* format) {
+  if (format == nullptr || format->name == nullptr) return nullptr;
+  const std::string_view name = format->name;
+  static constexpr std::pair<std::string_view, const char*> kNamed[] = {
+      {"png_pipe", "a PNG image"},   {"apng", "a PNG image"},      {"jpeg_pipe", "a JPEG image"},
+      {"jpegls_pipe", "a JPEG image"}, {"jpegxl_pipe", "a JPEG XL image"}, {"gif", "a GIF image"},
+      {"gif_pipe", "a GIF image"},   {"bmp_pipe", "a BMP image"},   {"tiff_pipe", "a TIFF image"},
+      {"webp_pipe", "a WebP image"}};
+  for (const auto& [demuxer, text] : kNamed) {
+    if (name == demuxer) return text;
+  }
+  if (name == "image2" || name == "image2pipe" || name.ends_with("_pipe")) return "an image file";
+  return nullptr;
 }
 
 bool IsFullRangeFormat(AVPixelFormat format) {
@@ -300,6 +318,12 @@ Status VideoSource::OpenOnce() {
   int error = avformat_open_input(&raw, location_.c_str(), input_format, nullptr);
   if (error < 0) return OpenError("cannot open", error);  // raw is freed by FFmpeg
   format_.reset(raw);
+  if (!stream_) {
+    if (const char* image = ImageFormatName(format_->iformat)) {
+      return InvalidInput(fmt::format("{}: expected a video file, found {} (give still images as `images:`)", name_,
+                                      image));
+    }
+  }
   ArmDeadline();
   error = avformat_find_stream_info(format_.get(), nullptr);
   if (error < 0) return OpenError("cannot read the stream parameters", error);

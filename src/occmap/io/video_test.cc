@@ -264,6 +264,43 @@ TEST(VideoSource, GarbageFileIsAClearError) {
             fmt::format("video '{}': expected a video file, found a folder", dir.path().string()));
 }
 
+// A 4x2 24-bit BMP: 54 bytes of headers, then rows of 12 bytes (a multiple of 4, no padding).
+std::string TinyBmp() {
+  std::string bmp(54 + 2 * 12, '\x40');
+  auto put32 = [&](size_t at, uint32_t v) {
+    for (int i = 0; i < 4; ++i) bmp[at + i] = static_cast<char>((v >> (8 * i)) & 0xff);
+  };
+  std::fill(bmp.begin(), bmp.begin() + 54, '\0');
+  bmp[0] = 'B';
+  bmp[1] = 'M';
+  put32(2, static_cast<uint32_t>(bmp.size()));
+  put32(10, 54);  // pixel data offset
+  put32(14, 40);  // BITMAPINFOHEADER
+  put32(18, 4);
+  put32(22, 2);
+  put32(26, 1 | (24 << 16));  // 1 plane, 24 bits per pixel
+  put32(34, 2 * 12);
+  return bmp;
+}
+
+TEST(VideoSource, StillImageIsRefusedNotDecodedAsAOneFrameVideo) {
+  testing::TempDir dir;
+  ASSERT_TRUE(WritePng(dir / "grey.png", ClipFrame(32, 24, 0).view()).ok());
+  ASSERT_TRUE(WriteFileAtomic(dir / "still.bmp", TinyBmp()).ok());
+  // The name says video: the contents decide.
+  fs::copy_file(dir / "grey.png", dir / "disguised.mp4");
+  const std::pair<const char*, const char*> cases[] = {
+      {"grey.png", "a PNG image"}, {"disguised.mp4", "a PNG image"}, {"still.bmp", "a BMP image"}};
+  for (const auto& [file, found] : cases) {
+    auto source = OpenVideo(dir / file);
+    ASSERT_FALSE(source.ok()) << file;
+    EXPECT_EQ(source.status().code(), StatusCode::kInvalidInput) << file;
+    EXPECT_EQ(source.status().message(),
+              fmt::format("video '{}': expected a video file, found {} (give still images as `images:`)",
+                          (dir / file).string(), found));
+  }
+}
+
 TEST(VideoSource, MissingFileIsNotFound) {
   auto source = OpenVideo("/nonexistent/c1.mp4");
   ASSERT_FALSE(source.ok());
