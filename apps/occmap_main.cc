@@ -578,6 +578,9 @@ int Fail(const Status& status) {
 
 int main(int argc, char** argv) {
   using namespace occmap;
+  // A file-size limit (ulimit -f) then fails the write with EFBIG, which names the file,
+  // instead of killing the run before it can write summary.json.
+  ::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"occmap: floor occupancy from several calibrated cameras (volume intersection in a plane)"};
   app.set_version_flag("--version", kVersion);
   app.require_subcommand(1);

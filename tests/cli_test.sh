@@ -65,6 +65,18 @@ assert all(isinstance(s[k], (int, float)) for k in ('moda', 'modp', 'precision',
 
 check synth_clemson 0 'run it with: occmap run' -- "$occmap" synth --scene clemson --frames 6 --scale 0.5 --out "$work/clemson"
 check run_clemson 0 'wrote .*summary.json' -- "$occmap" run "$work/clemson/site.yaml" --out "$work/clemson-run" --occupancy-pngs --no-cache
+# A file-size limit (ulimit -f, RLIMIT_FSIZE: writes beyond it fail with EFBIG, as on a full
+# disk; occmap ignores SIGXFSZ): 100 KiB holds the backgrounds (~42 KB) and summary.json but not
+# mosaic.png (~360 KB). The run fails naming that file; summary.json says the same.
+check run_file_size_limit 1 "mosaic.png': write failed: File too large; summary.json written with this stop_reason" -- \
+  bash -c 'ulimit -f 100; exec "$0" "$@"' "$occmap" run "$work/clemson/site.yaml" --out "$work/fsize-run" --no-video --no-cache
+check run_file_size_limit_summary 0 '^ok$' -- python3 -c "
+import json, os; s = json.load(open('$work/fsize-run/summary.json'))
+assert 'mosaic.png' in s['stop_reason'] and 'File too large' in s['stop_reason'], s['stop_reason']
+assert s['frames'] == 6, s['frames']
+left = [f for f in os.listdir('$work/fsize-run') if f.startswith('.tmp-') or f == 'mosaic.png']
+assert not left, left
+print('ok')"
 check eval_clemson 0 'MODA' -- "$occmap" eval "$work/clemson" "$work/clemson-run"
 check eval_json 0 '"detection"' -- "$occmap" eval "$work/clemson" "$work/clemson-run" --json
 check eval_missing_run 2 'detections.jsonl|nothing to evaluate|not found' -- "$occmap" eval "$work/clemson" "$work/nowhere"

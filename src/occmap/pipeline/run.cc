@@ -866,11 +866,12 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   if (summary.steady_seconds > 0) summary.steady_fps = static_cast<double>(summary.steady_frames) / summary.steady_seconds;
   summary.max_queued_outputs = static_cast<int>(writer.queue().high_water());
   // A failed write (or tracker) stops the run with its error; kAtomic commits nothing (no
-  // output is ever half-written), kLive keeps the whole lines written before it.
-  if (!writer_status.ok() || !post_status.ok()) {
+  // output is ever half-written), kLive keeps the whole lines written before it. The small
+  // summary.json still says why: dropping the temporaries first frees what a full disk needs.
+  Status output_failure = !writer_status.ok() ? writer_status : post_status;
+  if (!output_failure.ok()) {
     files->Abandon();
     (void)close_sinks_fn();
-    return !writer_status.ok() ? writer_status : post_status;
   }
   const Status& failure = frame_reader.failure();
   summary.stop_reason = frame_reader.stop_reason();
@@ -880,22 +881,24 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                                                                                             : "stopped";
   }
   if (!failure.ok()) summary.stop_reason = failure.message();
+  if (!output_failure.ok()) summary.stop_reason = output_failure.message();
 
   // Finalise every output, also when a camera failed: frames processed are never lost.
   stats.stop_reason = summary.stop_reason;
   stats.elapsed_s = Since(t_start);
-  OCCMAP_RETURN_IF_ERROR(close_sinks_fn());
+  if (output_failure.ok()) output_failure = close_sinks_fn();
   for (const fs::path& p : files->written()) summary.outputs.push_back(p.string());
   summary.tracks = stats.tracks;
   summary.zone_events = stats.zone_events;
-  if (best_frame.kept) {
+  if (best_frame.kept && output_failure.ok()) {
     best_mosaic =
         render_mosaic(best_frame.set, best_frame.detections, best_frame.time_s, best_frame.tracks, best_frame.trails);
   }
-  if (!best_mosaic.empty()) {
-    OCCMAP_RETURN_IF_ERROR(WritePng(out / "mosaic.png", best_mosaic.view()));
-    summary.outputs.push_back((out / "mosaic.png").string());
+  if (!best_mosaic.empty() && output_failure.ok()) {
+    output_failure = WritePng(out / "mosaic.png", best_mosaic.view());
+    if (output_failure.ok()) summary.outputs.push_back((out / "mosaic.png").string());
   }
+  if (!output_failure.ok()) summary.stop_reason = output_failure.message();
   summary.seconds = Since(t_start);
   summary.frames_per_second = summary.seconds > 0 ? static_cast<double>(summary.frames) / summary.seconds : 0;
   for (const auto& c : cams) summary.cameras.push_back(c.info);
@@ -949,7 +952,15 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                 {"mean_per_frame", summary.frames > 0 ? static_cast<double>(total_blobs) / static_cast<double>(summary.frames) : 0.0}};
   summary.outputs.push_back((out / "summary.json").string());
   j["outputs"] = summary.outputs;
-  OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(out / "summary.json", j.dump(2) + "\n"));
+  const Status summary_written = WriteFileAtomic(out / "summary.json", j.dump(2) + "\n");
+  if (!output_failure.ok()) {
+    return Status(output_failure.code(),
+                  summary_written.ok()
+                      ? fmt::format("{}; summary.json written with this stop_reason", output_failure.message())
+                      : fmt::format("{}; and summary.json not written either: {}", output_failure.message(),
+                                    summary_written.message()));
+  }
+  OCCMAP_RETURN_IF_ERROR(summary_written);
   if (!failure.ok()) return failure;
   return summary;
 }

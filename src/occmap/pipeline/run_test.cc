@@ -397,9 +397,9 @@ TEST_F(RunFixture, BadInputsGiveClearMessages) {
 }
 
 
-// A write that fails in the writer stage (here: a folder squats on the PNG of frame 3) stops
-// the run with that error and its exit code; nothing is committed under a final name, and no
-// temporary file is left behind.
+// A write that fails in the writer stage (here: a folder squats on the PNG of frame 3; a full
+// disk alike) stops the run with that error and its exit code; nothing else is committed under
+// a final name, no temporary file is left behind, and the small summary.json says why.
 TEST_F(RunFixture, AFailedWriteStopsTheRunWithItsErrorAndCommitsNothing) {
   const Site site = LoadSiteText(SiteText());
   Context ctx(2);
@@ -412,9 +412,16 @@ TEST_F(RunFixture, AFailedWriteStopsTheRunWithItsErrorAndCommitsNothing) {
   EXPECT_EQ(r.status().code(), StatusCode::kIoError) << r.status().message();
   EXPECT_EQ(ExitCodeFor(r.status()), 1);
   EXPECT_NE(r.status().message().find("000003.png"), std::string::npos) << r.status().message();
+  EXPECT_TRUE(r.status().message().ends_with("; summary.json written with this stop_reason"))
+      << r.status().message();
   EXPECT_FALSE(fs::exists(dir_ / "fail" / "detections.jsonl"));
   EXPECT_FALSE(fs::exists(dir_ / "fail" / "tracks.jsonl"));
-  EXPECT_FALSE(fs::exists(dir_ / "fail" / "summary.json"));
+  const json summary = json::parse(*ReadFileToString(dir_ / "fail" / "summary.json"));
+  EXPECT_FALSE(summary["running"].get<bool>());
+  EXPECT_NE(summary["stop_reason"].get<std::string>().find("000003.png"), std::string::npos) << summary.dump();
+  // What is there: the backgrounds written before the first frame, and the summary.
+  for (const json& p : summary["outputs"]) EXPECT_TRUE(fs::exists(p.get<std::string>())) << p;
+  EXPECT_EQ(summary["outputs"].back(), (dir_ / "fail" / "summary.json").string());
   EXPECT_FALSE(fs::exists(dir_ / "fail" / "occupancy" / "000004.png"));  // nothing after the failed one
   for (const auto& e : fs::recursive_directory_iterator(dir_ / "fail")) {
     EXPECT_NE(e.path().filename().string().rfind(".tmp-", 0), 0u) << e.path();
@@ -439,6 +446,9 @@ TEST_F(RunFixture, AFailedLiveWriteKeepsTheWholeLinesBeforeIt) {
   ASSERT_GE(lines.size(), 3u);
   EXPECT_LE(lines.size(), 4u);  // the detections of frame 3 are written before its map picture
   for (size_t f = 0; f < lines.size(); ++f) EXPECT_EQ(lines[f]["frame"], static_cast<int>(f));
+  const json summary = json::parse(*ReadFileToString(dir_ / "fail_live" / "summary.json"));
+  EXPECT_FALSE(summary["running"].get<bool>());
+  EXPECT_NE(summary["stop_reason"].get<std::string>().find("000003.png"), std::string::npos) << summary.dump();
   for (const auto& e : fs::recursive_directory_iterator(dir_ / "fail_live")) {
     EXPECT_NE(e.path().filename().string().rfind(".tmp-", 0), 0u) << e.path();
   }
