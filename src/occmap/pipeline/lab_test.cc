@@ -269,6 +269,45 @@ TEST_F(FullLab, FusedTolerancePathGivesTheSameRun) {
   EXPECT_EQ(compared, 100);
 }
 
+// A crossing of the truth or an event of a run: its kind ("enter", "leave"; "in", "out") and frame.
+struct Crossing {
+  std::string kind;
+  int64_t frame;
+  bool matched = false;
+};
+
+// Pairs each true crossing with the nearest unmatched event of its kind within 3 frames (0.3 s);
+// a true crossing without one, and an event left over, are failures. Returns the true crossings
+// without an event. `noun` names the events in the messages.
+int MatchCrossings(std::vector<Crossing>& truth, std::vector<Crossing>& events, const char* noun) {
+  int unmatched_truth = 0;
+  for (Crossing& t : truth) {
+    Crossing* best = nullptr;
+    for (Crossing& e : events) {
+      if (e.matched || e.kind != t.kind || std::abs(e.frame - t.frame) > 3) continue;
+      if (best == nullptr || std::abs(e.frame - t.frame) < std::abs(best->frame - t.frame)) best = &e;
+    }
+    if (best == nullptr) {
+      ++unmatched_truth;
+      ADD_FAILURE() << "no '" << t.kind << "' " << noun << " near frame " << t.frame;
+      continue;
+    }
+    best->matched = t.matched = true;
+  }
+  for (const Crossing& e : events) {
+    EXPECT_TRUE(e.matched) << "an '" << e.kind << "' " << noun << " at frame " << e.frame << " that no object made";
+  }
+  return unmatched_truth;
+}
+
+// Each line of a JSON-lines file, parsed.
+std::vector<nlohmann::json> JsonLines(const fs::path& path) {
+  std::vector<nlohmann::json> lines;
+  std::istringstream in(*ReadFileToString(path));
+  for (std::string line; std::getline(in, line);) lines.push_back(nlohmann::json::parse(line));
+  return lines;
+}
+
 // Zone events of a run match the crossings of the ground truth: a band across the room that
 // people, the chair and the robot walk through. Every true enter / leave has an event of the
 // same kind within 3 frames (0.3 s), and no event is left over.
@@ -284,18 +323,10 @@ TEST_F(FullLab, ZoneEventsMatchTheGroundTruthCrossings) {
   Context ctx(2);
   ASSERT_TRUE(RunSite(*site, run, ctx).ok());
 
-  struct Crossing {
-    std::string kind;
-    int64_t frame;
-    bool matched = false;
-  };
   // The truth: each object's centre inside the band or not, frame by frame.
   std::vector<Crossing> truth;
   std::map<int64_t, bool> inside;
-  const std::string gt = *ReadFileToString(Dataset() / "ground_truth.jsonl");
-  std::istringstream gt_lines(gt);
-  for (std::string line; std::getline(gt_lines, line);) {
-    const auto j = nlohmann::json::parse(line);
+  for (const nlohmann::json& j : JsonLines(Dataset() / "ground_truth.jsonl")) {
     const int64_t frame = j["frame"].get<int64_t>();
     for (const auto& o : j["objects"]) {
       const int64_t id = o["id"].get<int64_t>();
@@ -306,31 +337,12 @@ TEST_F(FullLab, ZoneEventsMatchTheGroundTruthCrossings) {
     }
   }
   std::vector<Crossing> events;
-  const std::string ev = *ReadFileToString(run.out_dir / "events.jsonl");
-  std::istringstream ev_lines(ev);
-  for (std::string line; std::getline(ev_lines, line);) {
-    const auto j = nlohmann::json::parse(line);
+  for (const nlohmann::json& j : JsonLines(run.out_dir / "events.jsonl")) {
     const std::string kind = j["event"].get<std::string>();
     if (kind == "enter" || kind == "leave") events.push_back({kind, j["frame"].get<int64_t>()});
   }
   ASSERT_GE(truth.size(), 6u) << "the band is crossed";
-  int unmatched_truth = 0;
-  for (Crossing& t : truth) {
-    Crossing* best = nullptr;
-    for (Crossing& e : events) {
-      if (e.matched || e.kind != t.kind || std::abs(e.frame - t.frame) > 3) continue;
-      if (best == nullptr || std::abs(e.frame - t.frame) < std::abs(best->frame - t.frame)) best = &e;
-    }
-    if (best == nullptr) {
-      ++unmatched_truth;
-      ADD_FAILURE() << "no '" << t.kind << "' event near frame " << t.frame;
-      continue;
-    }
-    best->matched = t.matched = true;
-  }
-  for (const Crossing& e : events) {
-    EXPECT_TRUE(e.matched) << "an '" << e.kind << "' event at frame " << e.frame << " that no object made";
-  }
+  const int unmatched_truth = MatchCrossings(truth, events, "event");
   std::cout << fmt::format("band: {} true crossings, {} events, {} crossings without an event\n", truth.size(),
                            events.size(), unmatched_truth);
 }
@@ -349,17 +361,9 @@ TEST_F(FullLab, LineCrossingsMatchTheGroundTruthInBothDirections) {
   Context ctx(2);
   ASSERT_TRUE(RunSite(*site, run, ctx).ok());
 
-  struct Crossing {
-    std::string direction;
-    int64_t frame;
-    bool matched = false;
-  };
   std::vector<Crossing> truth;
   std::map<int64_t, double> last_x;
-  const std::string gt = *ReadFileToString(Dataset() / "ground_truth.jsonl");
-  std::istringstream gt_lines(gt);
-  for (std::string line; std::getline(gt_lines, line);) {
-    const auto j = nlohmann::json::parse(line);
+  for (const nlohmann::json& j : JsonLines(Dataset() / "ground_truth.jsonl")) {
     const int64_t frame = j["frame"].get<int64_t>();
     for (const auto& o : j["objects"]) {
       const int64_t id = o["id"].get<int64_t>();
@@ -370,35 +374,18 @@ TEST_F(FullLab, LineCrossingsMatchTheGroundTruthInBothDirections) {
   }
   std::vector<Crossing> events;
   int64_t in = 0, out = 0;
-  const std::string ev = *ReadFileToString(run.out_dir / "events.jsonl");
-  std::istringstream ev_lines(ev);
-  for (std::string line; std::getline(ev_lines, line);) {
-    const auto j = nlohmann::json::parse(line);
+  for (const nlohmann::json& j : JsonLines(run.out_dir / "events.jsonl")) {
     if (!j.contains("line")) continue;
     EXPECT_EQ(j["line"], "middle");
     events.push_back({j["direction"].get<std::string>(), j["frame"].get<int64_t>()});
-    (events.back().direction == "in" ? in : out) += 1;
+    (events.back().kind == "in" ? in : out) += 1;
     EXPECT_EQ(j["in"].get<int64_t>(), in);
     EXPECT_EQ(j["out"].get<int64_t>(), out);
   }
   ASSERT_GE(truth.size(), 3u) << "the line is crossed";
-  ASSERT_TRUE(std::any_of(truth.begin(), truth.end(), [](const Crossing& c) { return c.direction == "in"; }));
-  ASSERT_TRUE(std::any_of(truth.begin(), truth.end(), [](const Crossing& c) { return c.direction == "out"; }));
-  for (Crossing& t : truth) {
-    Crossing* best = nullptr;
-    for (Crossing& e : events) {
-      if (e.matched || e.direction != t.direction || std::abs(e.frame - t.frame) > 3) continue;
-      if (best == nullptr || std::abs(e.frame - t.frame) < std::abs(best->frame - t.frame)) best = &e;
-    }
-    if (best == nullptr) {
-      ADD_FAILURE() << "no '" << t.direction << "' crossing near frame " << t.frame;
-      continue;
-    }
-    best->matched = t.matched = true;
-  }
-  for (const Crossing& e : events) {
-    EXPECT_TRUE(e.matched) << "an '" << e.direction << "' crossing at frame " << e.frame << " that no object made";
-  }
+  ASSERT_TRUE(std::any_of(truth.begin(), truth.end(), [](const Crossing& c) { return c.kind == "in"; }));
+  ASSERT_TRUE(std::any_of(truth.begin(), truth.end(), [](const Crossing& c) { return c.kind == "out"; }));
+  MatchCrossings(truth, events, "crossing");
   const auto summary = nlohmann::json::parse(*ReadFileToString(run.out_dir / "summary.json"));
   EXPECT_EQ(summary["tracking"]["lines"], nlohmann::json::parse(fmt::format(R"([{{"name":"middle","in":{},"out":{}}}])", in, out)));
   std::cout << fmt::format("middle line: {} true crossings, {} in and {} out events\n", truth.size(), in, out);

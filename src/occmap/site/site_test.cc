@@ -170,19 +170,26 @@ TEST_F(SiteFixture, DataRootOptionRedirectsRelativePaths) {
 
 struct BadSite {
   const char* name;
-  const char* from;  // text of the valid site to replace
+  const char* from;  // text of the valid site to replace, or kAppend
   const char* to;
   const char* expected;  // the message, after "<dir>/site.yaml"
 };
+
+// BadSite::from for a section added at the end of the valid site.
+constexpr const char* kAppend = nullptr;
 
 class SiteBadInput : public SiteFixture, public ::testing::WithParamInterface<BadSite> {};
 
 TEST_P(SiteBadInput, IsRejectedWithFileLineFieldExpectedAndFound) {
   std::string text = Valid();
-  const std::string from = GetParam().from;
-  const auto pos = text.find(from);
-  ASSERT_NE(pos, std::string::npos) << from;
-  text.replace(pos, from.size(), GetParam().to);
+  if (GetParam().from == kAppend) {
+    text += GetParam().to;
+  } else {
+    const std::string from = GetParam().from;
+    const auto pos = text.find(from);
+    ASSERT_NE(pos, std::string::npos) << from;
+    text.replace(pos, from.size(), GetParam().to);
+  }
   auto site = Parse(text);
   ASSERT_FALSE(site.ok());
   EXPECT_EQ(ExitCodeFor(site.status()), 2);
@@ -243,16 +250,16 @@ INSTANTIATE_TEST_SUITE_P(
         BadSite{"algorithm", "algorithm: map-based", "algorithm: fastest",
                 ":28: fusion.algorithm: expected image-based or map-based, found 'fastest'"},
         BadSite{"version", "version: 1", "version: 2", ":1: version: expected site format version 1, found 2"},
-        BadSite{"tracking_speed", "  support_slack_m: 0.04\n", "  support_slack_m: 0.04\ntracking:\n  max_speed_mps: -1\n",
+        BadSite{"tracking_speed", kAppend, "tracking:\n  max_speed_mps: -1\n",
                 ":37: tracking.max_speed_mps: expected a number > 0, found -1"},
-        BadSite{"background_learning", "  support_slack_m: 0.04\n", "  support_slack_m: 0.04\nbackgrounds:\n  learning: gmm\n",
+        BadSite{"background_learning", kAppend, "backgrounds:\n  learning: gmm\n",
                 ":37: backgrounds.learning: expected median, mode, mog2 or knn, found 'gmm'"},
-        BadSite{"background_absorb", "  support_slack_m: 0.04\n", "  support_slack_m: 0.04\nbackgrounds:\n  absorb_s: -3\n",
+        BadSite{"background_absorb", kAppend, "backgrounds:\n  absorb_s: -3\n",
                 ":37: backgrounds.absorb_s: expected > 0, found -3"},
-        BadSite{"shadow_ratio", "  support_slack_m: 0.04\n",
-                "  support_slack_m: 0.04\nbackgrounds:\n  shadows: {min_ratio: 0.5, max_ratio: 0.4}\n", ":37: backgrounds.shadows: expected 0 < min_ratio < max_ratio < 1, found min_ratio 0.5 and max_ratio 0.4"},
-        BadSite{"shadow_key", "  support_slack_m: 0.04\n",
-                "  support_slack_m: 0.04\nbackgrounds:\n  shadows: {min_ration: 0.5}\n", ":37: backgrounds.shadows: unknown field 'min_ration' (did you mean 'min_ratio'?)"},
+        BadSite{"shadow_ratio", kAppend,
+                "backgrounds:\n  shadows: {min_ratio: 0.5, max_ratio: 0.4}\n", ":37: backgrounds.shadows: expected 0 < min_ratio < max_ratio < 1, found min_ratio 0.5 and max_ratio 0.4"},
+        BadSite{"shadow_key", kAppend,
+                "backgrounds:\n  shadows: {min_ration: 0.5}\n", ":37: backgrounds.shadows: unknown field 'min_ration' (did you mean 'min_ratio'?)"},
         BadSite{"source_fps", "mask: mask.png", "mask: mask.png\n    source: {video: v.mp4, fps: 5}",
                 ":15: cameras[0].source.fps: fps is for images and masks (video has its own timestamps)"},
         BadSite{"support_height", "support_heights_m: [0.35, 1.0]", "support_heights_m: [0.35, -1]",

@@ -56,6 +56,25 @@ size_t LineEnd(std::string_view text, size_t pos) {
   return nl == std::string_view::npos ? text.size() : nl;
 }
 
+// The end of the last line after the line ending at `from` that still belongs to a block:
+// lines follow while `belongs(line, column of its first non-blank)`; blank and comment lines
+// are passed over (they end nothing).
+template <class Belongs>
+size_t EndOfBlock(std::string_view text, size_t from, Belongs belongs) {
+  size_t end = from;
+  for (size_t line = from; line < text.size();) {
+    const size_t start = line + 1;
+    const size_t stop = LineEnd(text, start);
+    const std::string_view l = text.substr(start, stop - start);
+    const size_t first = l.find_first_not_of(" \t\r");
+    line = stop;
+    if (first == std::string_view::npos || l[first] == '#') continue;
+    if (!belongs(l, first)) break;
+    end = stop;
+  }
+  return end;
+}
+
 // The entry from its key at key_pos to its value's end removed: in a flow map with its comma,
 // in a block map with its lines.
 Result<std::string> RemoveEntry(std::string_view text, size_t map_pos, size_t key_pos, size_t end,
@@ -113,20 +132,9 @@ Result<std::string> SetMapValue(std::string_view text, const YAML::Node& map, st
       while (end > value_pos && (text[end - 1] == ' ' || text[end - 1] == '\t')) --end;
     } else if (value.IsMap() || value.IsSequence()) {
       const size_t key_col = key_pos - LineStart(text, key_pos);
-      size_t line = end;
-      while (line < text.size()) {
-        const size_t start = line + 1;
-        const size_t stop = LineEnd(text, start);
-        const std::string_view l = text.substr(start, stop - start);
-        const size_t first = l.find_first_not_of(" \t\r");
-        line = stop;
-        if (first == std::string_view::npos || l[first] == '#') continue;
-        if (first > key_col || (first == key_col && value.IsSequence() && l[first] == '-')) {
-          end = stop;
-          continue;
-        }
-        break;
-      }
+      end = EndOfBlock(text, end, [&](std::string_view l, size_t first) {
+        return first > key_col || (first == key_col && value.IsSequence() && l[first] == '-');
+      });
     }
     if (flow.empty()) return RemoveEntry(text, map_pos, key_pos, end, name, it->first.Mark().line + 1);
     return std::string(text.substr(0, begin)) + " " + std::string(flow) + std::string(text.substr(end));
@@ -142,19 +150,10 @@ Result<std::string> SetMapValue(std::string_view text, const YAML::Node& map, st
            std::string(text.substr(close - 1));
   }
   const size_t col = map_pos - LineStart(text, map_pos);
-  size_t last = LineEnd(text, map_pos);  // the end of the map's last content line
-  size_t line = last;
-  while (line < text.size()) {
-    const size_t start = line + 1;
-    const size_t stop = LineEnd(text, start);
-    const std::string_view l = text.substr(start, stop - start);
-    const size_t first = l.find_first_not_of(" \t\r");
-    line = stop;
-    if (first == std::string_view::npos || l[first] == '#') continue;
-    if (l.substr(first, 3) == "---" || l.substr(first, 3) == "...") break;
-    if (first < col) break;
-    last = stop;
-  }
+  // The end of the map's last content line.
+  const size_t last = EndOfBlock(text, LineEnd(text, map_pos), [&](std::string_view l, size_t first) {
+    return first >= col && l.substr(first, 3) != "---" && l.substr(first, 3) != "...";
+  });
   return std::string(text.substr(0, last)) + "\n" + std::string(col, ' ') + std::string(key) + ": " +
          std::string(flow) + std::string(text.substr(last));
 }
