@@ -1,6 +1,7 @@
 // The live view in a real browser: the rendered lab's four cameras streamed in real time over
 // UDP, `occmap serve` on them; the page shows the map picture, the camera pictures, the cameras
-// up, and tracks whose positions on the page change between two moments.
+// up with their background age, the stage timings, and tracks whose positions on the page change
+// between two moments.
 'use strict';
 const test = require('node:test');
 const assert = require('node:assert');
@@ -60,6 +61,20 @@ test('live view: map, cameras and moving tracks', { timeout: 240000 }, async (t)
     await page.waitForTimeout(1000);
     const frame2 = Number(await page.textContent('[data-testid=frame]'));
     assert.ok(frame2 > frame1, `the frame number advances (${frame1}, then ${frame2})`);
+
+    // Stage timings and background ages, from /api/state: measured, and shown.
+    await page.waitForFunction(() => {
+      const row = document.querySelector('[data-testid=stages] tr[data-stage=decode] td.num');
+      return row && parseFloat(row.textContent) > 0;
+    }, null, { timeout: 30000 });
+    const stages = await page.$$eval('[data-testid=stages] tr[data-stage]', (rows) => rows.map((r) => r.dataset.stage));
+    for (const k of ['tables', 'decode', 'detect', 'fuse', 'blobs', 'track', 'output']) assert.ok(stages.includes(k), `stage ${k} in ${stages}`);
+    // The lab's backgrounds are given and fixed: they age with the run.
+    const ages = await page.$$eval('.tile [data-testid=tile-bg-age]', (els) => els.map((e) => e.textContent));
+    assert.ok(ages.every((a) => /^bg \d+ s$/.test(a)), `background ages on the tiles: ${ages}`);
+    const state = await page.evaluate(() => fetch('/api/state').then((r) => r.json()));
+    assert.ok(state.cameras.every((c) => c.background_age_s > 0), `background_age_s: ${JSON.stringify(state.cameras)}`);
+    assert.ok(state.stages_s.decode > 0 && state.stages_s.output > 0, `stages_s: ${JSON.stringify(state.stages_s)}`);
     await h.screenshot(page, 'serve-live.png');
     assert.deepStrictEqual(page.errors, []);
   } catch (e) {

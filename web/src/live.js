@@ -111,16 +111,22 @@ function CameraTile({ camera, frameNo, camState }) {
         <span class=${'badge ' + (up ? 'up' : 'down')}>${up ? 'up' : s.reconnects ? 'reconnecting' : 'down'}</span>
         <span>${fmt(s.fps)} fps</span>
         <span title="frames dropped">${s.dropped || 0} dropped</span>
-        <span title="age of the background model">bg ${fmt(s.background_age_s, 0)} s</span>
+        <span title="mean age of the background's pixels" data-testid="tile-bg-age">bg ${fmt(s.background_age_s, 0)} s</span>
       </figcaption>
     </figure>`;
 }
 
+const kStageOrder = ['tables', 'decode', 'detect', 'fuse', 'people', 'background', 'blobs', 'track', 'output'];
+const kOptionalStages = new Set(['people', 'background']);
+
 function Stats({ state, frame, site }) {
   const lat = (state && state.latency_ms) || {};
-  const stages = (state && state.stages_s) || {};
-  const total = Object.values(stages).reduce((a, b) => a + (Number(b) || 0), 0);
+  // A frame set's way through the run; the stages a site does not use (0 s) are left out.
+  const stages = kStageOrder.map((k) => [k, Number(((state && state.stages_s) || {})[k])])
+    .filter(([k, v]) => v > 0 || !kOptionalStages.has(k)).filter(([, v]) => Number.isFinite(v));
+  const total = stages.reduce((a, [k, v]) => a + (k === 'tables' ? 0 : v), 0);
   const cams = (state && state.cameras) || [];
+  const frames = (state && state.frames) || 0;
   return html`
     <section class="panel">
       <h2>Pipeline</h2>
@@ -132,12 +138,14 @@ function Stats({ state, frame, site }) {
         <dt>latency</dt><dd>p50 ${fmt(lat.p50, 0)} · p95 ${fmt(lat.p95, 0)} · p99 ${fmt(lat.p99, 0)} ms</dd>
         <dt>up</dt><dd>${state ? fmt(state.uptime_s, 0) + ' s' : '–'}${state && state.running === false ? ' (inputs ended)' : ''}</dd>
       </dl>
-      <h3>Stage time</h3>
-      ${Object.keys(stages).length === 0 ? html`<p class="hint">not measured yet</p>` : null}
-      <table class="stages">
-        ${Object.entries(stages).map(([k, v]) => html`
-          <tr><td>${k}</td><td class="num">${fmt(v, 2)} s</td>
-              <td class="bar"><span style=${`width:${total > 0 ? (100 * v) / total : 0}%`}></span></td></tr>`)}
+      <h3>Stage time <span class="hint">(the stages overlap)</span></h3>
+      ${stages.length === 0 ? html`<p class="hint">not measured yet</p>` : null}
+      <table class="stages" data-testid="stages">
+        ${stages.length ? html`<tr><th>stage</th><th class="num">total</th><th class="num">per frame</th><th></th></tr>` : null}
+        ${stages.map(([k, v]) => html`
+          <tr data-stage=${k}><td>${k}</td><td class="num">${fmt(v, 2)} s</td>
+              <td class="num">${k !== 'tables' && frames > 0 ? fmt((1000 * v) / frames, 1) + ' ms' : ''}</td>
+              <td class="bar"><span style=${`width:${total > 0 && k !== 'tables' ? (100 * v) / total : 0}%`}></span></td></tr>`)}
       </table>
     </section>
     <section class="panel">
@@ -162,7 +170,7 @@ function Stats({ state, frame, site }) {
         ${cams.map((c) => html`
           <tr><td>${c.id}</td><td>${c.connected === false ? 'reconnecting' : c.active === false ? 'idle' : 'up'}</td>
               <td class="num">${fmt(c.fps)}</td><td class="num">${c.frames ?? '–'}</td><td class="num">${c.dropped ?? '–'}</td>
-              <td class="num">${c.reconnects ?? '–'}</td><td class="num">${fmt(c.background_age_s, 0)} s</td></tr>`)}
+              <td class="num">${c.reconnects ?? '–'}</td><td class="num bg-age">${fmt(c.background_age_s, 0)} s</td></tr>`)}
       </table>
     </section>`;
 }

@@ -48,8 +48,7 @@ function App() {
       </nav>
       <span class="grow"></span>
       <span class="status">
-        frame <b data-testid="frame">${frame ? frame.frame : state && state.frame >= 0 ? state.frame : "–"}</b>
-        · ${fps !== undefined && fps !== null ? Number(fps).toFixed(1) : '–'} fps
+        frame <b data-testid="frame">${frame ? frame.frame : state && state.frame >= 0 ? state.frame : "–"}</b>${' · '}${fps !== undefined && fps !== null ? Number(fps).toFixed(1) : '–'} fps
         · <span class=${'dot ' + (connected ? 'on' : 'off')}></span>${connected ? 'live' : 'reconnecting'}
       </span>
     </header>

@@ -140,7 +140,7 @@ bool FrameReader::Read(FrameSet& set) {
       }
     }
   }
-  decode_s_ += Since(t0);
+  decode_s_.store(decode_s_.load(std::memory_order_relaxed) + Since(t0), std::memory_order_relaxed);
   if (!ended.empty()) {
     size_t active_left = 0;
     for (const auto& c : cams_) active_left += c.active;

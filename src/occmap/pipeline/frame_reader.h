@@ -15,6 +15,7 @@
 //   if (!reader.failure().ok()) ...;  reader.stop_reason();
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -41,7 +42,8 @@ class FrameReader {
   const Status& failure() const { return failure_; }
   // "end of streams", "camera C2 ended at frame 40", or "" (the caller names its own reasons).
   const std::string& stop_reason() const { return stop_reason_; }
-  double decode_s() const { return decode_s_; }  // time spent reading
+  // Time spent reading (any thread may ask while the reader runs).
+  double decode_s() const { return decode_s_.load(std::memory_order_relaxed); }
   // A live stream's reader (its counters are atomics: any thread may read them), else null.
   const LiveSource* live(size_t camera) const { return live_[camera].get(); }
 
@@ -59,7 +61,7 @@ class FrameReader {
   std::vector<Status> read_status_;
   Status failure_;
   std::string stop_reason_;
-  double decode_s_ = 0;
+  std::atomic<double> decode_s_{0};
   int64_t next_frame_index_ = 0;
   int64_t frames_read_ = 0;
 };

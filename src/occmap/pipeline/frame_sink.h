@@ -23,6 +23,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,17 @@ struct CameraStats {
   int64_t frames = 0;        // frames used in frame sets
   int64_t dropped = 0;       // frames a live stream's reader dropped to stay on the newest
   int64_t reconnects = 0;    // times a live stream was opened again after dropping
+  // Mean over its pixels of the stream seconds since each was last set: an adaptive background
+  // as it updates (sampled about once a second), a fixed one (given or estimated at the start)
+  // ages with the run. NaN for a camera that gives masks.
+  double background_age_s = std::numeric_limits<double>::quiet_NaN();
+};
+
+// Seconds spent inside each stage so far (as RunSummary's, pipeline/run.h; the stages overlap,
+// so they do not add up to the run's time).
+struct StageSeconds {
+  double decode = 0, detect = 0, fuse = 0, blobs = 0, track = 0, output = 0, background = 0, people = 0;
+  double tables = 0;  // loading or building the tables, before the first frame set
 };
 
 // Latency from a frame set's arrival (its frames decoded) to its outputs written by every sink
@@ -71,6 +83,7 @@ struct RunStats {
   double frames_per_second = 0;  // the steady-state rate so far (0 before 2 frame sets)
   std::vector<CameraStats> cameras;
   LatencyFigures latency;
+  StageSeconds stages;
   int64_t tracks = 0;          // distinct reported track ids so far
   int64_t zone_events = 0;     // events so far
   std::vector<LineCounts> lines;  // per counting line (site.tracking.lines): crossings so far

@@ -60,6 +60,19 @@ namespace {
 
 double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
+// A figure written by one stage's thread and read by the writer's for the running figures
+// (RunStats): one writer, so a relaxed load and store add without a lock.
+class SharedFigure {
+ public:
+  explicit SharedFigure(double v = 0) : v_(v) {}
+  void Add(double d) { v_.store(v_.load(std::memory_order_relaxed) + d, std::memory_order_relaxed); }
+  void Set(double v) { v_.store(v, std::memory_order_relaxed); }
+  double get() const { return v_.load(std::memory_order_relaxed); }
+
+ private:
+  std::atomic<double> v_;
+};
+
 // The site's tracker, whichever algorithm it names.
 class AnyTracker {
  public:
@@ -410,6 +423,10 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   // Writer stage: the sinks, in frame order; the one place the outputs are touched until it is
   // finished. The stats the sinks see are this thread's.
   double write_s = 0;
+  // The other stages' seconds and the adaptive backgrounds' ages, for the running figures.
+  SharedFigure detect_s, fuse_s, people_s, background_s, blobs_s, track_s, post_output_s;
+  std::vector<SharedFigure> background_age_s(cams.size());
+  for (auto& a : background_age_s) a.Set(std::numeric_limits<double>::quiet_NaN());
   LatencyHistogram latency;
   // Distinct track ids in constant memory: the trackers give ids in increasing order, at
   // confirmation, when a track is reported at once, so an id above every earlier one is new.
@@ -434,7 +451,12 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       } else {
         cs.active = r.active[n];
       }
+      cs.background_age_s = cams[n].is_mask ? std::numeric_limits<double>::quiet_NaN()
+                            : cams[n].model ? background_age_s[n].get()
+                                            : static_cast<double>(r.frame - options.start_frame) / fps;
     }
+    stats.stages = {frame_reader.decode_s(), detect_s.get(), fuse_s.get(), blobs_s.get(), track_s.get(),
+                    post_output_s.get() + write_s, background_s.get(), people_s.get(), summary.lut_seconds};
     const int64_t max_before = max_track_id;
     for (const Track& t : r.tracks) {
       if (t.id > max_before) ++stats.tracks;
@@ -564,7 +586,6 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   // Post stage: detections, tracking and the frame's outputs, in frame order.
   std::vector<size_t> camera_width;  // read per pixel by the elevated check: no virtual call there
   for (const auto& c : cams) camera_width.push_back(static_cast<size_t>(c.cam->camera->image_size().width));
-  double post_output_s = 0;
   int64_t frames_done = 0;
   Clock::time_point t_first_done, t_warm_done, t_last_done;
   std::vector<ObjectDetector::ChangeBuffer> post_changes;  // the elevated check's fast path
@@ -622,7 +643,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
           ColumnMapDetections(set.column_map, objects);
         }
         const std::vector<Detection>& blobs = objects.detections;
-        summary.blobs_s += Since(t0);
+        blobs_s.Add(Since(t0));
         const int64_t frame_index = set.frame_index;
         const double time_s = std::isnan(set.timestamp_s) ? static_cast<double>(frame_index) / fps : set.timestamp_s;
         FrameRecord record;
@@ -646,7 +667,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
           std::erase_if(tracks, [&](const Track& t) { return !IsReported(t, site.tracking.report_coasting_s); });
           trails.Update(tracks);
         }
-        summary.track_s += Since(t0);
+        track_s.Add(Since(t0));
 
         // 4. Outputs: what the sinks (the writer stage) get for this frame set.
         t0 = Clock::now();
@@ -686,7 +707,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
           best_frame.kept = true;
           best_blobs = blobs.size();
         }
-        post_output_s += Since(t0);
+        post_output_s.Add(Since(t0));
         if (!writer.Push(std::move(record))) return Internal("the writer stage stopped");
         ++frames_done;
         summary.frames = frames_done;
@@ -727,6 +748,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   std::optional<ShadowTeachers> teachers;
   std::vector<ImageView<const uint8_t>> teacher_classes(cams.size()), teacher_ratios(cams.size());
   int64_t last_frame_index = options.start_frame;
+  int64_t next_age_frame = 0;
   if (adaptive) {
     std::vector<const CameraModel*> models;
     for (const auto& c : cams) models.push_back(c.cam->camera.get());
@@ -780,7 +802,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         }
       }
     }
-    summary.detect_s += Since(t0);
+    detect_s.Add(Since(t0));
     t0 = Clock::now();
     if (fused_now) {
       for (size_t n = 0; n < cams.size(); ++n) {
@@ -799,7 +821,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     } else {
       fusion.Fuse(set.changes, active, site.fusion, set.map);
     }
-    summary.fuse_s += Since(t0);
+    fuse_s.Add(Since(t0));
     if (column_fusion) {
       t0 = Clock::now();
       for (size_t n = 0; n < cams.size(); ++n) {
@@ -813,7 +835,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       });
       column_fusion->Fuse(change_counts, active, people.column, ctx, set.column_map);
       if (explainer) explainer->Explain(change_views, change_counts, active, set.column_map, people.explain, ctx, set.people);
-      summary.people_s += Since(t0);
+      people_s.Add(Since(t0));
     }
     // The adaptive backgrounds follow the frame where the map says nothing stands.
     if (adaptive) {
@@ -846,14 +868,26 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         }
       });
       last_frame_index = set.frame_index;
-      summary.background_s += Since(t0);
+      if (set.frame_index >= next_age_frame) {  // a pass over the pixels: about once a second
+        for (size_t n = 0; n < cams.size(); ++n) {
+          if (cams[n].model) background_age_s[n].Set(cams[n].model->MeanAgeS(set.frame_index));
+        }
+        next_age_frame = set.frame_index + std::max<int64_t>(1, std::lround(fps));
+      }
+      background_s.Add(Since(t0));
     }
     post.Push(*slot);  // when it has failed, the slot goes straight back to the reader
   }
   reader.join();  // it has closed filled_slots: the sources, flags and infos are ours again
   const Status post_status = post.Finish();
   const Status writer_status = writer.Finish();
-  summary.output_s = post_output_s + write_s;
+  summary.detect_s = detect_s.get();
+  summary.fuse_s = fuse_s.get();
+  summary.people_s = people_s.get();
+  summary.background_s = background_s.get();
+  summary.blobs_s = blobs_s.get();
+  summary.track_s = track_s.get();
+  summary.output_s = post_output_s.get() + write_s;
   summary.decode_s = frame_reader.decode_s();
   if (t_first_set) summary.startup_s = std::chrono::duration<double>(*t_first_set - t_start).count();
   if (frames_done > 2 * kWarmUpFrames) {

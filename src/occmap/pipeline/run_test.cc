@@ -516,6 +516,53 @@ TEST_F(RunFixture, ACallersSinkSeesEveryFrameSetInOrder) {
   }
 }
 
+// The running figures carry each stage's seconds so far (never decreasing, the final ones the
+// summary's) and each camera's background age: a fixed background ages with the run, an
+// adaptive one by its pixels' last updates.
+TEST_F(RunFixture, RunningFiguresCarryStageSecondsAndBackgroundAges) {
+  struct Recorder : FrameSink {
+    std::vector<RunStats> stats;
+    Status Consume(const FrameRecord&, const RunStats& s) override {
+      stats.push_back(s);
+      return Status::Ok();
+    }
+  };
+  for (const bool adaptive : {false, true}) {
+    SCOPED_TRACE(adaptive ? "adaptive" : "fixed");
+    const Site site = LoadSiteText(SiteText() + (adaptive ? "backgrounds: {adaptive: true}\n" : ""));
+    Context ctx(2);
+    RunOptions o = Options(adaptive ? "figures_adaptive" : "figures_fixed");
+    auto recorder = std::make_shared<Recorder>();
+    o.sinks.push_back(recorder);
+    auto r = RunSite(site, o, ctx);
+    ASSERT_TRUE(r.ok()) << r.status().message();
+    const auto& all = recorder->stats;
+    ASSERT_EQ(all.size(), static_cast<size_t>(kFrames));
+    for (size_t f = 1; f < all.size(); ++f) {
+      const StageSeconds &a = all[f - 1].stages, &b = all[f].stages;
+      EXPECT_GE(b.decode, a.decode);
+      EXPECT_GE(b.detect + b.fuse, a.detect + a.fuse);
+      EXPECT_GE(b.output, a.output);
+      EXPECT_EQ(b.tables, r->lut_seconds);
+    }
+    const StageSeconds& last = all.back().stages;
+    EXPECT_GT(last.decode, 0);
+    EXPECT_GT(last.detect + last.fuse, 0);
+    EXPECT_LE(last.fuse, r->fuse_s);
+    EXPECT_LE(last.decode, r->decode_s);
+    EXPECT_EQ(last.background > 0, adaptive);
+    for (size_t n = 0; n < 4; ++n) {
+      ASSERT_TRUE(std::isfinite(all.back().cameras[n].background_age_s)) << n;
+      if (!adaptive) {  // images at the assumed 10 fps: frame f's background is f / 10 s old
+        EXPECT_DOUBLE_EQ(all.back().cameras[n].background_age_s, (kFrames - 1) / 10.0);
+      } else {  // given, then updated where the map sees free floor: younger than the run
+        EXPECT_GE(all.back().cameras[n].background_age_s, 0);
+        EXPECT_LE(all.back().cameras[n].background_age_s, (kFrames - 1) / 10.0);
+      }
+    }
+  }
+}
+
 // The stages hand frames on in order: every output lists the frames 0, 1, 2, ... once each,
 // also with the videos on (the writer stage encodes them) and one thread.
 TEST_F(RunFixture, OutputsKeepFrameOrderThroughTheStages) {

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <utility>
 
 namespace occmap {
 namespace {
@@ -62,6 +63,19 @@ cv::Mat ToBgr(const Image<Rgb8>& image) {
 double CameraFps(const RunStats& stats, const CameraStats& c) {
   if (stats.frames <= 0) return 0;
   return stats.frames_per_second * static_cast<double>(c.frames) / static_cast<double>(stats.frames);
+}
+
+// The stages by name, in the order of a frame set's way through the run.
+std::vector<std::pair<const char*, double>> Stages(const StageSeconds& t) {
+  return {{"tables", t.tables}, {"decode", t.decode}, {"detect", t.detect}, {"fuse", t.fuse},
+          {"people", t.people}, {"background", t.background}, {"blobs", t.blobs}, {"track", t.track},
+          {"output", t.output}};
+}
+
+json StagesJson(const StageSeconds& t) {
+  json j = json::object();
+  for (const auto& [name, seconds] : Stages(t)) j[name] = Num(seconds);
+  return j;
 }
 
 }  // namespace
@@ -214,7 +228,7 @@ json StateJson(const LiveSnapshot& s, bool running, double uptime_s) {
     const double fps = CameraFps(s.stats, c);
     cams.push_back({{"id", c.id}, {"active", c.active}, {"connected", c.connected}, {"fps", Num(fps)},
                     {"frames", c.frames}, {"dropped", c.dropped}, {"reconnects", c.reconnects},
-                    {"background_age_s", nullptr}});
+                    {"background_age_s", Num(c.background_age_s)}});
   }
   const LatencyFigures& l = s.stats.latency;
   return {{"frame", s.frame},
@@ -228,8 +242,7 @@ json StateJson(const LiveSnapshot& s, bool running, double uptime_s) {
           {"tracks_total", s.stats.tracks},
           {"zone_events", s.stats.zone_events},
           {"stop_reason", s.stats.stop_reason},
-          // Cumulative stage seconds are not in a run's running figures (RunStats) yet.
-          {"stages_s", json::object()}};
+          {"stages_s", StagesJson(s.stats.stages)}};
 }
 
 std::vector<std::vector<std::vector<std::array<double, 2>>>> MaskPolygonsFromText(const Site& site,
@@ -335,6 +348,16 @@ std::string MetricsText(const LiveSnapshot& s, bool running) {
   o += fmt::format("occmap_latency_seconds{{quantile=\"0.95\"}} {:g}\n", l.p95_ms / 1000);
   o += fmt::format("occmap_latency_seconds{{quantile=\"0.99\"}} {:g}\n", l.p99_ms / 1000);
   o += fmt::format("occmap_latency_seconds_count {}\n", l.count);
+  head("occmap_camera_background_age_seconds", "gauge", "mean age of the camera's background pixels");
+  for (const CameraStats& c : s.stats.cameras) {
+    if (std::isfinite(c.background_age_s)) {
+      o += fmt::format("occmap_camera_background_age_seconds{{camera=\"{}\"}} {:g}\n", Label(c.id), c.background_age_s);
+    }
+  }
+  head("occmap_stage_seconds_total", "counter", "time spent inside each stage of the run");
+  for (const auto& [name, seconds] : Stages(s.stats.stages)) {
+    o += fmt::format("occmap_stage_seconds_total{{stage=\"{}\"}} {:g}\n", name, seconds);
+  }
   head("occmap_tracks", "gauge", "tracks reported in the latest frame set");
   o += fmt::format("occmap_tracks {}\n", s.tracks.size());
   head("occmap_zone_objects", "gauge", "tracks inside each zone");

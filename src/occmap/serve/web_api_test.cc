@@ -121,6 +121,10 @@ LiveSnapshot TestSnapshot() {
   s.stats.frames_per_second = 6.5;
   s.stats.cameras = {CameraStats{"c1", true, true, 13, 2, 1}, CameraStats{"c2", true, false, 10, 0, 3}};
   s.stats.latency = {13, 20, 40, 50, 60};
+  s.stats.cameras[0].background_age_s = 42.5;  // c2 gives masks: no background (NaN)
+  s.stats.stages.decode = 1.5;
+  s.stats.stages.fuse = 0.25;
+  s.stats.stages.tables = 3;
   s.camera_ids = {"c1", "c2"};
   return s;
 }
@@ -142,6 +146,13 @@ TEST(WebApi, FrameAndStateJson) {
   EXPECT_EQ(st["cameras"][1]["fps"], 5.0);  // in 10 of the 13 frame sets
   EXPECT_EQ(st["cameras"][0]["dropped"], 2);
   EXPECT_EQ(st["latency_ms"]["p95"], 40);
+  EXPECT_EQ(st["cameras"][0]["background_age_s"], 42.5);
+  EXPECT_TRUE(st["cameras"][1]["background_age_s"].is_null());
+  EXPECT_EQ(st["stages_s"]["decode"], 1.5);
+  EXPECT_EQ(st["stages_s"]["fuse"], 0.25);
+  EXPECT_EQ(st["stages_s"]["tables"], 3);
+  EXPECT_EQ(st["stages_s"]["track"], 0);
+  EXPECT_EQ(st["stages_s"].size(), 9u);
 }
 
 TEST(WebApi, MetricsText) {
@@ -152,9 +163,12 @@ TEST(WebApi, MetricsText) {
         "occmap_frames_dropped_total{camera=\"c1\"} 2\n", "occmap_latency_seconds{quantile=\"0.95\"} 0.04\n",
         "occmap_zone_objects{zone=\"door\"} 2\n", "occmap_zone_objects{zone=\"desk \\\"A\\\"\"} 0\n",
         "occmap_line_crossings_total{line=\"gate\",direction=\"in\"} 4\n",
-        "occmap_line_crossings_total{line=\"gate\",direction=\"out\"} 1\n", "# TYPE occmap_latency_seconds summary\n"}) {
+        "occmap_line_crossings_total{line=\"gate\",direction=\"out\"} 1\n",
+        "occmap_camera_background_age_seconds{camera=\"c1\"} 42.5\n", "occmap_stage_seconds_total{stage=\"decode\"} 1.5\n",
+        "occmap_stage_seconds_total{stage=\"tables\"} 3\n", "# TYPE occmap_latency_seconds summary\n"}) {
     EXPECT_NE(m.find(line), std::string::npos) << line << "\n" << m;
   }
+  EXPECT_EQ(m.find("occmap_camera_background_age_seconds{camera=\"c2\"}"), std::string::npos) << "no background: no sample";
   // Every sample line: name{labels} value.
   size_t start = 0;
   while (start < m.size()) {
