@@ -901,6 +901,11 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
       prev_y_[i] = static_cast<uint8_t>(level);
       const bool chroma_here = chroma_row && x % 2 == 0;
       const size_t c = chroma_here ? static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2) : 0;
+      if (prot[x] == kWalkedPerson) {
+        alt_frames_[i] = 0;
+        steady_frames_[i] = 0;
+        continue;
+      }
       if (cls == kChanged && alt_valid_[i]) {
         // Back to the alternative (the floor a learned-in person stood on): swap them.
         if (std::abs(level - pred_[alt_y_[i]]) <= threshold_) {
@@ -922,7 +927,7 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
           alt_frames_[i] = 0;
         }
       }
-      if (prot[x] == kPerson || cls == kShadow) {
+      if (prot[x] >= kPerson || cls == kShadow) {
         steady_frames_[i] = 0;
         continue;
       }

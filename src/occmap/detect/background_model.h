@@ -188,17 +188,20 @@ struct BackgroundStats {
 
 class BackgroundModel {
  public:
-  // Protection values of Update's map.
-  static constexpr uint8_t kFree = 0, kObject = 1, kPerson = 2;
+  // Protection values of Update's map, by rank (a pixel several people cover takes the highest).
+  // kPerson: never updated. kWalkedPerson: a person the run saw walk in, so the floor under
+  // them is known; never updated and never swapped with the alternative either.
+  static constexpr uint8_t kFree = 0, kObject = 1, kPerson = 2, kWalkedPerson = 3;
 
   BackgroundModel(const BackgroundOptions& options, double fps);
   // Starts from a background (chroma optional; the frames must then have it too).
   void Reset(const YuvImage& background);
   // The learner's second clusters (after Reset). A changed pixel that shows its alternative
-  // steadily for relight_s swaps it with its background, whatever the map says there: a person
-  // who stood through the learning window and then left is background again (otherwise their
-  // ghost would stand as a person for ever). It fails when the same person comes back to stand
-  // at the same place; alternatives with fewer than min_support samples are ignored.
+  // steadily for relight_s swaps it with its background unless the map marks it kWalkedPerson:
+  // a person who stood through the learning window and then left is background again (otherwise
+  // their ghost would stand as a person for ever), while a person seen walking in to stand where
+  // the learner took them for the floor stays a person. Alternatives with fewer than
+  // min_support samples are ignored.
   void SetAlternative(const BackgroundLearner::Alternative& alternative, int min_support);
   // Pixel (x, y)'s background luma (8-bit), and its alternative's or -1 when it has none.
   int BackgroundLevel(int x, int y) const { return std::min(255, (by_[Index(x, y)] + 128) >> 8); }
@@ -238,7 +241,8 @@ class BackgroundModel {
   ImageView<const uint8_t> pixel_classes() const { return {class_.data(), width_, height_, width_}; }
   enum Class : uint8_t { kBackground = 0, kChanged = 1, kShadow = 2 };
 
-  // After the fusion: protection per pixel (kFree, kObject, kPerson), the frame's index.
+  // After the fusion: protection per pixel (kFree, kObject, kPerson, kWalkedPerson), the
+  // frame's index.
   void Update(const YuvView& frame, ImageView<const uint8_t> protection, int64_t frame_index);
 
   const BackgroundStats& stats() const { return stats_; }

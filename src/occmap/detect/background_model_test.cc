@@ -152,6 +152,19 @@ TEST(BackgroundLearner, ModeKeepsTheSecondClusterAsTheAlternative) {
   EXPECT_GE(cleared_at, 10);
   EXPECT_LE(cleared_at, 11);
   EXPECT_EQ(model.AlternativeLevel(3, 3), 250);  // the person is the alternative now
+
+  // A person the run saw walk in (kWalkedPerson) who stops there for a minute stays changed:
+  // never swapped, never absorbed.
+  BackgroundModel walked(o, 10);
+  walked.Reset(mode);
+  walked.SetAlternative(alternative, 3);
+  Image<uint8_t> walked_person(w, h, BackgroundModel::kWalkedPerson);
+  for (int k = 0; k < 600; ++k) {
+    walked.DetectChanges(floor.view(), 20, changes.view());
+    ASSERT_EQ(changes(3, 3), 1) << "frame " << k;
+    walked.Update(floor.view(), walked_person.view(), k);
+  }
+  EXPECT_EQ(walked.AlternativeLevel(3, 3), alternative.levels.y(3, 3));
 }
 
 TEST(BackgroundLearner, NormalisesExposureDriftBetweenSamples) {

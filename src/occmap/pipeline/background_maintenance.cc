@@ -206,12 +206,51 @@ void BackgroundProtection::Protect(double cx, double cy, double radius, uint8_t 
   }
 }
 
-void BackgroundProtection::AddPeople(const std::vector<Eigen::Vector2d>& positions_m, double radius_m) {
-  for (const Eigen::Vector2d& p : positions_m) {
+void BackgroundProtection::AddPeople(const std::vector<Eigen::Vector2d>& positions_m, double radius_m,
+                                     const std::vector<bool>& walked) {
+  OCCMAP_CHECK(walked.empty() || walked.size() == positions_m.size(), "protection: one walked flag per person");
+  for (size_t k = 0; k < positions_m.size(); ++k) {
+    const Eigen::Vector2d& p = positions_m[k];
     ++persons_;
     person_positions_.push_back(p);
-    Protect(p.x(), p.y(), radius_m + options_.margin_m, BackgroundModel::kPerson);
+    const bool has_walked = !walked.empty() && walked[k];
+    Protect(p.x(), p.y(), radius_m + options_.margin_m, has_walked ? BackgroundModel::kWalkedPerson : BackgroundModel::kPerson);
   }
+}
+
+const std::vector<bool>& WalkedPeople::Update(const std::vector<Eigen::Vector2d>& positions_m) {
+  pairs_.clear();
+  for (size_t a = 0; a < people_.size(); ++a) {
+    for (size_t b = 0; b < positions_m.size(); ++b) {
+      const double d = (people_[a].last_m - positions_m[b]).norm();
+      if (d <= options_.gate_m) pairs_.push_back({d, {static_cast<int>(a), static_cast<int>(b)}});
+    }
+  }
+  std::sort(pairs_.begin(), pairs_.end());
+  person_of_.assign(positions_m.size(), -1);
+  matched_.assign(people_.size(), 0);
+  for (const auto& [d, ab] : pairs_) {
+    const auto [a, b] = ab;
+    if (matched_[static_cast<size_t>(a)] || person_of_[static_cast<size_t>(b)] >= 0) continue;
+    matched_[static_cast<size_t>(a)] = 1;
+    person_of_[static_cast<size_t>(b)] = a;
+  }
+  // Missed people age; the forgotten leave (matched ones keep their index until then).
+  for (size_t a = 0; a < people_.size(); ++a) people_[a].missed = matched_[a] ? 0 : people_[a].missed + 1;
+  walked_.assign(positions_m.size(), false);
+  for (size_t b = 0; b < positions_m.size(); ++b) {
+    const int a = person_of_[b];
+    if (a < 0) continue;
+    Person& p = people_[static_cast<size_t>(a)];
+    p.last_m = positions_m[b];
+    p.walked = p.walked || (p.last_m - p.first_m).norm() > options_.walked_m;
+    walked_[b] = p.walked;
+  }
+  std::erase_if(people_, [&](const Person& p) { return p.missed >= options_.forget_frames; });
+  for (size_t b = 0; b < positions_m.size(); ++b) {
+    if (person_of_[b] < 0) people_.push_back({positions_m[b], positions_m[b], false, 0});
+  }
+  return walked_;
 }
 
 void BackgroundProtection::Compute(const OccupancyMap& map, const std::vector<ImageView<const uint8_t>>& changes) {

@@ -69,8 +69,9 @@ class BackgroundProtection {
   void Compute(const OccupancyMap& map, const std::vector<ImageView<const uint8_t>>& changes);
 
   // After Compute: people found by another detector (the views' explanation) are protected as
-  // persons, a box of radius_m (plus the margin) around each.
-  void AddPeople(const std::vector<Eigen::Vector2d>& positions_m, double radius_m);
+  // persons, a box of radius_m (plus the margin) around each; walked[k] (when given) marks
+  // person k kWalkedPerson (WalkedPeople below).
+  void AddPeople(const std::vector<Eigen::Vector2d>& positions_m, double radius_m, const std::vector<bool>& walked = {});
 
   const Image<uint8_t>& image(size_t camera) const { return images_[camera]; }
   int objects() const { return objects_; }
@@ -89,6 +90,44 @@ class BackgroundProtection {
   BlobFinder finder_;
   int objects_ = 0, persons_ = 0;
   std::vector<Eigen::Vector2d> person_positions_;
+};
+
+// Which of the frame's people the run has seen walk. A learned background takes a person who
+// stood through much of the learning window for the floor, with the floor as the pixel's
+// alternative; the same pixels show the alternative again when that person leaves (their ghost
+// must go) and when they come back to stand there (they must stay). Only the past tells the two
+// apart: a ghost never moves, while a person who walked in is real wherever they stop. People
+// are followed from frame to frame by nearest position within gate_m (greedy, closest pairs
+// first); one who has been farther than walked_m from where they were first seen has walked,
+// for as long as they are followed; one missed for forget_frames frames is forgotten.
+//
+//   WalkedPeople walked;
+//   protection.AddPeople(positions, radius_m, walked.Update(positions));   // every frame
+struct WalkedPeopleOptions {
+  double gate_m = 0.6;      // farthest a person moves between two frames
+  double walked_m = 1.0;    // from the first position: has walked
+  int forget_frames = 20;   // missed in a row: forgotten
+};
+
+class WalkedPeople {
+ public:
+  explicit WalkedPeople(WalkedPeopleOptions options = {}) : options_(options) {}
+  // This frame's people (metres); the result has one flag per position: has walked.
+  const std::vector<bool>& Update(const std::vector<Eigen::Vector2d>& positions_m);
+  int followed() const { return static_cast<int>(people_.size()); }
+
+ private:
+  struct Person {
+    Eigen::Vector2d first_m, last_m;
+    bool walked = false;
+    int missed = 0;
+  };
+  WalkedPeopleOptions options_;
+  std::vector<Person> people_;
+  std::vector<bool> walked_;
+  std::vector<std::pair<double, std::pair<int, int>>> pairs_;  // (distance, (person, position))
+  std::vector<int> person_of_;                                 // per position: matched person or -1
+  std::vector<uint8_t> matched_;                               // per person
 };
 
 // Which pixels teach each camera its shadow look (BackgroundModel::LearnShadows). A cast

@@ -282,34 +282,64 @@ TEST_F(StillScene, WithoutAbsorptionTheBoxStays) {
 namespace occmap {
 namespace {
 
+// A person seen walking in is marked kWalkedPerson (never swapped with the alternative), any
+// other kPerson.
 TEST(BackgroundProtection, PeopleFromAnotherDetectorAreProtectedAsPersons) {
   testing::SmallRoom room(160, 120);
   std::vector<const CameraModel*> cameras;
   for (const auto& c : room.cameras) cameras.push_back(&c);
-  BackgroundProtection protection(cameras, 0.0, ProtectionOptions{});
   OccupancyMap empty(room.grid);
   for (auto& s : empty.states()) s = CellState::kFree;
   std::vector<Image<uint8_t>> changes;
   std::vector<ImageView<const uint8_t>> views;
-  for (int n = 0; n < 4; ++n) changes.emplace_back(160, 120);
-  for (auto& c : changes) {
-    for (int y = 0; y < 120; ++y) std::fill_n(c.row(y), 160, uint8_t{0});
-    views.push_back(c.view());
+  for (int n = 0; n < 4; ++n) changes.emplace_back(160, 120, uint8_t{0});
+  for (auto& c : changes) views.push_back(c.view());
+  for (const bool walked : {false, true}) {
+    SCOPED_TRACE(walked ? "walked in" : "not seen walking");
+    BackgroundProtection protection(cameras, 0.0, ProtectionOptions{});
+    protection.Compute(empty, views);
+    EXPECT_EQ(protection.persons(), 0);
+    protection.AddPeople({Eigen::Vector2d(2.0, 1.5)}, 0.25, {walked});
+    EXPECT_EQ(protection.persons(), 1);
+    const uint8_t expected = walked ? BackgroundModel::kWalkedPerson : BackgroundModel::kPerson;
+    for (size_t n = 0; n < 4; ++n) {
+      const auto head = room.cameras[n].Project({2.0, 1.5, 1.6});
+      const auto foot = room.cameras[n].Project({2.0, 1.5, 0.0});
+      ASSERT_TRUE(head && foot);
+      EXPECT_EQ(protection.image(n)(static_cast<int>(std::lround(head->x())), static_cast<int>(std::lround(head->y()))),
+                expected);
+      EXPECT_EQ(protection.image(n)(static_cast<int>(std::lround(foot->x())), static_cast<int>(std::lround(foot->y()))),
+                expected);
+      EXPECT_EQ(protection.image(n)(0, 0), BackgroundModel::kFree);
+    }
   }
-  protection.Compute(empty, views);
-  EXPECT_EQ(protection.persons(), 0);
-  protection.AddPeople({Eigen::Vector2d(2.0, 1.5)}, 0.25);
-  EXPECT_EQ(protection.persons(), 1);
-  for (size_t n = 0; n < 4; ++n) {
-    const auto head = room.cameras[n].Project({2.0, 1.5, 1.6});
-    const auto foot = room.cameras[n].Project({2.0, 1.5, 0.0});
-    ASSERT_TRUE(head && foot);
-    EXPECT_EQ(protection.image(n)(static_cast<int>(std::lround(head->x())), static_cast<int>(std::lround(head->y()))),
-              BackgroundModel::kPerson);
-    EXPECT_EQ(protection.image(n)(static_cast<int>(std::lround(foot->x())), static_cast<int>(std::lround(foot->y()))),
-              BackgroundModel::kPerson);
-    EXPECT_EQ(protection.image(n)(0, 0), BackgroundModel::kFree);
+}
+
+// Three people: one walks in and stops, one stands still where first seen (a ghost, or a person
+// learned in), one walks by and leaves. Flags follow each position, whatever its order.
+TEST(WalkedPeople, OnlyThoseSeenWalkingHaveWalked) {
+  WalkedPeople walked;
+  std::vector<bool> last;
+  for (int f = 0; f < 60; ++f) {
+    const Eigen::Vector2d in(1.0 + 0.1 * std::min(f, 30), 1.0);  // walks 3 m, then stands
+    const Eigen::Vector2d still(5.0, 5.0);
+    std::vector<Eigen::Vector2d> positions = {still, in};
+    if (f < 20) positions.emplace_back(8.0, 0.5 + 0.1 * f);  // walks 2 m, then is gone
+    if (f % 2) std::swap(positions[0], positions[1]);
+    last = walked.Update(positions);
+    ASSERT_EQ(last.size(), positions.size());
+    const size_t in_k = f % 2 ? 0 : 1, still_k = 1 - in_k;
+    EXPECT_FALSE(last[still_k]) << "frame " << f;
+    EXPECT_EQ(last[in_k], f >= 11) << "frame " << f;  // more than 1 m from its start
+    if (f < 20) {
+      EXPECT_EQ(last[2], f >= 11) << "frame " << f;
+    }
   }
+  EXPECT_EQ(walked.followed(), 2);  // the passer-by forgotten after 20 missed frames
+  // A person who jumps farther than the gate is someone new, who has not walked.
+  const std::vector<bool>& jumped = walked.Update({Eigen::Vector2d(5.0, 5.0), Eigen::Vector2d(4.0, 3.0)});
+  EXPECT_FALSE(jumped[0]);
+  EXPECT_FALSE(jumped[1]);
 }
 
 // A cast shadow on the floor is dark in every view; clothing that camera 0 takes for a shadow

@@ -746,6 +746,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   std::optional<BackgroundProtection> protection;
   std::vector<ImageView<const uint8_t>> protection_changes(cams.size());
   std::optional<ShadowTeachers> teachers;
+  WalkedPeople walked_people;  // people seen walking in stay people where they stop
   std::vector<ImageView<const uint8_t>> teacher_classes(cams.size()), teacher_ratios(cams.size());
   int64_t last_frame_index = options.start_frame;
   int64_t next_age_frame = 0;
@@ -850,7 +851,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       if (explainer) {  // the people the views explain, though their feet may leave the floor unchanged
         people_positions.clear();
         for (const ExplainedPerson& p : set.people) people_positions.emplace_back(p.x_m, p.y_m);
-        protection->AddPeople(people_positions, site.tracking.person_radius_m());
+        protection->AddPeople(people_positions, site.tracking.person_radius_m(), walked_people.Update(people_positions));
       }
       if (teachers) {  // the pixels that show the floor darkened, as the cameras agree
         for (size_t n = 0; n < cams.size(); ++n) {
