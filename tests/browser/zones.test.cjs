@@ -1,5 +1,5 @@
-// Zones in a real browser, on the live lab streams: a zone drawn on the setup map and saved
-// is written to the site file (valid for `occmap check`, the old file kept as .bak), and its
+// Zones in a real browser, on the live lab streams: the cameras' coverage shown on the setup
+// map; a zone drawn on it and saved is written to the site file (valid for `occmap check`, the old file kept as .bak), and its
 // count appears in the live view once the pipeline runs on the new site. A name the loader
 // refuses shows the loader's message and writes nothing.
 'use strict';
@@ -31,6 +31,20 @@ test('setup: a zone drawn and saved gets its count in the live view', { timeout:
     // The first frame set's map and camera picture, before drawing.
     await page.waitForFunction(() => [...document.querySelectorAll('.leaflet-image-layer')]
       .every((img) => img.complete && img.naturalWidth > 0), null, { timeout: 60000 });
+    // The coverage: a picture of a pixel per cell in place of the live map, and its legend
+    // (unseen, then 1..4 cameras).
+    await page.check('[data-testid=show-coverage]');
+    const grid = await page.evaluate(() => fetch('/api/site').then((r) => r.json()).then((site) => site.grid));
+    await page.waitForFunction((g) => {
+      const img = document.querySelector('[data-testid=zone-map] img.coverage-image');
+      return img && img.complete && img.naturalWidth === g.cols && img.naturalHeight === g.rows;
+    }, grid, { timeout: 60000 });
+    assert.strictEqual(await page.locator('[data-testid=coverage-legend] [data-count]').count(), 5);
+    const coverage = await page.evaluate(() => fetch('/api/coverage').then((r) => r.json()));
+    assert.strictEqual(coverage.cells, grid.cols * grid.rows);
+    assert.ok(coverage.cells_seen_by[4] > coverage.cells / 2, `the lab's floor is mostly seen by all 4: ${coverage.cells_seen_by}`);
+    await h.screenshot(page, 'serve-coverage.png');
+
     // Most of the room, so that the lab's walkers are in it.
     await page.click('[data-testid=draw-zone]');
     const corners = [[0.5, 0.5], [8.5, 0.5], [8.5, 6.0], [0.5, 6.0]];
@@ -38,6 +52,7 @@ test('setup: a zone drawn and saved gets its count in the live view', { timeout:
     await clickFloor(page, ...corners[0]);
     await page.waitForSelector('[data-testid=zone-name-0]');
     assert.strictEqual(await page.inputValue('[data-testid=zone-name-0]'), 'zone1');
+    await page.uncheck('[data-testid=show-coverage]');
     await h.screenshot(page, 'serve-zones.png');
 
     // A name the loader refuses: its message is shown, the file is untouched.

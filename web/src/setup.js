@@ -6,7 +6,7 @@ import { useEffect, useRef, useState } from 'preact/hooks';
 import htm from 'htm';
 import L from 'leaflet';
 import '@geoman-io/leaflet-geoman-free';
-import { fmt, latLngToPixel, pixelToLatLng, postJSON, putJSON, url } from './api.js';
+import { fmt, getJSON, latLngToPixel, pixelToLatLng, postJSON, putJSON, url } from './api.js';
 import { clientPoint, createFloorMap, createImageMap } from './leafmaps.js';
 
 const html = htm.bind(h);
@@ -213,9 +213,38 @@ function CameraSetup({ camera, draft, update }) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// The cameras' coverage (GET /api/coverage: the run's tables, as visibility.png) while `on`:
+// asked again every 2 s, since a saved site rebuilds the tables in the background.
+function useCoverage(on) {
+  const [coverage, setCoverage] = useState(null);
+  useEffect(() => {
+    if (!on) return undefined;
+    let stopped = false;
+    let timer = null;
+    const poll = () => getJSON('/api/coverage')
+      .then((c) => { if (!stopped) setCoverage((old) => (old && old.version === c.version ? old : c)); })
+      .catch(() => { if (!stopped) setCoverage(null); })
+      .finally(() => { if (!stopped) timer = setTimeout(poll, 2000); });
+    poll();
+    return () => { stopped = true; clearTimeout(timer); };
+  }, [on]);
+  return on ? coverage : null;
+}
+
+function CoverageLegend({ coverage }) {
+  if (!coverage) return html`<p class="hint" data-testid="coverage-legend">coverage: waiting for the tables…</p>`;
+  const pct = (n) => (coverage.cells > 0 ? (100 * n) / coverage.cells : 0).toFixed(0);
+  return html`<div class="legend" data-testid="coverage-legend">
+    ${coverage.colors.map((c, k) => html`<span data-count=${k}><i class="sw" style=${`background:${c}`}></i>
+      ${k === 0 ? 'unseen' : `${k} camera${k > 1 ? 's' : ''}`} (${pct(coverage.cells_seen_by[k])} %)</span>`)}
+  </div>`;
+}
+
 function ZoneEditor({ site, zones, lines, setZonesLines }) {
   const div = useRef(null);
   const ctx = useRef(null);
+  const [showCoverage, setShowCoverage] = useState(false);
+  const coverage = useCoverage(showCoverage);
   const readAll = () => {
     const c = ctx.current;
     const zs = []; const ls = [];
@@ -242,7 +271,9 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
     const zoneLayer = L.featureGroup().addTo(floor.map);
     const lineLayer = L.featureGroup().addTo(floor.map);
     floor.map.eachLayer((l) => { if (l.options) l.options.pmIgnore = true; });
-    ctx.current = { floor, zoneLayer, lineLayer };
+    // Under the zones' drawings (the overlay pane, 400), over the live map it replaces.
+    floor.map.createPane('coverage').style.zIndex = 350;
+    ctx.current = { floor, zoneLayer, lineLayer, coverage: null };
     const watch = (layer) => layer.on('pm:edit pm:dragend', readAll);
     for (const z of zones) {
       const p = L.polygon(z.polygon_m.map(([x, y]) => [y, x]), { color: '#2563eb', weight: 2, fillOpacity: 0.12 }).addTo(zoneLayer);
@@ -276,6 +307,19 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
     return () => floor.destroy();
   }, [JSON.stringify(site.grid)]);
 
+  // The coverage picture instead of the live map while shown.
+  useEffect(() => {
+    const c = ctx.current;
+    if (!c) return;
+    if (c.coverage) { c.coverage.remove(); c.coverage = null; }
+    c.floor.overlay.setOpacity(coverage ? 0 : 1);
+    if (coverage) {
+      c.coverage = L.imageOverlay(url('/api/coverage.png', { v: coverage.version }), c.floor.bounds, {
+        pane: 'coverage', className: 'map-image coverage-image', interactive: false, pmIgnore: true,
+      }).addTo(c.floor.map);
+    }
+  }, [coverage && coverage.version]);
+
   // Names typed in the list go onto the layers (and their labels).
   useEffect(() => {
     const c = ctx.current;
@@ -308,9 +352,13 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
       <div class="toolbar">
         <button onClick=${() => draw('Polygon')} data-testid="draw-zone">Draw a zone</button>
         <button onClick=${() => draw('Line')} data-testid="draw-line">Draw a counting line</button>
+        <label class=${showCoverage ? 'on' : ''} title="How many cameras see each cell (as occmap lut's visibility.png)">
+          <input type="checkbox" checked=${showCoverage} data-testid="show-coverage"
+            onChange=${(e) => setShowCoverage(e.target.checked)} />camera coverage</label>
         <span class="hint">click the corners, then the first one again; a line is two clicks ("in" crosses from its right to its left)</span>
       </div>
       <div class="zone-map" ref=${div} data-testid="zone-map"></div>
+      ${showCoverage ? html`<${CoverageLegend} coverage=${coverage} />` : null}
       <table class="zones" data-testid="zone-list">
         ${zones.map((z, i) => html`<tr><td>zone</td>
           <td><input value=${z.name} data-testid=${`zone-name-${i}`} onInput=${(e) => rename('zone', i, e.target.value)} /></td>

@@ -38,9 +38,12 @@
 
 namespace occmap {
 
+class GroundLut;
+
 // What a sink learns when the run starts.
 struct SinkStart {
   const Site* site = nullptr;         // the site as run (grid, zones, cameras); outlives the sink calls
+  const GroundLut* lut = nullptr;     // the run's tables (view_count: the cameras that see each cell)
   std::filesystem::path out_dir;      // the run's output folder
   double fps = 10;                    // frame rate of the run (camera 0's, 10 without one)
   std::vector<std::string> camera_ids;

@@ -284,6 +284,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   }
   SinkStart sink_start;
   sink_start.site = &site;
+  sink_start.lut = &lut;
   sink_start.out_dir = out;
   sink_start.fps = fps;
   sink_start.track = options.track;

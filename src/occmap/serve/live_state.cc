@@ -1,5 +1,7 @@
 #include "occmap/serve/live_state.h"
 
+#include "occmap/lut/ground_lut.h"
+
 namespace occmap {
 
 LiveState::LiveState() : latest_(std::make_shared<LiveSnapshot>()), start_(std::chrono::steady_clock::now()) {}
@@ -52,6 +54,17 @@ double LiveState::uptime_s() const {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
 }
 
+std::shared_ptr<const LiveCoverage> LiveState::coverage() const {
+  std::lock_guard lock(mu_);
+  return coverage_;
+}
+
+void LiveState::SetCoverage(std::shared_ptr<LiveCoverage> coverage) {
+  std::lock_guard lock(mu_);
+  if (coverage) coverage->version = ++coverage_version_;
+  coverage_ = std::move(coverage);
+}
+
 int64_t LiveState::next_version() {
   std::lock_guard lock(mu_);
   return ++version_;
@@ -64,6 +77,13 @@ Status LiveStateSink::Open(const SinkStart& start) {
   if (start.site != nullptr) {
     for (const auto& z : start.site->tracking.zones) zone_names_.push_back(z.name);
     for (const auto& l : start.site->tracking.lines) line_names_.push_back(l.name);
+  }
+  if (start.lut != nullptr) {
+    auto c = std::make_shared<LiveCoverage>();
+    c->grid = start.lut->grid();
+    c->num_cameras = start.lut->num_cameras();
+    c->view_count.assign(start.lut->view_count().begin(), start.lut->view_count().end());
+    state_->SetCoverage(std::move(c));
   }
   state_->SetFps(start.fps);
   state_->SetRunning(true);

@@ -19,9 +19,18 @@
 #include <string>
 #include <vector>
 
+#include "occmap/lut/floor_grid.h"
 #include "occmap/pipeline/frame_sink.h"
 
 namespace occmap {
+
+// The cameras that see each cell of the grid, from the run's tables (as visibility.png).
+struct LiveCoverage {
+  int64_t version = 0;  // increases with every run that opens (a saved site rebuilds the tables)
+  FloorGrid grid;
+  int num_cameras = 0;
+  std::vector<uint8_t> view_count;  // per cell, row-major from the grid's origin
+};
 
 struct LiveSnapshot {
   int64_t version = 0;   // increases with every snapshot (also across restarts of the run)
@@ -58,6 +67,9 @@ class LiveState {
   std::string ended() const;
   double uptime_s() const;
   int64_t next_version();
+  // The run's coverage, null before its tables are ready.
+  std::shared_ptr<const LiveCoverage> coverage() const;
+  void SetCoverage(std::shared_ptr<LiveCoverage> coverage);
   // The run's frame rate (SinkStart::fps), 0 before it opens.
   void SetFps(double fps) { fps_ = fps; }
   double fps() const { return fps_.load(); }
@@ -66,6 +78,8 @@ class LiveState {
   mutable std::mutex mu_;
   mutable std::condition_variable cv_;
   std::shared_ptr<const LiveSnapshot> latest_;
+  std::shared_ptr<const LiveCoverage> coverage_;
+  int64_t coverage_version_ = 0;
   bool running_ = false;
   std::string ended_;
   int64_t version_ = 0;

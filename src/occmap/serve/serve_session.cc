@@ -360,6 +360,7 @@ Result<json> ServeSession::UpdateSite(const json& body) {
   OCCMAP_ASSIGN_OR_RETURN(SiteUpdate u, WriteSiteText(path, old_text, text, options_.load));
   OCCMAP_ASSIGN_OR_RETURN(std::shared_ptr<const Site> site, LoadCurrentSite());
   StopLocked();
+  state_->SetCoverage(nullptr);  // the new site's tables replace it once they are ready
   {
     std::lock_guard lock(mu_);
     site_ = std::move(site);

@@ -7,6 +7,8 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include "occmap/lut/visibility_image.h"
+
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <utility>
@@ -387,6 +389,34 @@ std::string MapPng(const OccupancyMap& map) {
     }
   }
   return Encode(bgr, ".png", {});
+}
+
+std::string CoveragePng(const LiveCoverage& c) {
+  const FloorGrid& g = c.grid;
+  if (g.num_cells() == 0 || c.view_count.size() != static_cast<size_t>(g.num_cells())) return {};
+  cv::Mat bgr(g.cells_y, g.cells_x, CV_8UC3);
+  for (int j = 0; j < g.cells_y; ++j) {
+    uint8_t* row = bgr.ptr<uint8_t>(g.cells_y - 1 - j);
+    for (int i = 0; i < g.cells_x; ++i) {
+      const Rgb8 col = VisibilityColor(c.view_count[static_cast<size_t>(j) * g.cells_x + i], c.num_cameras);
+      row[3 * i] = col.b;
+      row[3 * i + 1] = col.g;
+      row[3 * i + 2] = col.r;
+    }
+  }
+  return Encode(bgr, ".png", {});
+}
+
+json CoverageJson(const LiveCoverage& c) {
+  std::vector<int64_t> seen_by(static_cast<size_t>(c.num_cameras) + 1, 0);
+  for (uint8_t v : c.view_count) ++seen_by[std::min<size_t>(v, seen_by.size() - 1)];
+  json colors = json::array();
+  for (int k = 0; k <= c.num_cameras; ++k) {
+    const Rgb8 col = VisibilityColor(k, c.num_cameras);
+    colors.push_back(fmt::format("#{:02x}{:02x}{:02x}", col.r, col.g, col.b));
+  }
+  return {{"version", c.version}, {"num_cameras", c.num_cameras}, {"cells", c.view_count.size()},
+          {"cells_seen_by", seen_by}, {"colors", colors}};
 }
 
 Image<Rgb8> CameraRgb(const LiveSnapshot& s, size_t n) {

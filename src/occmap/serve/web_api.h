@@ -55,6 +55,12 @@ std::string MetricsText(const LiveSnapshot& s, bool running);
 // The map as an RGB PNG, one pixel per cell, row 0 = the largest y: free white, occupied
 // black, unseen (205, 205, 205). Empty string before the first map.
 std::string MapPng(const OccupancyMap& map);
+// The cameras' coverage as visibility.png colours it (lut/visibility_image.h), an RGB PNG with
+// a pixel per cell, row 0 = the largest y (as MapPng); and its figures with the colour of each
+// count for a legend: {"version", "num_cameras", "cells", "cells_seen_by": [cells seen by
+// exactly k cameras, k = 0..N], "colors": ["#rrggbb" for k = 0..N]}.
+std::string CoveragePng(const LiveCoverage& coverage);
+nlohmann::json CoverageJson(const LiveCoverage& coverage);
 // Camera n's latest frame as JPEG, changed pixels tinted red when `change_overlay`; empty when
 // the camera has no frame yet.
 std::string CameraJpeg(const LiveSnapshot& s, size_t camera, bool change_overlay, int quality = 80);

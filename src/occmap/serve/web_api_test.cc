@@ -1,8 +1,11 @@
 #include "occmap/serve/web_api.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 
 #include <opencv2/imgcodecs.hpp>
+
+#include "occmap/lut/visibility_image.h"
 
 namespace occmap {
 namespace {
@@ -192,6 +195,40 @@ TEST(WebApi, MapPngIsNorthUp) {
   EXPECT_EQ(img.at<cv::Vec3b>(0, 2), cv::Vec3b(0, 0, 0));        // cell (2, 1), occupied: top row
   EXPECT_EQ(img.at<cv::Vec3b>(0, 0), cv::Vec3b(205, 205, 205));  // unseen
   EXPECT_TRUE(MapPng(OccupancyMap()).empty());
+}
+
+// The coverage picture: visibility.png's colours, a pixel per cell, north up; its figures.
+TEST(WebApi, CoveragePngAndJson) {
+  LiveCoverage c;
+  c.version = 4;
+  c.grid.cells_x = 3;
+  c.grid.cells_y = 2;
+  c.grid.cell_size_m = 0.5;
+  c.num_cameras = 2;
+  c.view_count = {0, 1, 2, 2, 2, 1};  // bottom row 0 1 2, top row 2 2 1
+  const std::string png = CoveragePng(c);
+  ASSERT_FALSE(png.empty());
+  const cv::Mat img = cv::imdecode(std::vector<uint8_t>(png.begin(), png.end()), cv::IMREAD_COLOR);
+  ASSERT_EQ(img.cols, 3);
+  ASSERT_EQ(img.rows, 2);
+  auto bgr = [&](int k) {
+    const Rgb8 v = VisibilityColor(k, 2);
+    return cv::Vec3b(v.b, v.g, v.r);
+  };
+  EXPECT_EQ(img.at<cv::Vec3b>(1, 0), bgr(0));  // cell (0, 0): bottom left, unseen
+  EXPECT_EQ(img.at<cv::Vec3b>(1, 2), bgr(2));
+  EXPECT_EQ(img.at<cv::Vec3b>(0, 2), bgr(1));  // cell (2, 1): top right
+  EXPECT_NE(bgr(1), bgr(2));
+  const json j = CoverageJson(c);
+  EXPECT_EQ(j["version"], 4);
+  EXPECT_EQ(j["num_cameras"], 2);
+  EXPECT_EQ(j["cells"], 6);
+  EXPECT_EQ(j["cells_seen_by"], (json{1, 2, 3}));
+  ASSERT_EQ(j["colors"].size(), 3u);
+  const Rgb8 one = VisibilityColor(1, 2);
+  EXPECT_EQ(j["colors"][1], fmt::format("#{:02x}{:02x}{:02x}", one.r, one.g, one.b));
+  c.view_count.pop_back();
+  EXPECT_TRUE(CoveragePng(c).empty()) << "counts that do not fit the grid";
 }
 
 TEST(WebApi, CameraJpegTintsChanges) {

@@ -171,6 +171,19 @@ void WebServer::Routes() {
     res.set_header("Cache-Control", "no-store");
     res.set_content(png, "image/png");
   });
+  // The cameras' coverage of the floor (the run's tables): 404 until they are loaded or built.
+  svr.Get("/api/coverage", [this](const httplib::Request&, httplib::Response& res) {
+    const auto c = backend_.state().coverage();
+    if (!c) return ErrorReply(res, 404, "no tables yet");
+    JsonReply(res, 200, CoverageJson(*c));
+  });
+  svr.Get("/api/coverage.png", [this](const httplib::Request&, httplib::Response& res) {
+    const auto c = backend_.state().coverage();
+    const std::string png = c ? CoveragePng(*c) : std::string();
+    if (png.empty()) return ErrorReply(res, 404, "no tables yet");
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(png, "image/png");
+  });
   svr.Get("/metrics", [this](const httplib::Request&, httplib::Response& res) {
     LiveState& st = backend_.state();
     res.set_content(MetricsText(*st.Latest(), st.running()), "text/plain; version=0.0.4; charset=utf-8");

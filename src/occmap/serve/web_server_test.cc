@@ -150,6 +150,28 @@ TEST_F(WebServerTest, ServesPagesAndApi) {
   EXPECT_EQ(StatusOf(Get(port_, "/api/cameras/c1/frame.jpg?overlay=bogus")), 400);
 }
 
+TEST_F(WebServerTest, CoverageOnceTheTablesAreReady) {
+  StartServer("");
+  EXPECT_EQ(StatusOf(Get(port_, "/api/coverage")), 404);
+  EXPECT_EQ(StatusOf(Get(port_, "/api/coverage.png")), 404);
+  auto c = std::make_shared<LiveCoverage>();
+  c->grid.cells_x = 4;
+  c->grid.cells_y = 3;
+  c->grid.cell_size_m = 1;
+  c->num_cameras = 1;
+  c->view_count.assign(12, 1);
+  backend_.state().SetCoverage(c);
+  const std::string j = Get(port_, "/api/coverage");
+  EXPECT_EQ(StatusOf(j), 200) << j;
+  EXPECT_NE(j.find("\"version\":1"), std::string::npos) << j;
+  const std::string png = Get(port_, "/api/coverage.png");
+  EXPECT_EQ(StatusOf(png), 200);
+  EXPECT_NE(png.find("image/png"), std::string::npos);
+  EXPECT_NE(png.find("\x89PNG"), std::string::npos);
+  backend_.state().SetCoverage(nullptr);  // a saved site: the old coverage goes
+  EXPECT_EQ(StatusOf(Get(port_, "/api/coverage")), 404);
+}
+
 TEST_F(WebServerTest, RefusesTraversal) {
   StartServer("");
   for (const char* target : {"/../etc/passwd", "/%2e%2e/%2e%2e/etc/passwd", "/..%2fapp.js", "/a%5c..%5cb",
