@@ -210,7 +210,9 @@ Status VideoWriterImpl::Open(ImageSize size, double fps, const VideoWriterOption
   // Fragmented: an empty index in front and a fragment per key frame, each flushed to the file
   // as it is finished, so that the file plays up to its last fragment at any time.
   if (fragmented_) {
-    av_dict_set(&muxer_options.dict, "movflags", "+frag_keyframe+empty_moov+default_base_moof", 0);
+    // skip_trailer: no fragment index (mfra) at the end, which the muxer would keep in memory
+    // for the whole run (an entry per fragment); players find the fragments without it.
+    av_dict_set(&muxer_options.dict, "movflags", "+frag_keyframe+empty_moov+default_base_moof+skip_trailer", 0);
     format_->flush_packets = 1;
   } else {
     av_dict_set(&muxer_options.dict, "movflags", "+faststart", 0);

@@ -59,7 +59,19 @@ MosaicRenderer::MosaicRenderer(const Site& site, int width_px) : grid_(site.grid
 Image<Rgb8> MosaicRenderer::Render(const std::vector<MosaicCamera>& cameras, const OccupancyMap& map,
                                    const std::vector<Detection>& blobs, int64_t frame, double time_s,
                                    const std::vector<Track>& tracks, const std::vector<Trail>& trails) const {
-  cv::Mat canvas(height_, width_, CV_8UC3, cv::Scalar(40, 40, 40));
+  Image<Rgb8> out;
+  Render(cameras, map, blobs, frame, time_s, tracks, trails, out);
+  return out;
+}
+
+void MosaicRenderer::Render(const std::vector<MosaicCamera>& cameras, const OccupancyMap& map,
+                            const std::vector<Detection>& blobs, int64_t frame, double time_s,
+                            const std::vector<Track>& tracks, const std::vector<Trail>& trails, Image<Rgb8>& out) const {
+  canvas_.resize(static_cast<size_t>(width_) * static_cast<size_t>(height_) * 3);
+  tile_gray_.resize(static_cast<size_t>(tile_w_) * static_cast<size_t>(tile_h_));
+  tile_changes_.resize(tile_gray_.size());
+  cv::Mat canvas(height_, width_, CV_8UC3, canvas_.data());
+  canvas.setTo(cv::Scalar(40, 40, 40));
   // Camera tiles.
   for (size_t i = 0; i < cameras.size(); ++i) {
     const MosaicCamera& cam = cameras[i];
@@ -68,13 +80,13 @@ Image<Rgb8> MosaicRenderer::Render(const std::vector<MosaicCamera>& cameras, con
     if (cam.active && !cam.gray.empty()) {
       const cv::Mat gray(cam.gray.height(), cam.gray.width(), CV_8UC1, const_cast<uint8_t*>(cam.gray.data()),
                          static_cast<size_t>(cam.gray.stride_elems()));
-      cv::Mat small_gray;
+      cv::Mat small_gray(tile_h_, tile_w_, CV_8UC1, tile_gray_.data());
       cv::resize(gray, small_gray, tile.size(), 0, 0, cv::INTER_AREA);
       cv::cvtColor(small_gray, roi, cv::COLOR_GRAY2BGR);
       if (!cam.changes.empty()) {
         const cv::Mat changes(cam.changes.height(), cam.changes.width(), CV_8UC1,
                               const_cast<uint8_t*>(cam.changes.data()), static_cast<size_t>(cam.changes.stride_elems()));
-        cv::Mat small_changes;
+        cv::Mat small_changes(tile_h_, tile_w_, CV_8UC1, tile_changes_.data());
         cv::resize(changes, small_changes, tile.size(), 0, 0, cv::INTER_NEAREST);
         for (int y = 0; y < roi.rows; ++y) {
           auto* px = roi.ptr<cv::Vec3b>(y);
@@ -151,13 +163,12 @@ Image<Rgb8> MosaicRenderer::Render(const std::vector<MosaicCamera>& cameras, con
                              : fmt::format("frame {}  t = {:.2f} s  blobs {}  tracks {}", frame, time_s, blobs.size(),
                                            tracks.size()),
               cv::Point(left_w_ + 8, 17), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
-  Image<Rgb8> out(width_, height_);
+  if (out.width() != width_ || out.height() != height_) out = Image<Rgb8>(width_, height_);
   for (int y = 0; y < height_; ++y) {
     const auto* src = canvas.ptr<cv::Vec3b>(y);
     Rgb8* dst = out.row(y);
     for (int x = 0; x < width_; ++x) dst[x] = {src[x][2], src[x][1], src[x][0]};
   }
-  return out;
 }
 
 }  // namespace occmap

@@ -5,6 +5,7 @@
 //
 //   MosaicRenderer mosaic(site, 1280);
 //   Image<Rgb8> picture = mosaic.Render(cameras, map, blobs, frame_index, time_s);
+//   mosaic.Render(cameras, map, blobs, frame_index, time_s, tracks, trails, picture);  // reused
 #pragma once
 
 #include <string>
@@ -35,6 +36,13 @@ class MosaicRenderer {
   Image<Rgb8> Render(const std::vector<MosaicCamera>& cameras, const OccupancyMap& map,
                      const std::vector<Detection>& blobs, int64_t frame, double time_s,
                      const std::vector<Track>& tracks = {}, const std::vector<Trail>& trails = {}) const;
+  // The same into `out`, whose pixels are reused when it has the size already. A run renders
+  // a picture per frame set: fresh buffers of a few MB each, taken on one thread and freed on
+  // another, fragment the allocator's arenas until a long run's memory creeps up. Not
+  // thread-safe (the drawing buffers are the renderer's).
+  void Render(const std::vector<MosaicCamera>& cameras, const OccupancyMap& map, const std::vector<Detection>& blobs,
+              int64_t frame, double time_s, const std::vector<Track>& tracks, const std::vector<Trail>& trails,
+              Image<Rgb8>& out) const;
 
  private:
   struct Marker {
@@ -49,6 +57,8 @@ class MosaicRenderer {
   // World -> panel mapping of the map (including camera positions).
   double x0_ = 0, y1_ = 0, px_per_m_ = 1;
   int panel_x_ = 0, panel_y_ = 0;
+  // Drawing buffers kept between frames: the BGR canvas and a tile's resized frame and changes.
+  mutable std::vector<uint8_t> canvas_, tile_gray_, tile_changes_;
 };
 
 }  // namespace occmap

@@ -109,6 +109,28 @@ constexpr int64_t kWarmUpFrames = 10;
 // Around a person's position, cells are their feet: they never teach the shadow look.
 constexpr double kShadowTeacherPersonRadiusM = 0.35;
 
+// Mosaic pictures handed back by the writer stage to the post stage, which draws the next ones
+// over them (MosaicRenderer::Render): a few buffers for a whole run instead of a fresh one of
+// several MB per frame set, taken on one thread and freed on another.
+class PicturePool {
+ public:
+  Image<Rgb8> Take() {
+    std::lock_guard lock(mutex_);
+    if (free_.empty()) return {};
+    Image<Rgb8> picture = std::move(free_.back());
+    free_.pop_back();
+    return picture;
+  }
+  void Give(Image<Rgb8>&& picture) {
+    std::lock_guard lock(mutex_);
+    if (!picture.empty() && free_.size() < kOutputQueue + 2) free_.push_back(std::move(picture));
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<Image<Rgb8>> free_;
+};
+
 LatencyFigures Figures(const LatencyHistogram& h) {
   LatencyFigures f;
   f.count = h.count();
@@ -437,6 +459,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   int64_t total_blobs = 0;
   size_t max_blobs = 0;
   Clock::time_point t_first_written, t_summary_written;
+  PicturePool mosaic_pool;
   StageWorker<FrameRecord> writer(kOutputQueue, [&](FrameRecord& r) -> Status {
     const auto t0 = Clock::now();
     ++stats.frames;
@@ -471,6 +494,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     stats.frames_per_second =
         stats.frames >= 2 ? static_cast<double>(stats.frames - 1) / std::chrono::duration<double>(t0 - t_first_written).count() : 0;
     for (const auto& sink : sinks) OCCMAP_RETURN_IF_ERROR(sink->Consume(r, stats));
+    mosaic_pool.Give(std::move(r.mosaic));
     latency.Add(std::chrono::duration<double>(Clock::now() - r.arrival).count());
     stats.latency = Figures(latency);
     // The running summary (live outputs only: atomic ones appear at the end, all at once).
@@ -542,7 +566,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   std::vector<Image<uint8_t>> post_raw(cams.size());
   std::vector<std::vector<uint8_t>> post_scratch(cams.size());
   auto render_mosaic = [&](FrameSet& set, const std::vector<Detection>& blobs, double time_s,
-                           const std::vector<Track>& tracks, const std::vector<Trail>& trail_list) {
+                           const std::vector<Track>& tracks, const std::vector<Trail>& trail_list,
+                           Image<Rgb8>& picture) {
     const std::vector<Frame>& frames = set.frames;
     const std::vector<bool>& active = set.active;
     if (!set.changes_ready) {  // fully fused: the changes of this frame, for its picture
@@ -571,7 +596,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       }
       tiles.push_back(t);
     }
-    return mosaic.Render(tiles, set.map, blobs, set.frame_index, time_s, tracks, trail_list);
+    mosaic.Render(tiles, set.map, blobs, set.frame_index, time_s, tracks, trail_list, picture);
   };
   // Without mosaic video: the frame set with the most detections so far and what its picture
   // shows, drawn at the end.
@@ -684,7 +709,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
         const bool first = options.mosaic_video ? best_mosaic.empty() : !best_frame.kept;
         const bool best = first || blobs.size() > best_blobs;
         if (options.mosaic_video) {
-          Image<Rgb8> picture = render_mosaic(set, blobs, time_s, tracks, trails.Trails());
+          Image<Rgb8> picture = mosaic_pool.Take();
+          render_mosaic(set, blobs, time_s, tracks, trails.Trails(), picture);
           if (best) {
             best_mosaic = picture;
             best_blobs = blobs.size();
@@ -927,8 +953,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   summary.tracks = stats.tracks;
   summary.zone_events = stats.zone_events;
   if (best_frame.kept && output_failure.ok()) {
-    best_mosaic =
-        render_mosaic(best_frame.set, best_frame.detections, best_frame.time_s, best_frame.tracks, best_frame.trails);
+    render_mosaic(best_frame.set, best_frame.detections, best_frame.time_s, best_frame.tracks, best_frame.trails,
+                  best_mosaic);
   }
   if (!best_mosaic.empty() && output_failure.ok()) {
     output_failure = WritePng(out / "mosaic.png", best_mosaic.view());
