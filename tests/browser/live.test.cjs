@@ -57,10 +57,15 @@ test('live view: map, cameras and moving tracks', { timeout: 240000 }, async (t)
       null, { timeout: 30000 });
     assert.strictEqual(await page.locator('.tile').count(), 4);
     await page.waitForFunction(() => document.querySelectorAll('.tile .badge.up').length === 4, null, { timeout: 30000 });
+    // The pictures are refreshed at their steady rate: the frame a tile shows advances.
+    const tileFrame = () => page.$eval('.tile[data-camera=cam1]', (e) => Number(e.dataset.frame));
+    const shown1 = await tileFrame();
     const frame1 = Number(await page.textContent('[data-testid=frame]'));
-    await page.waitForTimeout(1000);
+    await page.waitForTimeout(1500);
     const frame2 = Number(await page.textContent('[data-testid=frame]'));
     assert.ok(frame2 > frame1, `the frame number advances (${frame1}, then ${frame2})`);
+    const shown2 = await tileFrame();
+    assert.ok(shown2 > shown1, `cam1's picture is refreshed (frame ${shown1}, then ${shown2})`);
 
     // Stage timings and background ages, from /api/state: measured, and shown.
     await page.waitForFunction(() => {
@@ -76,6 +81,14 @@ test('live view: map, cameras and moving tracks', { timeout: 240000 }, async (t)
     assert.ok(state.cameras.every((c) => c.background_age_s > 0), `background_age_s: ${JSON.stringify(state.cameras)}`);
     assert.ok(state.stages_s.decode > 0 && state.stages_s.output > 0, `stages_s: ${JSON.stringify(state.stages_s)}`);
     await h.screenshot(page, 'serve-live.png');
+
+    // cam4's stream stops: its tile says so while the others stay up.
+    await h.stopProcess(senders[3]);
+    await page.waitForFunction(() => {
+      const badge = document.querySelector('.tile[data-camera=cam4] [data-testid=camera-condition]');
+      return badge && /reconnecting|lost/.test(badge.textContent);
+    }, null, { timeout: 60000 });
+    assert.strictEqual(await page.locator('.tile .badge.up').count(), 3);
     assert.deepStrictEqual(page.errors, []);
   } catch (e) {
     await page.screenshot({ path: `${dir}/failure.png` });

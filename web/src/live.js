@@ -84,33 +84,53 @@ function FloorMap({ site, frame }) {
   return html`<div class="floor-map" ref=${div} data-testid="live-map"></div>`;
 }
 
-// A camera's picture with the change overlay, reloaded on frame events once the previous one
-// has arrived (at most one request in flight per tile).
-function CameraTile({ camera, frameNo, camState }) {
+// A camera's condition from /api/state: its stream ended or failed (lost), a live stream
+// reopening (reconnecting), the run over (stopped), else up.
+export function cameraCondition(cam, state) {
+  if (state && state.running === false) return { label: 'stopped', cls: 'idle' };
+  if (cam.active === false) return { label: 'lost', cls: 'down' };
+  if (cam.connected === false) return { label: 'reconnecting', cls: 'warn' };
+  return { label: 'up', cls: 'up' };
+}
+
+const kTileIntervalMs = 250;  // camera pictures: 4 a second each, whatever the frame rate
+
+// A camera's latest frame with its changed pixels tinted red, fetched at a steady rate while
+// frames come (at most one request in flight; a frame already shown is not fetched again).
+function CameraTile({ camera, latestFrame, camState, state }) {
   const img = useRef(null);
   const busy = useRef(false);
-  const pending = useRef(null);
-  const load = (n) => {
-    if (busy.current) { pending.current = n; return; }
-    busy.current = true;
-    img.current.src = url(`/api/cameras/${encodeURIComponent(camera.id)}/frame.jpg`, { overlay: 'change', f: n });
-  };
-  const done = () => {
+  const shown = useRef(null);
+  const [loaded, setLoaded] = useState(null);
+  useEffect(() => {
+    const tick = () => {
+      const f = latestFrame.current;
+      if (busy.current || f === null || f === shown.current || !img.current) return;
+      busy.current = true;
+      shown.current = f;
+      img.current.src = url(`/api/cameras/${encodeURIComponent(camera.id)}/frame.jpg`, { overlay: 'change', f });
+    };
+    tick();
+    const timer = setInterval(tick, kTileIntervalMs);
+    return () => clearInterval(timer);
+  }, [camera.id]);
+  const done = (ok) => () => {
     busy.current = false;
-    if (pending.current !== null) { const n = pending.current; pending.current = null; load(n); }
+    if (ok) setLoaded(shown.current);
+    else shown.current = null;  // 404 before its first frame: ask again at the next tick
   };
-  useEffect(() => { if (img.current) load(frameNo === undefined ? 0 : frameNo); }, [frameNo]);
   const s = camState || {};
-  const up = s.connected !== false && s.active !== false;
+  const cond = cameraCondition(s, state);
   return html`
-    <figure class="tile" data-camera=${camera.id}>
-      <img ref=${img} onLoad=${done} onError=${done} alt=${'camera ' + camera.id}
+    <figure class="tile" data-camera=${camera.id} data-frame=${loaded ?? ''}>
+      <img ref=${img} onLoad=${done(true)} onError=${done(false)} alt=${'camera ' + camera.id}
            style=${`aspect-ratio: ${camera.width_px} / ${camera.height_px}`} />
       <figcaption>
         <b>${camera.id}</b>
-        <span class=${'badge ' + (up ? 'up' : 'down')}>${up ? 'up' : s.reconnects ? 'reconnecting' : 'down'}</span>
-        <span>${fmt(s.fps)} fps</span>
-        <span title="frames dropped">${s.dropped || 0} dropped</span>
+        <span class=${'badge ' + cond.cls} data-testid="camera-condition">${cond.label}</span>
+        <span title="frames per second this camera gives the run">${fmt(s.fps)} fps</span>
+        ${s.dropped ? html`<span title="frames a live stream dropped to stay on the newest">${s.dropped} drop</span>` : null}
+        ${s.reconnects ? html`<span title="times the stream was opened again">${s.reconnects} reconn</span>` : null}
         <span title="mean age of the background's pixels" data-testid="tile-bg-age">bg ${fmt(s.background_age_s, 0)} s</span>
       </figcaption>
     </figure>`;
@@ -168,7 +188,7 @@ function Stats({ state, frame, site }) {
       <table class="cams">
         <tr><th>id</th><th>state</th><th>fps</th><th title="frames read">frames</th><th title="frames dropped">drop</th><th title="reconnections">reconn</th><th title="age of the background model">bg age</th></tr>
         ${cams.map((c) => html`
-          <tr><td>${c.id}</td><td>${c.connected === false ? 'reconnecting' : c.active === false ? 'idle' : 'up'}</td>
+          <tr data-camera=${c.id}><td>${c.id}</td><td>${cameraCondition(c, state).label}</td>
               <td class="num">${fmt(c.fps)}</td><td class="num">${c.frames ?? '–'}</td><td class="num">${c.dropped ?? '–'}</td>
               <td class="num">${c.reconnects ?? '–'}</td><td class="num bg-age">${fmt(c.background_age_s, 0)} s</td></tr>`)}
       </table>
@@ -177,14 +197,10 @@ function Stats({ state, frame, site }) {
 
 export function LiveView({ site, state, frame }) {
   const camStates = new Map(((state && state.cameras) || []).map((c) => [c.id, c]));
-  // Camera pictures follow the frame events, at most 5 per second each.
-  const [tileFrame, setTileFrame] = useState(0);
-  const lastTile = useRef(0);
-  useEffect(() => {
-    if (!frame) return;
-    const now = performance.now();
-    if (now - lastTile.current >= 200) { lastTile.current = now; setTileFrame(frame.frame); }
-  }, [frame]);
+  // The newest frame set, for the tiles' own timers (no re-render per frame event needed).
+  const latestFrame = useRef(null);
+  const newest = frame ? frame.frame : state && state.frame >= 0 ? state.frame : null;
+  if (newest !== null) latestFrame.current = newest;
   return html`
     <div class="live">
       <div class="map-col">
@@ -195,7 +211,8 @@ export function LiveView({ site, state, frame }) {
           <span><i class="sw trk"></i>track, trail</span>
         </div>
         <div class="tiles">
-          ${site.cameras.map((c) => html`<${CameraTile} key=${c.id} camera=${c} frameNo=${tileFrame} camState=${camStates.get(c.id)} />`)}
+          ${site.cameras.map((c) => html`<${CameraTile} key=${c.id} camera=${c} latestFrame=${latestFrame}
+            camState=${camStates.get(c.id)} state=${state} />`)}
         </div>
       </div>
       <aside class="side"><${Stats} state=${state} frame=${frame} site=${site} /></aside>
