@@ -5,6 +5,7 @@
 // Environment (set by CTest): OCCMAP (the binary), OCCMAP_SCENE (the rendered scene folder),
 // OCCMAP_SOURCE_DIR, NODE_PATH (npm ci's node_modules of the build tree).
 'use strict';
+const assert = require('node:assert');
 const { spawn, spawnSync } = require('node:child_process');
 const dgram = require('node:dgram');
 const fs = require('node:fs');
@@ -137,7 +138,63 @@ function trueFloorPoints(camera, points) {
   });
 }
 
+// One test's world, torn down by node:test's t.after whatever happens: a folder, a copy of the
+// scene's site (its cameras streamed over UDP when `streams`), `occmap serve` on it and a
+// browser. open(path) gives a page of it; check(body) runs the test's steps, then asserts that
+// no page had a script error, and on a failure keeps a screenshot and the server's log.
+//   const s = await h.start(t, 'zones', { streams: true });
+//   const page = await s.open('/#setup');
+//   await s.check(async () => { ... });
+async function start(t, name, { streams = false, listen, args } = {}) {
+  const dir = tempDir(name);
+  const cameras = fs.readdirSync(path.join(sceneDir, 'frames')).filter((f) => /^cam\d+\.mp4$/.test(f)).length;
+  const ports = streams ? await freeUdpPorts(cameras) : null;
+  const senders = ports ? streamCameras(ports) : [];
+  const world = { dir, site: siteCopy(dir, ports), senders, serve: null, browser: null, pages: [] };
+  world.original = fs.readFileSync(world.site, 'utf8');
+  t.after(async () => {
+    if (world.browser) await world.browser.close();
+    if (world.serve) await world.serve.stop();
+    for (const s of senders) await stopProcess(s);
+  });
+  world.serve = await startServe(world.site, { listen, args });
+  world.browser = await launchBrowser();
+  // A server on every address is reached through loopback.
+  world.base = world.serve.url.replace('://0.0.0.0:', '://127.0.0.1:');
+  world.open = async (p = '/') => {
+    const page = await openPage(world.browser, world.base + p);
+    world.pages.push(page);
+    return page;
+  };
+  world.check = async (body) => {
+    try {
+      await body();
+      for (const page of world.pages) assert.deepStrictEqual(page.errors, [], 'script errors on the page');
+    } catch (e) {
+      const page = world.pages[world.pages.length - 1];
+      if (page && !page.isClosed()) await page.screenshot({ path: path.join(dir, 'failure.png') }).catch(() => {});
+      console.log(`serve log:\n${world.serve.log()}\nscreenshot: ${dir}/failure.png`);
+      throw e;
+    }
+  };
+  return world;
+}
+
+// Waits until every picture matching `selector` has loaded.
+function picturesLoaded(page, selector, timeout = 60000) {
+  return page.waitForFunction((sel) => {
+    const imgs = [...document.querySelectorAll(sel)];
+    return imgs.length > 0 && imgs.every((img) => img.complete && img.naturalWidth > 0);
+  }, selector, { timeout });
+}
+
+// `occmap check SITE` passes.
+function assertSiteValid(site) {
+  const r = runOccmap(['check', site]);
+  assert.strictEqual(r.status, 0, `occmap check ${site}: ${r.stdout}${r.stderr}`);
+}
+
 module.exports = {
   sceneDir, sourceDir, tempDir, siteCopy, freeUdpPorts, streamCameras, stopProcess, startServe,
-  launchBrowser, openPage, screenshot, runOccmap, trueFloorPoints,
+  launchBrowser, openPage, screenshot, runOccmap, trueFloorPoints, start, picturesLoaded, assertSiteValid,
 };

@@ -17,38 +17,24 @@ test('a non-loopback address needs a token', { timeout: 60000 }, () => {
 });
 
 test('with a token: refused without it, the live page works with it', { timeout: 240000 }, async (t) => {
-  const dir = h.tempDir('token');
-  const serve = await h.startServe(h.siteCopy(dir), { listen: '0.0.0.0:0', args: ['--token', kToken] });
-  const base = serve.url.replace('://0.0.0.0:', '://127.0.0.1:');
-  const browser = await h.launchBrowser();
-  t.after(async () => { await browser.close(); await serve.stop(); });
-
-  const bare = await browser.newPage();
-  const refused = await bare.goto(base + '/');
+  const s = await h.start(t, 'token', { listen: '0.0.0.0:0', args: ['--token', kToken] });
+  const bare = await s.browser.newPage();
+  const refused = await bare.goto(s.base + '/');
   assert.strictEqual(refused.status(), 401);
-  for (const path of ['/app.js', '/api/site', '/api/map.png', '/events']) {
+  for (const path of ['/app.js', '/api/site', '/api/map.png', '/api/coverage.png', '/events']) {
     const status = await bare.evaluate((p) => fetch(p).then((r) => r.status), path);
     assert.strictEqual(status, 401, `${path} without the token`);
   }
   const wrong = await bare.evaluate(() => fetch('/api/state', { headers: { Authorization: 'Bearer nope' } }).then((r) => r.status));
   assert.strictEqual(wrong, 401, 'a wrong Bearer token');
 
-  const page = await h.openPage(browser, `${base}/?token=${kToken}`);
-  try {
+  const page = await s.open(`/?token=${kToken}`);
+  await s.check(async () => {
     await page.waitForSelector('header .brand', { timeout: 30000 });
-    await page.waitForFunction(() => {
-      const img = document.querySelector('.floor-map img.map-image');
-      return img && img.complete && img.naturalWidth > 0;
-    }, null, { timeout: 60000 });
+    await h.picturesLoaded(page, '.floor-map img.map-image');
     await page.waitForFunction(() => document.querySelector('header .dot.on') !== null, null, { timeout: 30000 });
-    await page.waitForFunction(() => [...document.querySelectorAll('.tile img')].every((i) => i.complete && i.naturalWidth > 0),
-      null, { timeout: 30000 });
+    await h.picturesLoaded(page, '.tile img', 30000);
     const bearer = await page.evaluate((tk) => fetch('/api/state', { headers: { Authorization: `Bearer ${tk}` } }).then((r) => r.status), kToken);
     assert.strictEqual(bearer, 200, 'the Bearer header');
-    assert.deepStrictEqual(page.errors, []);
-  } catch (e) {
-    await page.screenshot({ path: `${dir}/failure.png` });
-    console.log(`serve log:\n${serve.log()}\nscreenshot: ${dir}/failure.png`);
-    throw e;
-  }
+  });
 });

@@ -1,7 +1,7 @@
 // Zones in a real browser, on the live lab streams: the cameras' coverage shown on the setup
-// map; a zone drawn on it and saved is written to the site file (valid for `occmap check`, the old file kept as .bak), and its
-// count appears in the live view once the pipeline runs on the new site. A name the loader
-// refuses shows the loader's message and writes nothing.
+// map; a zone drawn on it and saved is written to the site file (valid for `occmap check`, the
+// old file kept as .bak), and its count appears in the live view once the pipeline runs on the
+// new site. A name the loader refuses shows the loader's message and writes nothing.
 'use strict';
 const test = require('node:test');
 const assert = require('node:assert');
@@ -13,24 +13,13 @@ async function clickFloor(page, x, y) {
   await page.mouse.click(at.x, at.y);
 }
 
-test('setup: a zone drawn and saved gets its count in the live view', { timeout: 300000 }, async (t) => {
-  const dir = h.tempDir('zones');
-  const ports = await h.freeUdpPorts(4);
-  const senders = h.streamCameras(ports);
-  const site = h.siteCopy(dir, ports);
-  const original = fs.readFileSync(site, 'utf8');
-  const serve = await h.startServe(site);
-  const browser = await h.launchBrowser();
-  t.after(async () => {
-    await browser.close();
-    await serve.stop();
-    for (const s of senders) await h.stopProcess(s);
-  });
-  const page = await h.openPage(browser, serve.url + '/#setup');
-  try {
+test('setup: coverage shown; a zone drawn and saved gets its count in the live view', { timeout: 300000 }, async (t) => {
+  const s = await h.start(t, 'zones', { streams: true });
+  const page = await s.open('/#setup');
+  await s.check(async () => {
     // The first frame set's map and camera picture, before drawing.
-    await page.waitForFunction(() => [...document.querySelectorAll('.leaflet-image-layer')]
-      .every((img) => img.complete && img.naturalWidth > 0), null, { timeout: 60000 });
+    await h.picturesLoaded(page, '.leaflet-image-layer');
+
     // The coverage: a picture of a pixel per cell in place of the live map, and its legend
     // (unseen, then 1..4 cameras).
     await page.check('[data-testid=show-coverage]');
@@ -61,16 +50,14 @@ test('setup: a zone drawn and saved gets its count in the live view', { timeout:
     await page.waitForSelector('[data-testid=save-message].error', { timeout: 30000 });
     const refusal = await page.textContent('[data-testid=save-message]');
     assert.match(refusal, /zone|name/i, `the loader's message: ${refusal}`);
-    assert.strictEqual(fs.readFileSync(site, 'utf8'), original, 'nothing written on a refused save');
+    assert.strictEqual(fs.readFileSync(s.site, 'utf8'), s.original, 'nothing written on a refused save');
 
     await page.fill('[data-testid=zone-name-0]', 'room');
     await page.click('[data-testid=save]');
     await page.waitForSelector('[data-testid=save-message].ok', { timeout: 60000 });
-    const check = h.runOccmap(['check', site]);
-    assert.strictEqual(check.status, 0, `occmap check ${site}: ${check.stdout}${check.stderr}`);
-    const saved = fs.readFileSync(site, 'utf8');
-    assert.match(saved, /room/, 'the zone is in the saved site file');
-    assert.strictEqual(fs.readFileSync(site + '.bak', 'utf8'), original, 'the previous file kept as .bak');
+    h.assertSiteValid(s.site);
+    assert.match(fs.readFileSync(s.site, 'utf8'), /room/, 'the zone is in the saved site file');
+    assert.strictEqual(fs.readFileSync(s.site + '.bak', 'utf8'), s.original, 'the previous file kept as .bak');
 
     // The live view lists the zone and its count arrives with the frames.
     await page.click('a[data-tab=live]');
@@ -79,10 +66,5 @@ test('setup: a zone drawn and saved gets its count in the live view', { timeout:
       return row && /^\d+$/.test(row.textContent.trim());
     }, null, { timeout: 90000 });
     await page.waitForFunction(() => document.querySelector('.floor-map .zone-label') !== null);
-    assert.deepStrictEqual(page.errors, []);
-  } catch (e) {
-    await page.screenshot({ path: `${dir}/failure.png` });
-    console.log(`serve log:\n${serve.log()}\nscreenshot: ${dir}/failure.png`);
-    throw e;
-  }
+  });
 });

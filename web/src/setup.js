@@ -190,7 +190,7 @@ function CameraSetup({ camera, draft, update }) {
             <td>${i + 1}</td><td class="num">${fmt(p.u_px, 1)}</td><td class="num">${fmt(p.v_px, 1)}</td>
             <td><input class="coord" data-testid=${`x-${i}`} inputmode="decimal" value=${p.x_m} onInput=${(e) => setField(i, 'x_m', e.target.value)} /></td>
             <td><input class="coord" data-testid=${`y-${i}`} inputmode="decimal" value=${p.y_m} onInput=${(e) => setField(i, 'y_m', e.target.value)} /></td>
-            <td class=${'num ' + (r ? (r.error_px <= 1 ? 'good' : 'bad') : '')}>${r ? fmt(r.error_px, 2) : ''}</td>
+            <td class=${'num error-px ' + (r ? (r.error_px <= 1 ? 'good' : 'bad') : '')}>${r ? fmt(r.error_px, 2) : ''}</td>
             <td class="num">${r ? fmt(r.floor_error_m * 100, 1) : ''}</td>
             <td><button class="small" onClick=${() => remove(i)} title="Remove this point">×</button></td></tr>`;
         })}
@@ -202,7 +202,7 @@ function CameraSetup({ camera, draft, update }) {
           </select></label>
         <button class="primary" disabled=${busy} onClick=${calibrate} data-testid="calibrate">Calibrate</button>
         ${result ? html`<span class="result" data-testid="calibration-result">
-            RMS <b data-testid="rms-px">${fmt(result.rms_px, 2)}</b> px · floor <b>${fmt(result.floor_rms_m * 100, 1)}</b> cm
+            RMS <b data-testid="rms-px">${fmt(result.rms_px, 2)}</b> px · floor <b data-testid="floor-cm">${fmt(result.floor_rms_m * 100, 1)}</b> cm
             ${result.rms_px <= 1 ? html`<span class="badge up">good</span>` : html`<span class="badge down">check the points</span>`}
             <span class="hint">(pending until saved)</span></span>` : null}
         ${result && result.warnings && result.warnings.length

@@ -1,0 +1,53 @@
+// A floor mask in a real browser: on camera cam2's frame, draw a polygon with the mask tool,
+// save: the site file has it as the camera's mask polygon (`occmap check` loads it); reloaded,
+// the page shows the polygon again and /api/site lists it.
+'use strict';
+const test = require('node:test');
+const assert = require('node:assert');
+const fs = require('node:fs');
+const h = require('./harness.cjs');
+
+async function clickPixel(page, u, v) {
+  const at = await page.evaluate(([x, y]) => window.occmap.cameraToClient(x, y), [u, v]);
+  await page.mouse.click(at.x, at.y);
+}
+
+test('setup: a floor mask polygon drawn, saved and reloaded', { timeout: 240000 }, async (t) => {
+  const s = await h.start(t, 'mask');
+  const page = await s.open('/#setup');
+  const corners = [[60, 180], [580, 180], [620, 470], [20, 470]];
+  await s.check(async () => {
+    await page.click('.cam-tabs button[data-camera=cam2]');
+    await h.picturesLoaded(page, '[data-testid=camera-map] img.leaflet-image-layer', 30000);
+    await page.check('[data-testid=mode-mask]');
+    await page.click('[data-testid=camera-map] .leaflet-pm-icon-polygon');
+    for (const [u, v] of corners) await clickPixel(page, u, v);
+    await clickPixel(page, ...corners[0]);
+    await page.waitForFunction(() => document.querySelectorAll('[data-testid=camera-map] path.leaflet-interactive').length === 1);
+    assert.match(await page.textContent('.savebar'), /masks of cam2/);
+    await h.screenshot(page, 'serve-mask.png');
+
+    await page.click('[data-testid=save]');
+    await page.waitForSelector('[data-testid=save-message].ok', { timeout: 60000 });
+    h.assertSiteValid(s.site);
+    const saved = fs.readFileSync(s.site, 'utf8');
+    assert.match(saved, /mask: \{polygons: \[\[\[/, 'cam2 has a mask polygon in the site file');
+
+    // Reloaded: the polygon is read back from the file.
+    await page.reload();
+    await page.click('.cam-tabs button[data-camera=cam2]');
+    await page.check('[data-testid=mode-mask]');
+    await page.waitForFunction(() => document.querySelectorAll('[data-testid=camera-map] path.leaflet-interactive').length === 1,
+      null, { timeout: 30000 });
+    const site = await page.evaluate(() => fetch('/api/site').then((r) => r.json()));
+    const cam2 = site.cameras.find((c) => c.id === 'cam2');
+    assert.strictEqual(cam2.mask_polygons_px.length, 1, JSON.stringify(cam2));
+    const poly = cam2.mask_polygons_px[0];
+    assert.strictEqual(poly.length, 4);
+    // Where the clicks landed: a screen pixel spans about 1.6 of the image's at the page's zoom.
+    poly.forEach(([u, v], i) => {
+      assert.ok(Math.abs(u - corners[i][0]) <= 3 && Math.abs(v - corners[i][1]) <= 3, `corner ${i}: (${u}, ${v}) for ${corners[i]}`);
+    });
+    assert.ok(cam2.has_mask);
+  });
+});
