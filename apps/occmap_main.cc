@@ -619,6 +619,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"index", "timestamp"}))->capture_default_str();
   run_cmd->add_flag("--continue-without-camera", run.continue_without_camera,
                     "when a camera's stream ends or fails, go on without it (its cells become unseen)");
+  run_cmd->add_option("--camera-lost-after-s", run.options.camera_lost_after_s,
+                      "a live stream without a frame this long ends the run (camera lost), unless "
+                      "--continue-without-camera (then it keeps reconnecting)")
+      ->capture_default_str();
   run_cmd->add_flag("--occupancy-pngs", run.options.occupancy_pngs, "also write occupancy/NNNNNN.png per frame");
   run_cmd->add_flag("--change-pngs", run.options.change_pngs,
                     "also write changes/<camera>/NNNNNN.png per frame (changed pixels, before the tolerance)");

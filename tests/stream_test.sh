@@ -3,6 +3,7 @@
 # over UDP stream per camera, in real time, looping), detections.jsonl growing while it runs;
 # one camera's stream stopped for 5 s (it is left out: its frame count stalls, then it rejoins
 # without a restart), then SIGINT: exit 0 within 2 s, every output valid, no temporary file.
+# Then camera 2's stream stops for good: the run ends with "camera cam2 lost" (exit 1).
 # Usage: stream_test.sh OCCMAP_BINARY SOURCE_DIR   (skipped, exit 0, without the ffmpeg program)
 set -uo pipefail
 occmap=$1
@@ -69,5 +70,35 @@ print(f"summary: {s['frames']} frame sets, camera 1: {c['frames']} frames, {c['r
       f"{c['dropped_frames']} dropped; latency ms p50 {s['latency_ms']['p50']} p95 {s['latency_ms']['p95']} "
       f"p99 {s['latency_ms']['p99']}")
 sys.exit(0 if s["stop_reason"] == "stop requested" else 1)
+PY
+
+# Camera 2's stream goes for good: without --continue-without-camera the run ends once it has
+# been silent for --camera-lost-after-s, saying so (exit 1), its outputs valid.
+out="$work/lost"
+"$occmap" run "$work/lab/stream.yaml" --out "$out" --no-cache --camera-lost-after-s 2 >"$work/lost.log" 2>&1 &
+pid=$!
+tl_track $pid
+for _ in $(seq 300); do
+  [ "$(lines "$out/detections.jsonl")" -ge 20 ] && break
+  sleep 0.1
+done
+tl_stop_serving 2
+for _ in $(seq 150); do
+  kill -0 $pid 2>/dev/null || break
+  sleep 0.1
+done
+if kill -0 $pid 2>/dev/null; then fail "the run did not end 15 s after camera 2's stream went"; kill -INT $pid; fi
+wait $pid
+code=$?
+echo "camera 2 gone: exit $code; $(tail -1 "$work/lost.log")"
+if [ $code -eq 1 ]; then ok; else fail "exit $code, want 1 (camera lost)"; cat "$work/lost.log"; fi
+if grep -q "camera cam2 lost" "$work/lost.log"; then ok; else fail "no 'camera cam2 lost' in the message"; fi
+if "$python" "$src/tests/check_run_outputs.py" "$out" final; then ok; else fail "outputs after a lost camera"; fi
+"$python" - "$out/summary.json" <<'PY' || fail "summary after a lost camera"
+import json, sys
+s = json.load(open(sys.argv[1]))
+c = s["cameras"][1]
+print(f"summary: stop_reason {s['stop_reason']!r}; camera 2 end_reason {c.get('end_reason')!r}")
+sys.exit(0 if s["stop_reason"].startswith("camera cam2 lost") and c.get("end_reason", "").startswith("lost:") else 1)
 PY
 tl_finish stream_test

@@ -29,6 +29,7 @@ FrameReader::FrameReader(std::vector<CameraState>& cams, const RunOptions& optio
       read_status_(cams.size()),
       next_frame_index_(options.start_frame) {
   live_.resize(cams.size());
+  last_live_frame_.assign(cams.size(), Clock::now());
   LiveSourceOptions live_options;
   for (size_t n = 0; n < cams.size(); ++n) {
     CameraState& c = cams[n];
@@ -78,6 +79,25 @@ bool FrameReader::Read(FrameSet& set) {
   if (num_live_ > 0 && !ReadLive(set)) {
     stop_reason_ = "stop requested";
     return false;
+  }
+  // Lost live cameras: silent for camera_lost_after_s (they end the run under kStop only).
+  std::vector<char> lost(cams_.size(), 0);
+  if (num_live_ > 0) {
+    const auto now = Clock::now();
+    for (size_t n = 0; n < cams_.size(); ++n) {
+      if (!live_[n] || !cams_[n].active) continue;
+      if (cams_[n].present) {
+        last_live_frame_[n] = now;
+        continue;
+      }
+      const double silent_s = std::chrono::duration<double>(now - last_live_frame_[n]).count();
+      if (options_.on_camera_failure == OnCameraFailure::kStop && silent_s > options_.camera_lost_after_s) {
+        const std::string error = live_[n]->last_error();
+        ended.emplace_back(n, IoError(fmt::format("no frame for {:.0f} s{}", silent_s,
+                                                  error.empty() ? "" : fmt::format(" ({})", error))));
+        lost[n] = 1;
+      }
+    }
   }
   // The cameras read by index (all of them, or camera 0 under timestamp sync) decode in
   // parallel, one task per camera on decode_ctx's threads.
@@ -141,6 +161,12 @@ bool FrameReader::Read(FrameSet& set) {
     }
   }
   decode_s_.store(decode_s_.load(std::memory_order_relaxed) + Since(t0), std::memory_order_relaxed);
+  // A stream read directly (timestamp sync) that ends or fails is lost: it does not come back.
+  for (auto& [n, status] : ended) {
+    if (cams_[n].cam->source.kind != FrameSourceSpec::Kind::kStream || lost[n]) continue;
+    lost[n] = 1;
+    if (status.ok()) status = IoError("the stream ended");
+  }
   if (!ended.empty()) {
     size_t active_left = 0;
     for (const auto& c : cams_) active_left += c.active;
@@ -150,10 +176,12 @@ bool FrameReader::Read(FrameSet& set) {
       CameraState& c = cams_[n];
       if (!all_ended || !status.ok()) {  // a normal end of every stream is not news
         c.info.ended_at_frame = next_frame_index_;
-        c.info.end_reason = status.ok() ? "end of stream" : status.message();
+        c.info.end_reason = status.ok() ? "end of stream" : lost[n] ? "lost: " + status.message() : status.message();
       }
       if (!status.ok() && options_.on_camera_failure == OnCameraFailure::kStop && failure_.ok()) {
-        failure_ = status.WithContext(fmt::format("camera {} at frame {}", c.cam->id, next_frame_index_));
+        failure_ = lost[n] ? IoError(fmt::format("camera {} lost at frame {}: {}", c.cam->id, next_frame_index_,
+                                                 status.message()))
+                           : status.WithContext(fmt::format("camera {} at frame {}", c.cam->id, next_frame_index_));
       }
       c.active = false;
       c.present = false;
@@ -163,7 +191,9 @@ bool FrameReader::Read(FrameSet& set) {
       if (all_ended) {
         stop_reason_ = "end of streams";
       } else {
-        stop_reason_ = fmt::format("camera {} ended at frame {}", cams_[ended[0].first].cam->id, next_frame_index_);
+        const size_t first = ended[0].first;
+        stop_reason_ = fmt::format("camera {} {} at frame {}", cams_[first].cam->id, lost[first] ? "lost" : "ended",
+                                   next_frame_index_);
       }
       return false;
     }

@@ -8,7 +8,10 @@
 // RunOptions::live_sync_window_s for the others' (their arrival times within that window are
 // the same instant); a camera with no new frame in the window, or reconnecting, is left out of
 // that set (its cells unseen) and stays active. With every stream down, a frame set with no
-// camera comes every second (an all-unseen map).
+// camera comes every second (an all-unseen map). A live camera without a frame for
+// RunOptions::camera_lost_after_s is lost: under kStop the run ends ("camera C lost at frame
+// F"); under kContinue it stays, reconnecting. A stream read by timestamp (no reconnection)
+// that ends is lost at once.
 //
 //   FrameReader reader(cams, options, ctx.num_threads());
 //   while (reader.Read(set)) ...;
@@ -16,6 +19,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -55,6 +59,7 @@ class FrameReader {
   // reconnected after a drop; the camera stays active throughout.
   std::vector<std::unique_ptr<LiveSource>> live_;
   size_t num_live_ = 0;
+  std::vector<std::chrono::steady_clock::time_point> last_live_frame_;  // per live camera
   bool ReadLive(FrameSet& set);
   std::vector<size_t> to_read_;
   std::vector<char> read_got_;

@@ -172,6 +172,9 @@ Status RunOptions::Validate() const {
   }
   if (background_step < 1) return InvalidInput(fmt::format("background step: expected >= 1, found {}", background_step));
   if (!(sync_tolerance_s > 0)) return InvalidInput("--sync-tolerance-s: expected > 0");
+  if (!(camera_lost_after_s > 0)) {
+    return InvalidInput(fmt::format("--camera-lost-after-s: expected > 0, found {}", camera_lost_after_s));
+  }
   if (!(live_sync_window_s > 0 && live_sync_window_s <= 10)) {
     return InvalidInput(fmt::format("live sync window: expected 0 < s <= 10, found {}", live_sync_window_s));
   }

@@ -69,6 +69,9 @@ struct RunOptions {
   // A camera whose stream ends or whose frame is unreadable: stop the run (default), or go on
   // without it, marking the cells only it could see as unseen.
   OnCameraFailure on_camera_failure = OnCameraFailure::kStop;
+  // A live stream without a frame this long (reconnecting all the while) is lost: under kStop
+  // that ends the run with an error naming the camera; under kContinue it keeps reconnecting.
+  double camera_lost_after_s = 30;
   bool occupancy_video = true;
   bool occupancy_pngs = false;
   bool change_pngs = false;  // changes/<camera>/NNNNNN.png: each camera's changed pixels (255), before the tolerance
