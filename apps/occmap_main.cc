@@ -617,6 +617,10 @@ int main(int argc, char** argv) {
   run_cmd->add_flag("--no-cache", run.no_cache, "never read or write cached tables or backgrounds");
   run_cmd->add_option("--sync", run.sync, "synchronise cameras by frame index or timestamp")
       ->check(CLI::IsMember({"index", "timestamp"}))->capture_default_str();
+  run_cmd->add_option("--sync-tolerance-s", run.options.sync_tolerance_s,
+                      "--sync timestamp: a camera's frame within this many seconds of camera 0's joins its frame "
+                      "set (older ones are dropped, later ones wait)")
+      ->capture_default_str();
   run_cmd->add_flag("--continue-without-camera", run.continue_without_camera,
                     "when a camera's stream ends or fails, go on without it (its cells become unseen)");
   run_cmd->add_option("--camera-lost-after-s", run.options.camera_lost_after_s,
