@@ -3,7 +3,8 @@
 # over UDP stream per camera, in real time, looping), detections.jsonl growing while it runs;
 # one camera's stream stopped for 5 s (it is left out: its frame count stalls, then it rejoins
 # without a restart), then SIGINT: exit 0 within 2 s, every output valid, no temporary file.
-# Then camera 2's stream stops for good: the run ends with "camera cam2 lost" (exit 1).
+# Then the streams with no background given: each estimated from its own stream. Then camera
+# 2's stream stops for good: the run ends with "camera cam2 lost" (exit 1).
 # Usage: stream_test.sh OCCMAP_BINARY SOURCE_DIR   (skipped, exit 0, without the ffmpeg program)
 set -uo pipefail
 occmap=$1
@@ -70,6 +71,20 @@ print(f"summary: {s['frames']} frame sets, camera 1: {c['frames']} frames, {c['r
       f"{c['dropped_frames']} dropped; latency ms p50 {s['latency_ms']['p50']} p95 {s['latency_ms']['p95']} "
       f"p99 {s['latency_ms']['p99']}")
 sys.exit(0 if s["stop_reason"] == "stop requested" else 1)
+PY
+
+# Streams without a background (a new site): the median is taken from each stream's own
+# connection, which a second one would not get (the UDP port is bound once).
+sed '/^ *background:/d' "$work/lab/stream.yaml" >"$work/lab/stream_nobg.yaml"
+timeout 120 "$occmap" run "$work/lab/stream_nobg.yaml" --out "$work/run_nobg" --no-cache --frames 20 \
+  --background-frames 5 >"$work/run_nobg.log" 2>&1
+code=$?
+if [ $code -eq 0 ]; then ok; else fail "streams without backgrounds: exit $code"; cat "$work/run_nobg.log"; fi
+"$python" - "$work/run_nobg/summary.json" <<'PY' || fail "streams without backgrounds: summary"
+import json, sys
+s = json.load(open(sys.argv[1]))
+print("backgrounds:", [c["background"] for c in s["cameras"]])
+sys.exit(0 if s["frames"] == 20 and all(c["background"].startswith("estimated") for c in s["cameras"]) else 1)
 PY
 
 # Camera 2's stream goes for good: without --continue-without-camera the run ends once it has

@@ -85,6 +85,17 @@ namespace {
 constexpr double kShadowWarmUpS = 3;
 constexpr int64_t kShadowWarmUpFrames = 30;
 
+// The frames a background is estimated or learned from. A file is read by a second source, so
+// that the run still starts at its first frame; a live stream by the camera's own: a second
+// connection to one stream can be refused (a UDP port is bound once), and its frames go by anyway.
+Result<FrameSource*> BackgroundFrames(CameraState& c, const RunOptions& options, const FrameSourceOptions& src_opts,
+                                      std::unique_ptr<FrameSource>& opened) {
+  if (c.cam->source.kind == FrameSourceSpec::Kind::kStream) return c.source.get();
+  OCCMAP_ASSIGN_OR_RETURN(opened, OpenFrameSource(c.cam->source, src_opts));
+  OCCMAP_RETURN_IF_ERROR(opened->SkipTo(options.start_frame));
+  return opened.get();
+}
+
 // The adaptive model's background of a camera: given (a picture), reused from the cache, or
 // learned from the busy video (site.backgrounds: K frames over learn_s seconds).
 Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bool chroma,
@@ -143,10 +154,10 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
         c.info.background = fmt::format("reused: {}", plane_path("y").string());
       }
     }
-    OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> src, OpenFrameSource(cam.source, src_opts));
+    std::unique_ptr<FrameSource> opened;
+    OCCMAP_ASSIGN_OR_RETURN(FrameSource* src, BackgroundFrames(c, options, src_opts, opened));
     if (auto f = src->fps()) fps = *f;
     if (!reused) {
-      OCCMAP_RETURN_IF_ERROR(src->SkipTo(options.start_frame));
       const int64_t window = std::max<int64_t>(1, std::llround(bo.learn_s * fps));
       const int64_t step = std::max<int64_t>(1, window / bo.learn_samples);
       BackgroundLearner& learner = learned_from.emplace(size.width, size.height, chroma, bo.learn_samples);
@@ -251,8 +262,8 @@ Status PrepareBackground(const Site& site, const RunOptions& options, bool colou
     c.info.background = fmt::format("reused: {}", cached.string());
     return Status::Ok();
   }
-  OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> src, OpenFrameSource(cam.source, src_opts));
-  OCCMAP_RETURN_IF_ERROR(src->SkipTo(options.start_frame));
+  std::unique_ptr<FrameSource> opened;
+  OCCMAP_ASSIGN_OR_RETURN(FrameSource* src, BackgroundFrames(c, options, src_opts, opened));
   MedianBackground gray_median(size.width, size.height);
   MedianBackgroundRgb rgb_median(size.width, size.height);
   Frame f;
