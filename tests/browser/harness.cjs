@@ -117,7 +117,7 @@ async function screenshot(page, name) {
   const dir = process.env.OCCMAP_SCREENSHOTS;
   if (!dir) return;
   fs.mkdirSync(dir, { recursive: true });
-  await page.screenshot({ path: path.join(dir, name) });
+  await page.screenshot({ path: path.join(dir, name), fullPage: true });
 }
 
 function runOccmap(args) {

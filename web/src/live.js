@@ -87,6 +87,7 @@ function FloorMap({ site, frame }) {
 // A camera's condition from /api/state: its stream ended or failed (lost), a live stream
 // reopening (reconnecting), the run over (stopped), else up.
 export function cameraCondition(cam, state) {
+  if (state && state.starting) return { label: 'starting', cls: 'warn' };
   if (state && state.running === false) return { label: 'stopped', cls: 'idle' };
   if (cam.active === false) return { label: 'lost', cls: 'down' };
   if (cam.connected === false) return { label: 'reconnecting', cls: 'warn' };
@@ -156,7 +157,7 @@ function Stats({ state, frame, site }) {
         <dt>tracks</dt><dd data-testid="track-count">${frame ? (frame.tracks || []).length : '–'}</dd>
         <dt>detections</dt><dd>${frame ? (frame.detections || []).length : '–'}</dd>
         <dt>latency</dt><dd>p50 ${fmt(lat.p50, 0)} · p95 ${fmt(lat.p95, 0)} · p99 ${fmt(lat.p99, 0)} ms</dd>
-        <dt>up</dt><dd>${state ? fmt(state.uptime_s, 0) + ' s' : '–'}${state && state.running === false ? ' (inputs ended)' : ''}</dd>
+        <dt>up</dt><dd>${state ? fmt(state.uptime_s, 0) + ' s' : '–'}${state && state.starting ? ' (starting: backgrounds, tables)' : state && state.running === false ? ' (inputs ended)' : ''}</dd>
       </dl>
       <h3>Stage time <span class="hint">(the stages overlap)</span></h3>
       ${stages.length === 0 ? html`<p class="hint">not measured yet</p>` : null}

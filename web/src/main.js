@@ -50,6 +50,8 @@ function App() {
       <span class="status">
         frame <b data-testid="frame">${frame ? frame.frame : state && state.frame >= 0 ? state.frame : "–"}</b>${' · '}${fps !== undefined && fps !== null ? Number(fps).toFixed(1) : '–'} fps
         · <span class=${'dot ' + (connected ? 'on' : 'off')}></span>${connected ? 'live' : 'reconnecting'}
+        ${state && state.starting ? html`<span class="badge warn" data-testid="starting"
+          title="opening the cameras, taking their backgrounds, loading or building the tables">starting…</span>` : null}
       </span>
     </header>
     <main>

@@ -182,7 +182,7 @@ function CameraSetup({ camera, draft, update }) {
       <p class="hint">${mode === 'points'
         ? 'Click a floor mark you measured (tile corner, tape), then type where it is in metres. 4 points at least, better 8, spread over the floor; drag a number to move it.'
         : 'Draw the polygons of floor this camera should map (the tools on the left); pixels outside every polygon are ignored. No polygon: the whole image.'}</p>
-      <table class="points" data-testid="points">
+      ${mode === 'points' ? html`<table class="points" data-testid="points">
         <tr><th>#</th><th>u px</th><th>v px</th><th>x m</th><th>y m</th><th>error px</th><th>floor cm</th><th></th></tr>
         ${points.map((p, i) => {
           const r = result && result.points && result.points[i];
@@ -204,11 +204,16 @@ function CameraSetup({ camera, draft, update }) {
         ${result ? html`<span class="result" data-testid="calibration-result">
             RMS <b data-testid="rms-px">${fmt(result.rms_px, 2)}</b> px · floor <b data-testid="floor-cm">${fmt(result.floor_rms_m * 100, 1)}</b> cm
             ${result.rms_px <= 1 ? html`<span class="badge up">good</span>` : html`<span class="badge down">check the points</span>`}
-            <span class="hint">(pending until saved)</span></span>` : null}
+            <span class="hint">${draft.calibrationPending ? "(pending until saved)" : "(saved)"}</span></span>` : null}
         ${result && result.warnings && result.warnings.length
           ? html`<ul class="warnings">${result.warnings.map((w) => html`<li>${w}</li>`)}</ul>` : null}
+        ${result && result.method === 'homography' && result.rms_px > 1
+          ? html`<p class="hint" data-testid="homography-hint">A floor homography cannot follow lens distortion, which
+              bends the floor's straight lines near the picture's edges. Give this camera its intrinsics first
+              (<code>occmap calibrate</code> with a printed board, README "Calibrate your cameras"), then calibrate its
+              pose here.</p>` : null}
         ${error ? html`<span class="error" data-testid="calibration-error">${error}</span>` : null}
-      </div>
+      </div>` : null}
     </div>`;
 }
 
@@ -404,7 +409,12 @@ export function SetupView({ site, onSaved }) {
     try {
       const res = await putJSON('/api/site', body);
       setMessage({ ok: true, text: `Saved ${res.site ? res.site.path : ''} (the previous file kept as .bak); the pipeline restarts on it.` });
-      setDrafts((all) => Object.fromEntries(Object.entries(all).map(([id, d]) => [id, { ...d, calibrationPending: false, masksDirty: false }])));
+      // The pending results were written (the server forgets them): the pictures show the saved
+      // calibration's grid from now on.
+      setDrafts((all) => Object.fromEntries(Object.entries(all).map(([id, d]) => [id, {
+        ...d, calibrationPending: false, masksDirty: false,
+        result: d.calibrationPending && d.result ? { ...d.result, overlay_url: d.result.overlay_url.replace('&calibration=pending', '') } : d.result,
+      }])));
       setZonesDirty(false);
       if (res.site) onSaved(res.site);
     } catch (e) {

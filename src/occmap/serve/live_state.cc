@@ -37,7 +37,19 @@ void LiveState::Wake() {
 void LiveState::SetRunning(bool running, const std::string& ended) {
   std::lock_guard lock(mu_);
   running_ = running;
+  starting_ = false;
   ended_ = ended;
+}
+
+void LiveState::SetStarting() {
+  std::lock_guard lock(mu_);
+  running_ = false;
+  starting_ = true;
+}
+
+bool LiveState::starting() const {
+  std::lock_guard lock(mu_);
+  return starting_;
 }
 
 bool LiveState::running() const {

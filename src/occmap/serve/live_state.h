@@ -64,6 +64,10 @@ class LiveState {
   // The run's life: running between Open and Close; `ended` says why it stopped.
   void SetRunning(bool running, const std::string& ended = "");
   bool running() const;
+  // Between the run's start and its first frame set's sinks opening (sources, backgrounds and
+  // tables take a while): cleared by SetRunning.
+  void SetStarting();
+  bool starting() const;
   std::string ended() const;
   double uptime_s() const;
   int64_t next_version();
@@ -81,6 +85,7 @@ class LiveState {
   std::shared_ptr<const LiveCoverage> coverage_;
   int64_t coverage_version_ = 0;
   bool running_ = false;
+  bool starting_ = false;
   std::string ended_;
   int64_t version_ = 0;
   int64_t wakes_ = 0;

@@ -85,6 +85,17 @@ TEST(LiveState, SinkPublishesCopiesAndKeepsAMissingCamerasLastFrame) {
   EXPECT_EQ(state->Latest()->frame, 6);  // the last state stays served
 }
 
+TEST(LiveState, StartingUntilTheRunOpens) {
+  LiveState state;
+  EXPECT_FALSE(state.starting());
+  state.SetStarting();
+  EXPECT_TRUE(state.starting());
+  EXPECT_FALSE(state.running());
+  state.SetRunning(true);
+  EXPECT_FALSE(state.starting());
+  EXPECT_TRUE(state.running());
+}
+
 TEST(LiveState, WaitNewerWakesOnPublishAndOnWake) {
   auto state = std::make_shared<LiveState>();
   const int64_t v0 = state->Latest()->version;

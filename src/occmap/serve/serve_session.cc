@@ -141,6 +141,7 @@ void ServeSession::StopLocked() {
 
 void ServeSession::StartLocked() {
   std::shared_ptr<const Site> site = this->site();
+  state_->SetStarting();
   thread_ = std::thread([this, site] {
     RunOptions o = options_.run;
     o.sink_frames = true;

@@ -224,7 +224,7 @@ json FrameEventJson(const LiveSnapshot& s) {
           {"tracks", tracks}, {"zones", zones}, {"lines", lines}};
 }
 
-json StateJson(const LiveSnapshot& s, bool running, double uptime_s) {
+json StateJson(const LiveSnapshot& s, bool running, double uptime_s, bool starting) {
   json cams = json::array();
   for (const CameraStats& c : s.stats.cameras) {
     const double fps = CameraFps(s.stats, c);
@@ -236,6 +236,7 @@ json StateJson(const LiveSnapshot& s, bool running, double uptime_s) {
   return {{"frame", s.frame},
           {"fps", Num(s.stats.frames_per_second)},
           {"running", running},
+          {"starting", starting},
           {"uptime_s", uptime_s},
           {"frames", s.stats.frames},
           {"elapsed_s", Num(s.stats.elapsed_s)},

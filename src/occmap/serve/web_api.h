@@ -42,8 +42,8 @@ std::string ContentTypeFor(std::string_view file_name);
 std::string SseEvent(std::string_view event, std::string_view data);
 
 nlohmann::json FrameEventJson(const LiveSnapshot& s);
-// `running`, `uptime_s`: the run's life (LiveState).
-nlohmann::json StateJson(const LiveSnapshot& s, bool running, double uptime_s);
+// `running`, `uptime_s`, `starting`: the run's life (LiveState).
+nlohmann::json StateJson(const LiveSnapshot& s, bool running, double uptime_s, bool starting = false);
 // The site as the pages need it; `site_text` is the file's text (its mask polygons are read
 // from it: the loaded site keeps only the rasterised masks).
 nlohmann::json SiteJson(const Site& site, std::string_view site_text);

@@ -144,6 +144,8 @@ TEST(WebApi, FrameAndStateJson) {
   EXPECT_EQ(f["lines"][0], (json{{"name", "gate"}, {"in", 4}, {"out", 1}}));
   const json st = StateJson(s, true, 5);
   EXPECT_EQ(st["running"], true);
+  EXPECT_EQ(st["starting"], false);
+  EXPECT_EQ(StateJson(s, false, 5, true)["starting"], true);
   EXPECT_EQ(st["cameras"][1]["connected"], false);
   EXPECT_EQ(st["cameras"][0]["fps"], 6.5);
   EXPECT_EQ(st["cameras"][1]["fps"], 5.0);  // in 10 of the 13 frame sets
