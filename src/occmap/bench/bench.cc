@@ -840,12 +840,14 @@ std::string BenchTable(const BenchResults& all) {
                        "{:.2f} ms, decode only {:.2f} ms; at the steady state {:.2f} ms and {:.2f} ms (occmap's own "
                        "{:.2f} ms)\n"
                        "  RunSite stage times (overlapping threads): decode {:.2f} s, detect {:.2f} s, fuse {:.2f} s, "
-                       "blobs {:.2f} s, track {:.2f} s, output {:.2f} s\n",
+                       "blobs {:.2f} s, track {:.2f} s, output {:.2f} s\n"
+                       "  RunSite latency, a frame set's arrival to its outputs written: p50 {:.1f} ms, p95 {:.1f} ms, "
+                       "p99 {:.1f} ms\n",
                        e->note, e->run_fps, e->decode_fps, e->decode_parallel_fps, e->decode_interleaved_fps,
                        Ratio(e->run_fps, e->decode_fps), e->run_startup_s, e->run_overall_fps, e->run_cpu_ms_per_frame,
                        e->decode_cpu_ms_per_frame, e->run_steady_cpu_ms_per_frame, e->decode_steady_cpu_ms_per_frame,
                        e->run_steady_cpu_ms_per_frame - e->decode_steady_cpu_ms_per_frame, e->decode_s, e->detect_s, e->fuse_s, e->blobs_s, e->track_s,
-                       e->output_s);
+                       e->output_s, e->latency_p50_ms, e->latency_p95_ms, e->latency_p99_ms);
       if (e->floor.measured) {
         const EndToEndResult::FloorPass& f = e->floor;
         s += fmt::format("  people detector {}: people stage {:.2f} s; occmap's own CPU {:.2f} ms per frame set = {:.2f}x "
@@ -896,6 +898,7 @@ nlohmann::json BenchJson(const BenchResults& all) {
                             {"track", r.track_s},
                             {"output", r.output_s},
                             {"people", r.people_s}}},
+                          {"latency_ms", {{"p50", r.latency_p50_ms}, {"p95", r.latency_p95_ms}, {"p99", r.latency_p99_ms}}},
                           {"people_detector", r.people_detector},
                           {"own_steady_cpu_ms_per_frame", r.run_steady_cpu_ms_per_frame - r.decode_steady_cpu_ms_per_frame},
                           {"own_cpu_vs_decode", r.OwnCpuVsDecode()}};

@@ -183,6 +183,10 @@ struct EndToEndResult {
   double fuse_s = 0, detect_s = 0, decode_s = 0;  // RunSite's own split
   double blobs_s = 0, track_s = 0, output_s = 0;
   double people_s = 0;                 // RunSite's people stage (column fusion and explanation)
+  // RunSummary::latency of the site's own passes (a frame set's arrival, its frames decoded, to
+  // its outputs written), medians over the passes, in ms. Over files the reader runs ahead of
+  // the stages, so this includes the waits in the run's queues.
+  double latency_p50_ms = 0, latency_p95_ms = 0, latency_p99_ms = 0;
   std::string people_detector = "floor";  // the site's: floor (no people: section), column or explain
   // A site with a people detector (the WILDTRACK scene, as `occmap synth` writes it) is also run
   // without it (people.enabled = false: the floor AND and its blobs, the fully fused path),

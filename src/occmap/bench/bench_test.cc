@@ -1,5 +1,6 @@
 #include "occmap/bench/bench.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 
 #include <random>
@@ -164,6 +165,12 @@ TEST(Bench, EndToEndMeasuresRunAndDecode) {
   EXPECT_DOUBLE_EQ(j["end_to_end"]["run_steady_cpu_ms_per_frame"].get<double>(), e->run_steady_cpu_ms_per_frame);
   EXPECT_DOUBLE_EQ(j["end_to_end"]["decode_steady_cpu_ms_per_frame"].get<double>(),
                    e->decode_steady_cpu_ms_per_frame);
+  // Latency, arrival to outputs: the run's own histogram (RunSummary::latency), in text and JSON.
+  EXPECT_GT(e->latency_p50_ms, 0.0);
+  EXPECT_LE(e->latency_p50_ms, e->latency_p95_ms);
+  EXPECT_LE(e->latency_p95_ms, e->latency_p99_ms);
+  EXPECT_DOUBLE_EQ(j["end_to_end"]["latency_ms"]["p99"].get<double>(), e->latency_p99_ms);
+  EXPECT_NE(BenchTable(all).find(fmt::format("p99 {:.1f} ms", e->latency_p99_ms)), std::string::npos);
 }
 
 TEST(Bench, WildtrackSkippedWithoutItsSiteFile) {
@@ -426,6 +433,7 @@ TEST(Bench, EndToEndOnWildtrackRunsThePeopleDetectorAndTheFloor) {
   EXPECT_NE(e->floor.fusion_path.find("FuseTolerant"), std::string::npos) << e->floor.fusion_path;
   EXPECT_GT(e->floor.run_fps, 0.0);
   EXPECT_GT(e->floor.run_steady_cpu_ms_per_frame, 0.0);
+  EXPECT_GT(e->latency_p95_ms, 0.0);
 }
 
 // The end-to-end record with a people detector: both runs, and occmap's own CPU over the

@@ -200,6 +200,7 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
   r.mosaic_video = false;
   std::vector<double> parallel_fps, interleaved_fps, decode_cpu, run_fps, run_cpu, startup, overall;
   std::vector<double> decode_steady_cpu, run_steady_cpu;
+  std::vector<double> latency_p50, latency_p95, latency_p99;
   std::vector<double> floor_fps, floor_cpu, floor_steady_cpu, floor_startup, floor_overall;
   RunSummary run, floor_run;
   const bool people = PeopleDetectorOn(site);
@@ -238,6 +239,9 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
         run_fps.push_back(run.steady_fps);
         startup.push_back(run.startup_s);
         overall.push_back(run.frames_per_second);
+        latency_p50.push_back(run.latency.p50_ms);
+        latency_p95.push_back(run.latency.p95_ms);
+        latency_p99.push_back(run.latency.p99_ms);
       }
     }
   }
@@ -260,6 +264,9 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
   e.track_s = run.track_s;
   e.output_s = run.output_s;
   e.people_s = run.people_s;
+  e.latency_p50_ms = Median(latency_p50);
+  e.latency_p95_ms = Median(latency_p95);
+  e.latency_p99_ms = Median(latency_p99);
   if (people) {
     EndToEndResult::FloorPass& f = e.floor;
     f.measured = true;

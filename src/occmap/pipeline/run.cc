@@ -509,7 +509,6 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       j["seconds"] = stats.elapsed_s;
       j["frames_per_second"] = stats.frames_per_second;
       j["latency_ms"] = LatencyJson(stats.latency);
-  summary.latency = stats.latency;
       if (options.track) {
         j["tracking"]["tracks"] = stats.tracks;
         j["tracking"]["zone_events"] = stats.zone_events;
@@ -912,6 +911,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   reader.join();  // it has closed filled_slots: the sources, flags and infos are ours again
   const Status post_status = post.Finish();
   const Status writer_status = writer.Finish();
+  summary.latency = stats.latency;  // the writer stage's, over every frame set
   summary.detect_s = detect_s.get();
   summary.fuse_s = fuse_s.get();
   summary.people_s = people_s.get();
