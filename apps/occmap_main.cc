@@ -20,6 +20,7 @@
 #include <thread>
 
 #include "calibrate_command.h"
+#include "live_outputs.h"
 #include "run_support.h"
 #include "serve_command.h"
 #include "occmap/lut/visibility_image.h"
@@ -222,88 +223,6 @@ class ProgressBar {
   std::chrono::steady_clock::time_point start_;
   double drawn_s_ = 0;
 };
-
-// `occmap run`'s outputs for other software: MQTT (with the site's outputs.mqtt) and ROS maps.
-struct LiveOutputsCommand {
-  std::string mqtt_url, mqtt_prefix, mqtt_client_id, mqtt_user, mqtt_password_file;
-  std::string ros_map_dir;
-  std::vector<int64_t> ros_map_frames;
-  std::optional<double> ros_map_static_fraction, ros_map_every_s;
-};
-
-struct LiveSinks {
-  std::shared_ptr<MqttSink> mqtt;
-  std::shared_ptr<RosMapSink> ros_map;
-};
-
-// The MQTT options: the site's outputs.mqtt, the command line's over them; none without either.
-Result<std::optional<MqttOptions>> MqttOptionsFor(const Site& site, const LiveOutputsCommand& cmd) {
-  std::optional<MqttOptions> options = site.outputs.mqtt;
-  if (!cmd.mqtt_url.empty()) {
-    OCCMAP_ASSIGN_OR_RETURN(MqttBroker broker, ParseMqttUrl(cmd.mqtt_url, "--mqtt"));
-    if (!options) options.emplace();
-    options->broker = broker;
-  }
-  const bool other_flags = !cmd.mqtt_prefix.empty() || !cmd.mqtt_client_id.empty() || !cmd.mqtt_user.empty() ||
-                           !cmd.mqtt_password_file.empty();
-  if (!options) {
-    if (other_flags) return InvalidInput("--mqtt-prefix, --mqtt-client-id, --mqtt-user, --mqtt-password-file: need --mqtt URL or outputs.mqtt in the site file");
-    return std::optional<MqttOptions>();
-  }
-  if (!cmd.mqtt_prefix.empty()) options->topic_prefix = cmd.mqtt_prefix;
-  if (!cmd.mqtt_client_id.empty()) options->client_id = cmd.mqtt_client_id;
-  if (!cmd.mqtt_user.empty()) options->username = cmd.mqtt_user;
-  if (!cmd.mqtt_password_file.empty()) {
-    options->password_file = cmd.mqtt_password_file;
-    if (std::error_code ec; !fs::is_regular_file(options->password_file, ec)) {
-      return NotFound(fmt::format("--mqtt-password-file: file not found: '{}'", cmd.mqtt_password_file));
-    }
-  }
-  ResolveMqttDefaults(site.name, *options);
-  OCCMAP_RETURN_IF_ERROR(options->Validate().WithContext(cmd.mqtt_url.empty() ? site.file.string() : "--mqtt"));
-  return options;
-}
-
-// Adds the sinks the command asks for to the run's options.
-Result<LiveSinks> AddLiveSinks(const Site& site, const LiveOutputsCommand& cmd, RunOptions& run) {
-  LiveSinks sinks;
-  OCCMAP_ASSIGN_OR_RETURN(std::optional<MqttOptions> mqtt, MqttOptionsFor(site, cmd));
-  if (mqtt) {
-    sinks.mqtt = std::make_shared<MqttSink>(*mqtt);
-    run.sinks.push_back(sinks.mqtt);
-  }
-  if (cmd.ros_map_dir.empty()) {
-    if (!cmd.ros_map_frames.empty() || cmd.ros_map_static_fraction || cmd.ros_map_every_s) {
-      return InvalidInput("--ros-map-frame, --ros-map-static-fraction, --ros-map-every-s: need --ros-map DIR");
-    }
-    return sinks;
-  }
-  RosMapOptions ros;
-  ros.dir = cmd.ros_map_dir;
-  ros.frames = cmd.ros_map_frames;
-  if (cmd.ros_map_static_fraction) ros.static_fraction = *cmd.ros_map_static_fraction;
-  if (cmd.ros_map_every_s) ros.static_every_s = *cmd.ros_map_every_s;
-  OCCMAP_RETURN_IF_ERROR(ros.Validate());
-  sinks.ros_map = std::make_shared<RosMapSink>(ros);
-  run.sinks.push_back(sinks.ros_map);
-  return sinks;
-}
-
-void PrintLiveSinks(const LiveSinks& sinks) {
-  if (sinks.mqtt) {
-    const MqttCounters c = sinks.mqtt->counters();
-    std::fputs(fmt::format("mqtt: {} messages published, {} dropped (broker away or too slow); connected {} times, "
-                           "lost {} times\n",
-                           c.published, c.dropped, c.connects, c.disconnects)
-                   .c_str(),
-               stdout);
-  }
-  if (sinks.ros_map) {
-    for (const fs::path& p : sinks.ros_map->written()) {
-      if (p.extension() == ".yaml") std::fputs(fmt::format("wrote {}\n", p.string()).c_str(), stdout);
-    }
-  }
-}
 
 struct RunCommand {
   LiveOutputsCommand live;
@@ -643,17 +562,7 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--background-frames", run.options.background_frames,
                       "K: frames in the median background of a camera without one")->capture_default_str();
   run_cmd->add_option("--min-blob-area-m2", run.min_blob_area_m2, "drop detections with a smaller footprint (default: the site's blobs.min_area_m2)");
-  run_cmd->add_option("--mqtt", run.live.mqtt_url, "publish on MQTT: mqtt://HOST[:PORT] (over the site's outputs.mqtt.url)");
-  run_cmd->add_option("--mqtt-prefix", run.live.mqtt_prefix, "MQTT topic prefix (default occmap/<site>)");
-  run_cmd->add_option("--mqtt-client-id", run.live.mqtt_client_id, "MQTT client id (default occmap-<site>)");
-  run_cmd->add_option("--mqtt-user", run.live.mqtt_user, "MQTT user name");
-  run_cmd->add_option("--mqtt-password-file", run.live.mqtt_password_file, "file whose first line is the MQTT password");
-  run_cmd->add_option("--ros-map", run.live.ros_map_dir, "write ROS map_server maps (PGM + YAML) to this folder: static.yaml, and frame_NNNNNN.yaml");
-  run_cmd->add_option("--ros-map-frame", run.live.ros_map_frames, "also write this frame's map (repeatable)");
-  run_cmd->add_option("--ros-map-static-fraction", run.live.ros_map_static_fraction,
-                      "static map: cells occupied in more than this fraction of the frames that saw them (default 0.5)");
-  run_cmd->add_option("--ros-map-every-s", run.live.ros_map_every_s,
-                      "rewrite static.yaml every this many seconds of stream time, and at the end (default 60; 0: at the end)");
+  AddLiveOutputOptions(*run_cmd, run.live);
 
   std::string demo_out = "demo-out";
   int64_t demo_frames = -1;

@@ -24,8 +24,12 @@ CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd) {
   c->add_option("--token", cmd.token, "every request needs this token (Authorization: Bearer T or ?token=T)");
   c->add_option("--token-file", cmd.token_file, "file whose first line is the token");
   c->add_option("--out", cmd.out_dir, "output folder of the run")->capture_default_str();
-  c->add_option("--frames", cmd.max_frames, "process at most N frames");
-  c->add_option("--start", cmd.start_frame, "first frame of every source")->capture_default_str();
+  // As `occmap run`'s (-1, "until a source ends", is not a count a user may give).
+  c->add_option("--frames", cmd.max_frames, "process at most N frames")
+      ->check(CLI::Range(int64_t{1}, int64_t{1'000'000'000'000}));
+  c->add_option("--start", cmd.start_frame, "first frame of every source")
+      ->capture_default_str()
+      ->check(CLI::Range(int64_t{0}, int64_t{1'000'000'000'000}));
   c->add_option("--cache-dir", cmd.cache_dir, "folder of cached tables and backgrounds (default: ~/.cache/occmap)");
   c->add_flag("--no-cache", cmd.no_cache, "never read or write cached tables or backgrounds");
   c->add_option("--sync", cmd.sync, "synchronise cameras by frame index or timestamp")
@@ -43,6 +47,7 @@ CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd) {
   c->add_option("--min-blob-area-m2", cmd.min_blob_area_m2, "drop detections with a smaller footprint");
   c->add_flag("--no-pace", cmd.no_pace,
               "file inputs as fast as they decode (default: at their frame rate, as a live view)");
+  AddLiveOutputOptions(*c, cmd.live);
   return c;
 }
 
@@ -85,6 +90,15 @@ Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_ro
   o.summary_every_s = cmd.summary_every_s;
   o.background_frames = cmd.background_frames;
   OCCMAP_RETURN_IF_ERROR(o.Validate());
+  // MQTT and ROS maps as `occmap run` gives them, from the site as it is now (a site saved from
+  // the page keeps these sinks). A site that does not load is the session's to report, unless
+  // the command line asks for these outputs.
+  LiveSinks live;
+  if (auto site = LoadSite(cmd.site_path, so.load); site.ok()) {
+    OCCMAP_ASSIGN_OR_RETURN(live, AddLiveSinks(*site, cmd.live, o));
+  } else if (!cmd.live.mqtt_url.empty() || !cmd.live.ros_map_dir.empty()) {
+    return site.status();
+  }
   if (cmd.min_blob_area_m2) {
     const double area = *cmd.min_blob_area_m2;
     so.adjust_site = [area](Site& site) {
@@ -113,6 +127,7 @@ Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_ro
   if (auto s = session->last_summary()) {
     std::fputs(fmt::format("{} frames in {:.2f} s: {}\n", s->frames, s->seconds, s->stop_reason).c_str(), stdout);
   }
+  PrintLiveSinks(live);
   std::fputs(fmt::format("wrote {}\n", (fs::path(cmd.out_dir) / "summary.json").string()).c_str(), stdout);
   return Status::Ok();
 }

@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 
+#include "live_outputs.h"
 #include "occmap/util/status.h"
 
 namespace occmap {
@@ -31,6 +32,7 @@ struct ServeCommand {
   int background_frames = 25;
   std::optional<double> min_blob_area_m2;
   bool no_pace = false;
+  LiveOutputsCommand live;  // --mqtt, --ros-map, ... as `occmap run`'s
 };
 
 CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd);

@@ -4,7 +4,7 @@
 # read with mosquitto_sub: Home Assistant discovery per zone, retained zone and line state,
 # tracks, events with line crossings, stats, availability and the last will when the run is
 # killed (kill -9); a broker that is not there; bad URLs; and the ROS map_server maps
-# (orientation checked against the ground truth's people).
+# (orientation checked against the ground truth's people); occmap serve with both.
 # Usage: live_outputs_test.sh OCCMAP_BINARY
 set -uo pipefail
 occmap=$1
@@ -200,6 +200,32 @@ smeta, sw, sh, spx = read_map(f"{work}/ros/map/static.yaml")
 assert (sw, sh) == (w, h) and 0 in spx and 254 in spx, "static map: occupied and free cells"
 print(f"ros: frame 30 has occupied cells under all {len(people)} people ({flipped} when flipped)")
 PY
+
+# --- occmap serve: the same MQTT and ROS map outputs, the same checks of --frames and --start.
+expect2 serve_bad_url "--mqtt: expected mqtt://HOST" -- "$occmap" serve "$work/lab/site.yaml" --out "$work/x" --mqtt http://x
+expect2 serve_frames_0 "--frames" -- "$occmap" serve "$work/lab/site.yaml" --out "$work/x" --frames 0
+expect2 serve_start_negative "--start" -- "$occmap" serve "$work/lab/site.yaml" --out "$work/x" --start -1
+mosquitto_sub -h 127.0.0.1 -p "$port" -t 'occmap/lab/tracks' -F '%t %p' >"$work/serve_sub.log" 2>&1 &
+sub_pid=$!
+"$occmap" serve "$work/lab/site.yaml" --listen 127.0.0.1:0 --out "$work/serve" --no-cache --no-video --no-pace \
+  --frames 40 --mqtt "$url" --ros-map "$work/serve/map" >"$work/serve.log" 2>&1 &
+run_pid=$!
+for _ in $(seq 300); do  # the run ends with the file inputs; the server stays up until a signal
+  grep -q '"running": false' "$work/serve/summary.json" 2>/dev/null && break
+  sleep 0.1
+done
+sleep 0.5
+kill -TERM $run_pid
+wait $run_pid
+code=$?
+run_pid=""
+kill -TERM $sub_pid 2>/dev/null
+wait $sub_pid 2>/dev/null
+sub_pid=""
+n=$(grep -c '^occmap/lab/tracks ' "$work/serve_sub.log")
+echo "serve: exit $code, $n tracks messages, $(ls "$work/serve/map" 2>/dev/null | tr '\n' ' ')"
+if [ "$code" = 0 ] && [ "$n" -ge 30 ]; then ok; else fail "serve --mqtt: exit $code, $n tracks messages"; tail -5 "$work/serve.log"; fi
+if [ -f "$work/serve/map/static.yaml" ] && grep -q "^mqtt: " "$work/serve.log"; then ok; else fail "serve --ros-map: no static.yaml or no mqtt line"; cat "$work/serve.log"; fi
 
 echo "live_outputs_test: $passed passed, $failures failed"
 [ "$failures" = 0 ]
