@@ -121,6 +121,13 @@ constexpr uint64_t LengthMask(unsigned length) {
   return length >= 64 ? ~uint64_t{0} : (uint64_t{1} << length) - 1;
 }
 
+// BMI1's bit-field extract. Its own function with the target feature: clang checks a builtin's
+// feature in the function that spells it (the probe template has none), and inlines this into
+// the flattened BMI kernel as GCC does.
+__attribute__((target("bmi"))) inline uint64_t Bextr(uint64_t value, uint32_t control) {
+  return __builtin_ia32_bextr_u64(value, control);
+}
+
 // Where the probes read: per camera the frame's and the background's first pixel and strides
 // (Fuse), or the camera's slice of the change buffer (FuseChanges, b unused).
 struct ProbeSource {
@@ -370,7 +377,7 @@ inline int64_t ProbeGroupImpl(const FastFusion::PrimaryProbe* primary, const Fas
     std::memcpy(&window, bytes + p.byte, sizeof(window));
     uint64_t run;
     if constexpr (kBextr) {
-      run = __builtin_ia32_bextr_u64(window, p.extract);
+      run = Bextr(window, p.extract);
     } else {
       run = (window >> (p.extract & 0xffu)) & LengthMask(p.extract >> 8);
     }
