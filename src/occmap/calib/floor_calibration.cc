@@ -124,17 +124,7 @@ Status CameraIntrinsics::Validate() const {
   return p.Validate().WithContext("intrinsics");
 }
 
-CameraIntrinsics CameraIntrinsics::Resized(ImageSize new_size) const {
-  const PixelRescale s = PixelRescale::Between(image_size, new_size);
-  CameraIntrinsics r = *this;
-  r.image_size = new_size;
-  r.fx_px *= s.scale_x;
-  r.skew_px *= s.scale_x;
-  r.fy_px *= s.scale_y;
-  r.cx_px = s.MapU(cx_px);
-  r.cy_px = s.MapV(cy_px);
-  return r;
-}
+CameraIntrinsics CameraIntrinsics::Resized(ImageSize new_size) const { return ResizedIntrinsics(*this, new_size); }
 
 Result<std::vector<FloorPoint>> ParseFloorPoints(std::string_view text, const std::string& file_name) {
   std::vector<FloorPoint> points;

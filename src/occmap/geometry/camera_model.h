@@ -91,4 +91,19 @@ struct PixelRescale {
   double MapV(double v) const { return (v + 0.5) * scale_y - 0.5; }
 };
 
+// Intrinsics of a pinhole model (any struct with image_size, fx_px, fy_px, cx_px, cy_px and
+// skew_px) for images resized to new_size: focal lengths and skew scale with the pixels, the
+// principal point maps as a pixel (PixelRescale).
+template <class Intrinsics>
+Intrinsics ResizedIntrinsics(Intrinsics k, ImageSize new_size) {
+  const PixelRescale s = PixelRescale::Between(k.image_size, new_size);
+  k.image_size = new_size;
+  k.fx_px *= s.scale_x;
+  k.skew_px *= s.scale_x;
+  k.fy_px *= s.scale_y;
+  k.cx_px = s.MapU(k.cx_px);
+  k.cy_px = s.MapV(k.cy_px);
+  return k;
+}
+
 }  // namespace occmap

@@ -185,15 +185,7 @@ std::optional<Eigen::Vector2d> PinholeCamera::PixelToPlane(const Eigen::Vector2d
 }
 
 std::unique_ptr<CameraModel> PinholeCamera::Resized(ImageSize new_size) const {
-  const PixelRescale s = PixelRescale::Between(p_.image_size, new_size);
-  PinholeParameters p = p_;
-  p.image_size = new_size;
-  p.fx_px *= s.scale_x;
-  p.skew_px *= s.scale_x;
-  p.fy_px *= s.scale_y;
-  p.cx_px = s.MapU(p_.cx_px);
-  p.cy_px = s.MapV(p_.cy_px);
-  return std::make_unique<PinholeCamera>(PinholeCamera(p));
+  return std::make_unique<PinholeCamera>(PinholeCamera(ResizedIntrinsics(p_, new_size)));
 }
 
 std::unique_ptr<CameraModel> PinholeCamera::Clone() const {
