@@ -105,6 +105,10 @@ struct FrameRecord {
   std::vector<Track> tracks;             // the reported tracks (empty without tracking)
   ZoneFrame zones;                       // zone events and per-zone counts (empty without zones)
   LineFrame lines;                       // line crossings and per-line counts (empty without lines)
+  // The lines of tracks.jsonl and events.jsonl for this frame set (no newlines; "t_unix" first
+  // with RunOptions::wall_clock_times), made once by the run (MakeJsonLines) for every sink.
+  std::string tracks_line;
+  std::vector<std::string> event_lines;  // zone events, then line crossings
   // Pictures drawn by the run when an output asks for them, else empty.
   Image<Rgb8> mosaic;                          // the mosaic (RunOptions::mosaic_video)
   std::vector<Image<uint8_t>> change_pictures;  // per camera, 255 changed (RunOptions::change_pngs)

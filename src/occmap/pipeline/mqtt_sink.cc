@@ -48,7 +48,6 @@ std::string MqttStatsJson(double t_unix, const RunStats& stats, const std::vecto
 }
 
 Status MqttSink::Open(const SinkStart& start) {
-  wall_clock_times_ = start.wall_clock_times;
   MqttPublisherInfo info;
   info.site_name = start.site->name;
   if (start.track) {
@@ -63,11 +62,9 @@ Status MqttSink::Open(const SinkStart& start) {
 
 Status MqttSink::Consume(const FrameRecord& r, const RunStats& stats) {
   MqttFrame frame;
-  // The same objects as the lines of tracks.jsonl and events.jsonl, "t_unix" included.
-  auto stamped = [&](std::string line) { return wall_clock_times_ ? WithTUnix(line, r.t_unix) : line; };
-  frame.tracks_json = stamped(TracksJsonLine(r.frame, r.time_s, r.tracks));
-  for (const ZoneEvent& e : r.zones.events) frame.events_json.push_back(stamped(ZoneEventJsonLine(e)));
-  for (const LineEvent& e : r.lines.events) frame.events_json.push_back(stamped(LineEventJsonLine(e)));
+  // The lines of tracks.jsonl and events.jsonl, as the run made them.
+  frame.tracks_json = r.tracks_line;
+  frame.events_json = r.event_lines;
   frame.zone_counts = r.zones.counts;
   frame.line_counts = r.lines.counts;
   line_crossings_ += static_cast<int64_t>(r.lines.events.size());

@@ -45,7 +45,6 @@ class MqttSink : public FrameSink {
   std::chrono::steady_clock::time_point last_stats_;
   std::vector<int64_t> last_camera_frames_;
   int64_t line_crossings_ = 0;
-  bool wall_clock_times_ = true;
 };
 
 }  // namespace occmap

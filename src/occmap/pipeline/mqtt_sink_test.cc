@@ -4,6 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "occmap/pipeline/output_files.h"
 #include "occmap/publish/test_broker.h"
 
 namespace occmap {
@@ -47,6 +48,7 @@ TEST(MqttSink, PublishesTheRecordsTracksEventsAndCountsAndStatsAtTheEnd) {
   r.zones.counts = {1};
   r.lines.events = {LineEvent{7, 0.7, "gate", 3, LineDirection::kOut, {0, 1}}};
   r.lines.counts = {{0, 1}};
+  MakeJsonLines(r, /*wall_clock_times=*/true);
   RunStats stats;
   stats.frames = 8;
   stats.cameras = {CameraStats{.id = "c1", .frames = 8, .dropped = 2}};
@@ -86,6 +88,7 @@ TEST(MqttSink, ABrokerThatIsNotThereNeverFailsTheRun) {
   FrameRecord r;
   for (int k = 0; k < 5; ++k) {
     r.frame = k;
+    MakeJsonLines(r, /*wall_clock_times=*/true);
     EXPECT_TRUE(sink.Consume(r, RunStats{}).ok());
   }
   EXPECT_TRUE(sink.Close(RunStats{}).ok());

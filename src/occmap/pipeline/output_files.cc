@@ -44,6 +44,14 @@ std::string WithTUnix(std::string_view line, double t_unix) {
   return stamp + (line[1] == '}' ? "" : ",") + std::string(line.substr(1));
 }
 
+void MakeJsonLines(FrameRecord& r, bool wall_clock_times) {
+  auto stamped = [&](std::string line) { return wall_clock_times ? WithTUnix(line, r.t_unix) : line; };
+  r.tracks_line = stamped(TracksJsonLine(r.frame, r.time_s, r.tracks));
+  r.event_lines.clear();
+  for (const ZoneEvent& e : r.zones.events) r.event_lines.push_back(stamped(ZoneEventJsonLine(e)));
+  for (const LineEvent& e : r.lines.events) r.event_lines.push_back(stamped(LineEventJsonLine(e)));
+}
+
 std::string DetectionsJsonLine(int64_t frame, double time_s, const std::vector<Detection>& detections) {
   json line = {{"frame", frame}, {"time_s", std::round(time_s * 1e6) / 1e6}, {"blobs", json::array()}};
   for (const Detection& b : detections) {
@@ -142,26 +150,20 @@ Status OutputFiles::Consume(const FrameRecord& r, const RunStats& stats) {
     failed_ = true;
     return s;
   };
-  const bool stamp = options_.wall_clock_times;
   text_ = DetectionsJsonLine(r.frame, r.time_s, r.detections);
-  if (stamp) text_ = WithTUnix(text_, r.t_unix);
+  if (options_.wall_clock_times) text_ = WithTUnix(text_, r.t_unix);
   text_ += '\n';
   if (Status s = detections_->Append(text_); !s.ok()) return fail(s);
   if (tracks_) {
-    text_ = TracksJsonLine(r.frame, r.time_s, r.tracks);
-    if (stamp) text_ = WithTUnix(text_, r.t_unix);
+    text_ = r.tracks_line;
     text_ += '\n';
     if (Status s = tracks_->Append(text_); !s.ok()) return fail(s);
     if (Status s = mot_->Append(MotGroundPlaneRows(r.frame, r.tracks)); !s.ok()) return fail(s);
   }
-  if (events_ && (!r.zones.events.empty() || !r.lines.events.empty())) {
+  if (events_ && !r.event_lines.empty()) {
     text_.clear();
-    for (const ZoneEvent& e : r.zones.events) {
-      text_ += stamp ? WithTUnix(ZoneEventJsonLine(e), r.t_unix) : ZoneEventJsonLine(e);
-      text_ += '\n';
-    }
-    for (const LineEvent& e : r.lines.events) {
-      text_ += stamp ? WithTUnix(LineEventJsonLine(e), r.t_unix) : LineEventJsonLine(e);
+    for (const std::string& line : r.event_lines) {
+      text_ += line;
       text_ += '\n';
     }
     if (Status s = events_->Append(text_); !s.ok()) return fail(s);

@@ -42,6 +42,10 @@ const char* ToString(OutputMode mode);  // "live", "atomic"
 // `line` (a JSON object) with "t_unix" (seconds since 1970, to 1 us) as its first key.
 std::string WithTUnix(std::string_view line, double t_unix);
 
+// Fills r.tracks_line and r.event_lines from r's tracks, zone and line events, each with
+// "t_unix" first when wall_clock_times.
+void MakeJsonLines(FrameRecord& r, bool wall_clock_times);
+
 // One line of detections.jsonl, without the newline (positions to 0.1 mm, areas to 0.01 cm2,
 // time to 1 us).
 std::string DetectionsJsonLine(int64_t frame, double time_s, const std::vector<Detection>& detections);

@@ -57,6 +57,7 @@ std::vector<FrameRecord> RandomRecords(const Site& site, int frames) {
       r.tracks.push_back(t);
     }
     if (f % 3 == 0) r.zones.events.push_back({f, r.time_s, "door", 1, ZoneEventKind::kEnter, 1});
+    MakeJsonLines(r, /*wall_clock_times=*/true);
     records.push_back(std::move(r));
   }
   return records;

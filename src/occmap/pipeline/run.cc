@@ -496,6 +496,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     if (stats.frames == 1) t_first_written = t0;
     stats.frames_per_second =
         stats.frames >= 2 ? static_cast<double>(stats.frames - 1) / std::chrono::duration<double>(t0 - t_first_written).count() : 0;
+    MakeJsonLines(r, options.wall_clock_times);
     for (const auto& sink : sinks) OCCMAP_RETURN_IF_ERROR(sink->Consume(r, stats));
     mosaic_pool.Give(std::move(r.mosaic));
     latency.Add(std::chrono::duration<double>(Clock::now() - r.arrival).count());
