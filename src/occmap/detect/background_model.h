@@ -97,6 +97,9 @@ struct ShadowOptions {
   int texture_radius_px = 0;   // 0: no texture test
   double min_texture_correlation = 0.5;
   double flat_std = 3.0;       // grey levels
+  // Checked through the floor by the run (pipeline/background_maintenance.h, ShadowCheck): a
+  // shadow pixel whose floor cell the other cameras see lit is a change (a person's shaded side).
+  bool floor_check = true;
   Status Validate() const;
 };
 

@@ -291,8 +291,11 @@ void BackgroundProtection::Compute(const OccupancyMap& map, const std::vector<Im
 
 namespace {
 constexpr uint8_t kAbstain = 255;
-constexpr uint8_t kCellUnknown = 0, kCellDark = 1, kCellNotDark = 2;
+constexpr uint8_t kCellUnknown = 0, kCellDark = 1, kCellNotDark = 2, kCellLit = 3;
 constexpr int kMaxRatioSpread = 38;  // 0.15: of the ratios x 255 over a cell's pixels
+// Shadow check: the cells around a cell (this many on each side) must be lit too. Radius 2 keeps
+// fewer shadows as changes (plaza: 9.1 % against 9.4 %) but recovers less (change F1 0.837 / 0.842).
+constexpr int kShadowCheckRadiusCells = 1;
 }  // namespace
 
 ShadowTeachers::ShadowTeachers(const GroundLut& lut) : lut_(lut) {
@@ -394,6 +397,101 @@ void ShadowTeachers::Compute(const std::vector<ImageView<const uint8_t>>& classe
       }
     }
   }
+}
+
+ShadowCheck::ShadowCheck(const GroundLut& lut) : lut_(lut) {
+  OCCMAP_CHECK(lut.num_cameras() <= 255, "shadow check: at most 255 cameras");
+  pixels_.assign(lut.total_pixels(), kAbstain);
+  camera_of_.resize(lut.total_pixels());
+  for (int n = 0; n < lut.num_cameras(); ++n) {
+    const ImageSize s = lut.image_size(n);
+    std::fill_n(camera_of_.begin() + lut.pixel_offset(n), static_cast<size_t>(s.width) * s.height, static_cast<uint8_t>(n));
+  }
+  cell_state_.assign(static_cast<size_t>(lut.grid().num_cells()), kCellUnknown);
+  lit_.assign(static_cast<size_t>(lut.num_cameras()), 0);
+  dark_.assign(static_cast<size_t>(lut.num_cameras()), 0);
+}
+
+int64_t ShadowCheck::Apply(const std::vector<ImageView<const uint8_t>>& classes,
+                           const std::vector<ImageView<uint8_t>>& changes) {
+  const int cameras = lut_.num_cameras();
+  OCCMAP_CHECK(static_cast<int>(classes.size()) == cameras && changes.size() == classes.size(),
+               "shadow check: one class image and change mask per camera");
+  for (uint32_t c : touched_) cell_state_[c] = kCellUnknown;
+  touched_.clear();
+  bool any = false;
+  for (int n = 0; n < cameras; ++n) {
+    const ImageSize size = lut_.image_size(n);
+    const ImageView<const uint8_t> cls = classes[static_cast<size_t>(n)];
+    uint8_t* dst = pixels_.data() + lut_.pixel_offset(n);
+    if (cls.empty()) {
+      std::fill(dst, dst + static_cast<size_t>(size.width) * size.height, kAbstain);
+      continue;
+    }
+    OCCMAP_CHECK(cls.width() == size.width && cls.height() == size.height, "shadow check: class image size");
+    OCCMAP_CHECK(changes[static_cast<size_t>(n)].width() == size.width && changes[static_cast<size_t>(n)].height() == size.height,
+                 "shadow check: change mask size");
+    for (int y = 0; y < size.height; ++y) std::copy_n(cls.row(y), size.width, dst + static_cast<size_t>(y) * size.width);
+    any = true;
+  }
+  if (!any) return 0;
+  // A cell is lit when at least half of the other cameras that view it, and one at least, see
+  // it unchanged (most of their pixels there kBackground). The asking camera is one of the
+  // cameras that see it dark, so "others" is the viewing cameras less one.
+  auto lit_cell = [&](uint32_t cell) {
+    if (cell_state_[cell] == kCellUnknown) {
+      for (uint32_t q : lut_.l2_pixels_of(cell)) {
+        const uint8_t v = pixels_[q];
+        if (v == kAbstain) continue;
+        (v == BackgroundModel::kBackground ? lit_ : dark_)[camera_of_[q]] += 1;
+      }
+      int viewing = 0, lit = 0;
+      for (int n = 0; n < cameras; ++n) {
+        const size_t k = static_cast<size_t>(n);
+        if (lit_[k] + dark_[k] == 0) continue;
+        ++viewing;
+        lit += lit_[k] > dark_[k];
+        lit_[k] = dark_[k] = 0;
+      }
+      cell_state_[cell] = lit >= 1 && 2 * lit >= viewing - 1 ? kCellLit : kCellNotDark;
+      touched_.push_back(cell);
+    }
+    return cell_state_[cell] == kCellLit;
+  };
+  // A far camera's pixel spans several cells and sees a thin shadow (a leg's) unchanged: the
+  // cells around must be lit too.
+  const FloorGrid& g = lut_.grid();
+  const int radius = kShadowCheckRadiusCells;
+  auto lit_around = [&](uint32_t cell) {
+    const int ci = static_cast<int>(cell % static_cast<uint32_t>(g.cells_x)), cj = static_cast<int>(cell / static_cast<uint32_t>(g.cells_x));
+    for (int j = std::max(0, cj - radius); j <= std::min(g.cells_y - 1, cj + radius); ++j) {
+      for (int i = std::max(0, ci - radius); i <= std::min(g.cells_x - 1, ci + radius); ++i) {
+        if (!lit_cell(static_cast<uint32_t>(j * g.cells_x + i))) return false;
+      }
+    }
+    return true;
+  };
+  const uint32_t sentinel = lut_.sentinel();
+  int64_t turned = 0;
+  for (int n = 0; n < cameras; ++n) {
+    const ImageView<const uint8_t> cls = classes[static_cast<size_t>(n)];
+    if (cls.empty()) continue;
+    const ImageSize size = lut_.image_size(n);
+    const std::span<const uint32_t> l1 = lut_.l1(n);
+    const ImageView<uint8_t> out = changes[static_cast<size_t>(n)];
+    for (int y = 0; y < size.height; ++y) {
+      const uint8_t* c = cls.row(y);
+      uint8_t* o = out.row(y);
+      for (int x = 0; x < size.width; ++x) {
+        if (c[x] != BackgroundModel::kShadow) continue;
+        const uint32_t cell = l1[static_cast<size_t>(y) * size.width + x];
+        if (cell == sentinel || !lit_around(cell)) continue;
+        o[x] = 1;
+        ++turned;
+      }
+    }
+  }
+  return turned;
 }
 
 }  // namespace occmap

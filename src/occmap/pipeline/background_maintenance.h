@@ -167,4 +167,35 @@ class ShadowTeachers {
   int64_t teachers_ = 0;
 };
 
+// Cast shadows checked through the floor, before the fusion. A cast shadow lies on the floor:
+// every camera that sees its floor cell sees it darkened. A person's side turned from the sun,
+// which one camera takes for a shadow (darker by about the shadows' ratio, in their colour),
+// stands above the floor: the ray of its pixel meets the floor behind the person, and the other
+// cameras see that cell lit. A shadow pixel whose floor cell (L1) is seen unchanged by at least
+// half of the other active cameras that view it (L2; a camera sees the cell unchanged when most
+// of its pixels there are kBackground), and by one at least, is a change after all. Pixels whose
+// ray leaves the grid, and cells only their own camera sees, keep their class. It fails where a
+// static structure hides the floor from the other cameras and looks like the background there
+// (the cell seems lit behind it), and for clothing in front of someone else's cast shadow.
+//
+//   ShadowCheck check(lut);
+//   check.Apply(classes, changes);   // after each camera's DetectChanges, before dilation
+class ShadowCheck {
+ public:
+  explicit ShadowCheck(const GroundLut& lut);  // lut must outlive this
+
+  // classes[n]: camera n's BackgroundModel::pixel_classes(), empty when the camera is not active
+  // or has no shadow test; changes[n]: its change mask (same size), set to 1 where a shadow
+  // pixel's floor is seen lit. Returns the pixels turned into changes.
+  int64_t Apply(const std::vector<ImageView<const uint8_t>>& classes, const std::vector<ImageView<uint8_t>>& changes);
+
+ private:
+  const GroundLut& lut_;
+  std::vector<uint8_t> pixels_;       // per global pixel id: its class, kAbstain when inactive
+  std::vector<uint8_t> camera_of_;    // per global pixel id
+  std::vector<uint8_t> cell_state_;   // per cell: unknown, lit or not
+  std::vector<uint32_t> touched_;     // cells whose state was set this frame
+  std::vector<int> lit_, dark_;       // per camera, pixels of the cell being asked
+};
+
 }  // namespace occmap

@@ -419,3 +419,72 @@ TEST(ShadowTeachers, TheFloorEveryCameraSeesDarkTeachesClothingDoesNot) {
 
 }  // namespace
 }  // namespace occmap
+
+namespace occmap {
+namespace {
+
+// A cast shadow every camera sees dark stays a shadow; clothing that camera 0 alone takes for a
+// shadow, over floor the others see lit, is a change. Camera 0 sees the shadow one cell wider
+// than the others (a pixel wider than the cells): that rim, lit in the other views but beside
+// cells dark in them, stays a shadow.
+TEST(ShadowCheck, ShadowsOverFloorTheOthersSeeLitAreChanges) {
+  testing::SmallRoom room(160, 120);
+  std::vector<LutCameraInput> inputs;
+  for (const auto& c : room.cameras) inputs.push_back({&c, {}});
+  Context ctx(1);
+  auto lut = BuildGroundLut(inputs, room.grid, LutOptions{}, ctx);
+  ASSERT_TRUE(lut.ok()) << lut.status().message();
+  auto in_shadow = [](const Eigen::Vector2d& p) { return p.x() >= 1.0 && p.x() < 2.0 && p.y() >= 1.0 && p.y() < 1.6; };
+  auto in_clothing = [](const Eigen::Vector2d& p) { return p.x() >= 3.0 && p.x() < 3.4 && p.y() >= 2.0 && p.y() < 2.4; };
+  std::vector<Image<uint8_t>> classes, changes;
+  int64_t shadow_pixels = 0, clothing_pixels = 0;
+  for (size_t n = 0; n < room.cameras.size(); ++n) {
+    Image<uint8_t>& c = classes.emplace_back(160, 120, BackgroundModel::kBackground);
+    changes.emplace_back(160, 120, uint8_t{0});
+    for (int y = 0; y < 120; ++y) {
+      for (int x = 0; x < 160; ++x) {
+        const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
+        if (!p) continue;
+        if (in_shadow(*p) || (n == 0 && p->x() >= 2.0 && p->x() < 2.05 && p->y() >= 1.0 && p->y() < 1.6)) {
+          c(x, y) = n == 2 ? BackgroundModel::kChanged : BackgroundModel::kShadow;  // someone in front, in view 2
+          shadow_pixels += n == 0;
+        } else if (n == 0 && in_clothing(*p)) {
+          c(x, y) = BackgroundModel::kShadow;
+          ++clothing_pixels;
+        }
+      }
+    }
+  }
+  ASSERT_GT(shadow_pixels, 200);
+  ASSERT_GT(clothing_pixels, 50);
+  std::vector<ImageView<const uint8_t>> class_views;
+  std::vector<ImageView<uint8_t>> change_views;
+  for (const auto& c : classes) class_views.push_back(c.view());
+  for (auto& c : changes) change_views.push_back(c.view());
+  ShadowCheck check(*lut);
+  const int64_t turned = check.Apply(class_views, change_views);
+  int64_t turned_shadow = 0, turned_clothing = 0;
+  for (size_t n = 0; n < room.cameras.size(); ++n) {
+    for (int y = 0; y < 120; ++y) {
+      for (int x = 0; x < 160; ++x) {
+        if (changes[n](x, y) == 0) continue;
+        const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
+        ASSERT_TRUE(p.has_value());
+        (in_clothing(*p) ? turned_clothing : turned_shadow) += 1;  // the rim counts as shadow
+      }
+    }
+  }
+  EXPECT_EQ(turned_shadow, 0);
+  // All but the clothing's rim, whose cells touch floor camera 0 alone sees dark.
+  EXPECT_GT(turned_clothing, clothing_pixels / 2);
+  EXPECT_EQ(turned, turned_clothing);
+  // Without the other cameras (not active) nothing is checked against them.
+  for (size_t n = 1; n < room.cameras.size(); ++n) class_views[n] = {};
+  for (auto& c : changes) {
+    for (int y = 0; y < 120; ++y) std::fill_n(c.row(y), 160, uint8_t{0});
+  }
+  EXPECT_EQ(check.Apply(class_views, change_views), 0);
+}
+
+}  // namespace
+}  // namespace occmap

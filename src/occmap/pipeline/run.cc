@@ -383,7 +383,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                         {"chroma", chroma}, {"chroma_threshold", bo.chroma_threshold},
                         {"shadows", {{"enabled", bo.shadows.enabled}, {"min_ratio", bo.shadows.min_ratio},
                                      {"max_ratio", bo.shadows.max_ratio}, {"max_channel_spread", bo.shadows.max_channel_spread},
-                                     {"texture_radius_px", bo.shadows.texture_radius_px}}},
+                                     {"texture_radius_px", bo.shadows.texture_radius_px},
+                                     {"floor_check", bo.shadows.floor_check}}},
                         {"consensus", {{"pixels_checked", summary.consensus_pixels_checked},
                                        {"pixels_swapped", summary.consensus_pixels_swapped},
                                        {"pixels_settled", summary.consensus_pixels_settled}}}};
@@ -534,7 +535,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   });
 
   // The change buffer of one camera of a slot, from its frame (or mask).
-  auto camera_changes = [&](FrameSet& set, size_t n, Image<uint8_t>& raw, std::vector<uint8_t>& scratch) {
+  // dilate: false leaves the tolerance to the caller (changes in `raw` when it is > 0).
+  auto camera_changes = [&](FrameSet& set, size_t n, Image<uint8_t>& raw, std::vector<uint8_t>& scratch, bool dilate) {
     const CameraState& c = cams[n];
     const ImageSize size = c.cam->camera->image_size();
     ImageView<uint8_t> slice(set.changes.data() + lut.pixel_offset(static_cast<int>(n)), size.width, size.height,
@@ -558,7 +560,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     } else {
       DetectChangesGray(frame.gray.view(), c.background_gray.view(), site.detection.threshold, target);
     }
-    if (r > 0) DilateChanges(raw.view(), r, slice, scratch);
+    if (r > 0 && dilate) DilateChanges(raw.view(), r, slice, scratch);
   };
   auto ensure_changes = [&](FrameSet& set) {
     if (set.changes.size() != static_cast<size_t>(lut.total_pixels())) set.changes.assign(lut.total_pixels(), 0);
@@ -576,7 +578,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     if (!set.changes_ready) {  // fully fused: the changes of this frame, for its picture
       ensure_changes(set);
       for (size_t n = 0; n < cams.size(); ++n) {
-        if (active[n]) camera_changes(set, n, post_raw[n], post_scratch[n]);
+        if (active[n]) camera_changes(set, n, post_raw[n], post_scratch[n], true);
       }
       set.changes_ready = true;
     }
@@ -776,6 +778,10 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   std::optional<BackgroundProtection> protection;
   std::vector<ImageView<const uint8_t>> protection_changes(cams.size());
   std::optional<ShadowTeachers> teachers;
+  std::optional<ShadowCheck> shadow_check;
+  std::vector<ImageView<const uint8_t>> check_classes(cams.size());
+  std::vector<ImageView<uint8_t>> check_changes(cams.size());
+  if (adaptive && site.backgrounds.shadows.enabled && site.backgrounds.shadows.floor_check) shadow_check.emplace(lut);
   WalkedPeople walked_people;  // people seen walking in stay people where they stop
   std::vector<ImageView<const uint8_t>> teacher_classes(cams.size()), teacher_ratios(cams.size());
   int64_t last_frame_index = options.start_frame;
@@ -808,9 +814,34 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       ensure_changes(set);
       ParallelFor(ctx, 0, static_cast<int64_t>(cams.size()), [&](int64_t b, int64_t e, int) {
         for (int64_t n = b; n < e; ++n) {
-          if (active[n]) camera_changes(set, n, cams[n].raw_changes, cams[n].dilate_scratch);
+          if (active[n]) camera_changes(set, n, cams[n].raw_changes, cams[n].dilate_scratch, !shadow_check);
         }
       });
+      if (shadow_check) {  // shadows whose floor the other cameras see lit are changes; then the tolerance
+        const int r = site.detection.tolerance_px;
+        for (size_t n = 0; n < cams.size(); ++n) {
+          const ImageSize size = cams[n].cam->camera->image_size();
+          const bool checked = active[n] && cams[n].model;
+          check_classes[n] = checked ? cams[n].model->pixel_classes() : ImageView<const uint8_t>();
+          check_changes[n] = !checked ? ImageView<uint8_t>()
+                             : r > 0  ? cams[n].raw_changes.view()
+                                      : ImageView<uint8_t>(set.changes.data() + lut.pixel_offset(static_cast<int>(n)),
+                                                           size.width, size.height, size.width);
+        }
+        shadow_check->Apply(check_classes, check_changes);
+        if (r > 0) {
+          ParallelFor(ctx, 0, static_cast<int64_t>(cams.size()), [&](int64_t b, int64_t e, int) {
+            for (int64_t n = b; n < e; ++n) {
+              if (!active[n]) continue;
+              const ImageSize size = cams[n].cam->camera->image_size();
+              DilateChanges(cams[n].raw_changes.view(), r,
+                            ImageView<uint8_t>(set.changes.data() + lut.pixel_offset(static_cast<int>(n)), size.width,
+                                               size.height, size.width),
+                            cams[n].dilate_scratch);
+            }
+          });
+        }
+      }
       set.changes_ready = true;
       if (options.change_pngs) {
         set.change_pictures.resize(cams.size());

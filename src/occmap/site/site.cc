@@ -368,7 +368,7 @@ Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
   if (auto s = f.Find("shadows")) {
     OCCMAP_RETURN_IF_ERROR(s->CheckKeys({"enabled", "min_ratio", "max_ratio", "learn", "ratio_window", "max_channel_spread",
                                          "texture_radius_px",
-                                         "min_texture_correlation", "flat_std"}));
+                                         "min_texture_correlation", "flat_std", "floor_check"}));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.enabled, s->GetBool("enabled", b.shadows.enabled));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.min_ratio, s->GetDouble("min_ratio", b.shadows.min_ratio));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.max_ratio, s->GetDouble("max_ratio", b.shadows.max_ratio));
@@ -380,6 +380,7 @@ Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.min_texture_correlation,
                             s->GetDouble("min_texture_correlation", b.shadows.min_texture_correlation));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.flat_std, s->GetDouble("flat_std", b.shadows.flat_std));
+    OCCMAP_ASSIGN_OR_RETURN(b.shadows.floor_check, s->GetBool("floor_check", b.shadows.floor_check));
   }
   // Validate() names the field ("backgrounds.shadows.min_ratio: ..."): the message goes to its line.
   if (Status v = b.Validate(); !v.ok()) {
