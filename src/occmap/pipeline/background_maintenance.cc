@@ -435,9 +435,10 @@ int64_t ShadowCheck::Apply(const std::vector<ImageView<const uint8_t>>& classes,
     any = true;
   }
   if (!any) return 0;
-  // A cell is lit when at least half of the other cameras that view it, and one at least, see
+  // A cell is lit when at least half of the other cameras that view it, and two at least, see
   // it unchanged (most of their pixels there kBackground). The asking camera is one of the
-  // cameras that see it dark, so "others" is the viewing cameras less one.
+  // cameras that see it dark, so "others" is the viewing cameras less one. One camera alone
+  // (cells at the edge of the views) turned the lab's shadows by the walls into ghosts.
   auto lit_cell = [&](uint32_t cell) {
     if (cell_state_[cell] == kCellUnknown) {
       for (uint32_t q : lut_.l2_pixels_of(cell)) {
@@ -453,7 +454,7 @@ int64_t ShadowCheck::Apply(const std::vector<ImageView<const uint8_t>>& classes,
         lit += lit_[k] > dark_[k];
         lit_[k] = dark_[k] = 0;
       }
-      cell_state_[cell] = lit >= 1 && 2 * lit >= viewing - 1 ? kCellLit : kCellNotDark;
+      cell_state_[cell] = lit >= 2 && 2 * lit >= viewing - 1 ? kCellLit : kCellNotDark;
       touched_.push_back(cell);
     }
     return cell_state_[cell] == kCellLit;

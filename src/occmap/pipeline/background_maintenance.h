@@ -173,7 +173,7 @@ class ShadowTeachers {
 // stands above the floor: the ray of its pixel meets the floor behind the person, and the other
 // cameras see that cell lit. A shadow pixel whose floor cell (L1) is seen unchanged by at least
 // half of the other active cameras that view it (L2; a camera sees the cell unchanged when most
-// of its pixels there are kBackground), and by one at least, is a change after all. Pixels whose
+// of its pixels there are kBackground), and by two at least, is a change after all. Pixels whose
 // ray leaves the grid, and cells only their own camera sees, keep their class. It fails where a
 // static structure hides the floor from the other cameras and looks like the background there
 // (the cell seems lit behind it), and for clothing in front of someone else's cast shadow.

@@ -478,8 +478,8 @@ TEST(ShadowCheck, ShadowsOverFloorTheOthersSeeLitAreChanges) {
   // All but the clothing's rim, whose cells touch floor camera 0 alone sees dark.
   EXPECT_GT(turned_clothing, clothing_pixels / 2);
   EXPECT_EQ(turned, turned_clothing);
-  // Without the other cameras (not active) nothing is checked against them.
-  for (size_t n = 1; n < room.cameras.size(); ++n) class_views[n] = {};
+  // One other camera is not enough (cells at the edge of the views): cameras 2 and 3 not active.
+  for (size_t n = 2; n < room.cameras.size(); ++n) class_views[n] = {};
   for (auto& c : changes) {
     for (int y = 0; y < 120; ++y) std::fill_n(c.row(y), 160, uint8_t{0});
   }
