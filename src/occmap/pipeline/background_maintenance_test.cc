@@ -342,17 +342,22 @@ TEST(WalkedPeople, OnlyThoseSeenWalkingHaveWalked) {
   EXPECT_FALSE(jumped[1]);
 }
 
+// The small room's tables, and the floor a cast shadow covers in the shadow tests.
+Result<GroundLut> SmallRoomLut(const testing::SmallRoom& room) {
+  std::vector<LutCameraInput> inputs;
+  for (const auto& c : room.cameras) inputs.push_back({&c, {}});
+  Context ctx(1);
+  return BuildGroundLut(inputs, room.grid, LutOptions{}, ctx);
+}
+bool InCastShadow(const Eigen::Vector2d& p) { return p.x() >= 1.0 && p.x() < 2.0 && p.y() >= 1.0 && p.y() < 1.6; }
+
 // A cast shadow on the floor is dark in every view; clothing that camera 0 takes for a shadow
 // stands above the floor, whose cells the other cameras see lit. Only the shadow teaches, and
 // not where a person stands.
 TEST(ShadowTeachers, TheFloorEveryCameraSeesDarkTeachesClothingDoesNot) {
   testing::SmallRoom room(160, 120);
-  std::vector<LutCameraInput> inputs;
-  for (const auto& c : room.cameras) inputs.push_back({&c, {}});
-  Context ctx(1);
-  auto lut = BuildGroundLut(inputs, room.grid, LutOptions{}, ctx);
+  auto lut = SmallRoomLut(room);
   ASSERT_TRUE(lut.ok()) << lut.status().message();
-  auto in_shadow = [](const Eigen::Vector2d& p) { return p.x() >= 1.0 && p.x() < 2.0 && p.y() >= 1.0 && p.y() < 1.6; };
   std::vector<Image<uint8_t>> classes, ratios;
   int64_t shadow_pixels = 0;
   for (size_t n = 0; n < room.cameras.size(); ++n) {
@@ -361,7 +366,7 @@ TEST(ShadowTeachers, TheFloorEveryCameraSeesDarkTeachesClothingDoesNot) {
     for (int y = 0; y < 120; ++y) {
       for (int x = 0; x < 160; ++x) {
         const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
-        if (p && in_shadow(*p)) {
+        if (p && InCastShadow(*p)) {
           c(x, y) = n % 2 == 0 ? BackgroundModel::kChanged : BackgroundModel::kShadow;
           r(x, y) = static_cast<uint8_t>(110 + n * 3);  // 0.43-0.47 of the lit floor
           shadow_pixels += n == 0;
@@ -393,7 +398,7 @@ TEST(ShadowTeachers, TheFloorEveryCameraSeesDarkTeachesClothingDoesNot) {
       if (teachers.image(0)(x, y) == 0) continue;
       const auto p = room.cameras[0].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
       ASSERT_TRUE(p.has_value());
-      (in_shadow(*p) ? taught_shadow : taught_clothing) += 1;
+      (InCastShadow(*p) ? taught_shadow : taught_clothing) += 1;
     }
   }
   EXPECT_EQ(taught_clothing, 0);
@@ -429,12 +434,8 @@ namespace {
 // cells dark in them, stays a shadow.
 TEST(ShadowCheck, ShadowsOverFloorTheOthersSeeLitAreChanges) {
   testing::SmallRoom room(160, 120);
-  std::vector<LutCameraInput> inputs;
-  for (const auto& c : room.cameras) inputs.push_back({&c, {}});
-  Context ctx(1);
-  auto lut = BuildGroundLut(inputs, room.grid, LutOptions{}, ctx);
+  auto lut = SmallRoomLut(room);
   ASSERT_TRUE(lut.ok()) << lut.status().message();
-  auto in_shadow = [](const Eigen::Vector2d& p) { return p.x() >= 1.0 && p.x() < 2.0 && p.y() >= 1.0 && p.y() < 1.6; };
   auto in_clothing = [](const Eigen::Vector2d& p) { return p.x() >= 3.0 && p.x() < 3.4 && p.y() >= 2.0 && p.y() < 2.4; };
   std::vector<Image<uint8_t>> classes, changes;
   int64_t shadow_pixels = 0, clothing_pixels = 0;
@@ -445,7 +446,7 @@ TEST(ShadowCheck, ShadowsOverFloorTheOthersSeeLitAreChanges) {
       for (int x = 0; x < 160; ++x) {
         const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
         if (!p) continue;
-        if (in_shadow(*p) || (n == 0 && p->x() >= 2.0 && p->x() < 2.05 && p->y() >= 1.0 && p->y() < 1.6)) {
+        if (InCastShadow(*p) || (n == 0 && p->x() >= 2.0 && p->x() < 2.05 && p->y() >= 1.0 && p->y() < 1.6)) {
           c(x, y) = n == 2 ? BackgroundModel::kChanged : BackgroundModel::kShadow;  // someone in front, in view 2
           shadow_pixels += n == 0;
         } else if (n == 0 && in_clothing(*p)) {
