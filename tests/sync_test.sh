@@ -10,10 +10,7 @@ set -uo pipefail
 occmap=$1
 src=$2
 source "$src/tests/test_lib.sh"
-if ! command -v ffmpeg >/dev/null; then
-  echo "SKIP: no ffmpeg program (scripts/install-deps.sh installs it)"
-  exit 0
-fi
+tl_require_ffmpeg
 tl_init
 lab="$work/lab"
 tl_synth_lab "$occmap" "$lab" --video --frames 30 --scale 0.5

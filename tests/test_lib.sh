@@ -37,6 +37,14 @@ tl_init() {
   trap tl_cleanup EXIT
 }
 
+# tl_require_ffmpeg: the test is skipped (exit 0, with a message) without the ffmpeg program.
+tl_require_ffmpeg() {
+  if ! command -v ffmpeg >/dev/null; then
+    echo "SKIP: no ffmpeg program (scripts/install-deps.sh installs it)"
+    exit 0
+  fi
+}
+
 # tl_finish NAME: the counts, and the status of the test (0 when nothing failed).
 tl_finish() {
   echo "${1:+$1: }$passed passed, $failures failed"
