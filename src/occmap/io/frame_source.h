@@ -117,6 +117,10 @@ class FrameSource {
 
 Result<std::unique_ptr<FrameSource>> OpenFrameSource(const FrameSourceSpec& spec, const FrameSourceOptions& options);
 
+// A source location for messages: a URL's password replaced ("rtsp://user:secret@cam/1" ->
+// "rtsp://user:***@cam/1"); anything else as it is.
+std::string RedactUrl(const std::string& url);
+
 // The two families behind OpenFrameSource, for callers that know what they open.
 // `masks` selects the mask flavour of an image sequence (kMasks).
 Result<std::unique_ptr<FrameSource>> OpenImageSequence(const std::string& location, bool masks,

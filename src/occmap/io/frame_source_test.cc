@@ -461,5 +461,15 @@ TEST(OpenFrameSource, KindNamesReadAsWords) {
   EXPECT_STREQ(ToString(Kind::kNone), "none");
 }
 
+// Messages and summaries show where a source is, never a camera's password.
+TEST(RedactUrl, HidesTheStreamPasswordOnly) {
+  EXPECT_EQ(RedactUrl("rtsp://admin:s3cret@10.0.0.7:554/stream1"), "rtsp://admin:***@10.0.0.7:554/stream1");
+  EXPECT_EQ(RedactUrl("rtsp://admin:s3cret@cam"), "rtsp://admin:***@cam");
+  EXPECT_EQ(RedactUrl("rtsp://admin@cam/1"), "rtsp://admin@cam/1");            // no password
+  EXPECT_EQ(RedactUrl("udp://127.0.0.1:23001?pkt_size=1316"), "udp://127.0.0.1:23001?pkt_size=1316");
+  EXPECT_EQ(RedactUrl("http://cam/a@b.mjpg"), "http://cam/a@b.mjpg");           // @ in the path
+  EXPECT_EQ(RedactUrl("frames/c1.mp4"), "frames/c1.mp4");
+}
+
 }  // namespace
 }  // namespace occmap

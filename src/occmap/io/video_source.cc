@@ -34,6 +34,17 @@ extern "C" {
 
 namespace occmap {
 
+std::string RedactUrl(const std::string& url) {
+  const size_t scheme = url.find("://");
+  if (scheme == std::string::npos) return url;
+  const size_t host_start = scheme + 3;
+  const size_t host_end = std::min(url.find('/', host_start), url.size());
+  const size_t at = url.rfind('@', host_end);
+  if (at == std::string::npos || at < host_start) return url;
+  const size_t colon = url.find(':', host_start);
+  if (colon == std::string::npos || colon > at) return url;
+  return url.substr(0, colon + 1) + "***" + url.substr(at);
+}
 
 namespace {
 namespace fs = std::filesystem;
@@ -48,18 +59,6 @@ using ffmpeg_internal::FrameDeleter;
 using ffmpeg_internal::PacketDeleter;
 using ffmpeg_internal::SwsDeleter;
 
-// "rtsp://user:secret@cam/1" -> "rtsp://user:***@cam/1": no password in messages.
-std::string RedactUrl(const std::string& url) {
-  const size_t scheme = url.find("://");
-  if (scheme == std::string::npos) return url;
-  const size_t host_start = scheme + 3;
-  const size_t host_end = std::min(url.find('/', host_start), url.size());
-  const size_t at = url.rfind('@', host_end);
-  if (at == std::string::npos || at < host_start) return url;
-  const size_t colon = url.find(':', host_start);
-  if (colon == std::string::npos || colon > at) return url;
-  return url.substr(0, colon + 1) + "***" + url.substr(at);
-}
 
 // "a PNG image" when FFmpeg's demuxer is one of its still-image readers ("png_pipe", "image2",
 // "gif", ...), or nullptr: FFmpeg would decode an image as a video of one frame.

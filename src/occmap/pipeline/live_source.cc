@@ -72,11 +72,11 @@ void LiveSource::Loop() {
     }
     auto got = source_->Read(back_);
     if (!got.ok() || !*got) {
-      fail(got.ok() ? IoError(fmt::format("{}: the stream ended", spec_.location)) : got.status());
+      fail(got.ok() ? IoError(fmt::format("{}: the stream ended", RedactUrl(spec_.location))) : got.status());
       continue;
     }
     if (back_.gray.width() != size_.width || back_.gray.height() != size_.height) {
-      fail(InvalidInput(fmt::format("{}: a {}x{} frame, expected {}x{}", spec_.location, back_.gray.width(),
+      fail(InvalidInput(fmt::format("{}: a {}x{} frame, expected {}x{}", RedactUrl(spec_.location), back_.gray.width(),
                                     back_.gray.height(), size_.width, size_.height)));
       continue;
     }
