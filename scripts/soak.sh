@@ -15,7 +15,9 @@ minutes=${1:?usage: soak.sh MINUTES [OCCMAP_BINARY] [OUT_DIR]}
 src=$(cd "$(dirname "$0")/.." && pwd)
 occmap=$(realpath "${2:-$src/build/release/occmap}")
 out=$(realpath -m "${3:-soak-out}")
-warm_up_s=${SOAK_WARM_UP_S:-120}  # samples before this are the start-up (tables, caches, arenas)
+# Samples before this are the start-up (tables, caches, arenas): resident memory climbs for
+# about 8 minutes on this machine (docs/perf-log.md, 2026-12-03), so 10 by default.
+warm_up_s=${SOAK_WARM_UP_S:-600}
 every_s=10
 
 source "$src/tests/test_lib.sh"
