@@ -26,7 +26,7 @@
 #include "occmap/lut/visibility_image.h"
 #include "occmap/eval/benchmark_annotations.h"
 #include "occmap/eval/evaluate_run.h"
-#include "occmap/pipeline/demo.h"
+#include "occmap/demo/demo.h"
 #include "occmap/pipeline/mqtt_sink.h"
 #include "occmap/pipeline/ros_map_sink.h"
 #include "occmap/pipeline/run.h"

@@ -20,7 +20,8 @@ of its table dependencies. The checker fails, naming file and line, when
      allowed(m). Test files (*_test.cc) get the same rule, widened by what occmap_module()
      links into occmap_<m>_test besides the module (read from the top-level CMakeLists.txt):
      today only occmap_testing, i.e. the one header occmap/util/testing.h. A test may thus
-     not reach a module its test binary does not link.
+     not reach a module its test binary does not link. A module's TEST_DEPS
+     (occmap_module(NAME DEPS ... TEST_DEPS ...)) widen its own tests' rule the same way.
 
 Files under apps/ may include any module (they only must name an existing one).
 Needs only python3 (no third-party modules). Exit 0 when clean, 1 with one line per problem.
@@ -106,7 +107,8 @@ def strip_cmake_comments(text):
 
 
 def parse_cmake_modules(path):
-    """occmap_module(NAME DEPS ...) calls: {name: (line_no, [dep tokens])}."""
+    """occmap_module(NAME DEPS ... TEST_DEPS ...) calls: {name: (line_no, [dep tokens],
+    [test dep tokens])}; TEST_DEPS are linked into the module's tests only."""
     with open(path, encoding="utf-8") as f:
         text = strip_cmake_comments(f.read())
     modules = {}
@@ -115,14 +117,17 @@ def parse_cmake_modules(path):
         if not tokens:
             continue
         deps = []
+        test_deps = []
         keyword = None
         for token in tokens[1:]:
-            if token in ("DEPS", "EXCLUDE"):
+            if token in ("DEPS", "EXCLUDE", "TEST_DEPS"):
                 keyword = token
             elif keyword == "DEPS":
                 deps.append(token)
+            elif keyword == "TEST_DEPS":
+                test_deps.append(token)
         line = text.count("\n", 0, match.start()) + 1
-        modules[tokens[0]] = (line, deps)
+        modules[tokens[0]] = (line, deps, test_deps)
     return modules
 
 
@@ -228,7 +233,7 @@ def main(argv):
     # 2. The table against CMake.
     cmake = parse_cmake_modules(modules_cmake)
     cmake_deps = {}
-    for module, (line, tokens) in cmake.items():
+    for module, (line, tokens, _) in cmake.items():
         cmake_deps[module] = [t[len("occmap_"):] for t in tokens
                               if t.startswith("occmap_") and t[len("occmap_"):] in folders]
         if module not in folders:
@@ -293,9 +298,18 @@ def main(argv):
         if module not in table:
             continue  # reported above; its includes cannot be judged without a row
         allowed = {module} | closure(module, table_deps)
+        # The module's own TEST_DEPS (occmap_module(... TEST_DEPS ...)): its tests only.
+        own_test_modules = set()
+        for token in cmake.get(module, (0, [], []))[2]:
+            name = token[len("occmap_"):] if token.startswith("occmap_") else None
+            if name in folders:
+                if name == module or module in closure(name, table_deps):
+                    problems.add(modules_cmake, cmake[module][0], f"occmap_module({module}) lists "
+                                 f"{token} in TEST_DEPS, which depends on '{module}' itself")
+                own_test_modules |= {name} | closure(name, table_deps)
         for path in source_files(os.path.join(occmap_dir, module)):
             is_test = path.endswith("_test.cc")
-            allowed_here = allowed | test_extra_modules if is_test else allowed
+            allowed_here = allowed | test_extra_modules | own_test_modules if is_test else allowed
             for number, line in enumerate(read_lines(path), start=1):
                 match = INCLUDE_RE.match(line)
                 if not match:

@@ -11,7 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "occmap/eval/evaluate_run.h"
-#include "occmap/pipeline/demo.h"
+#include "occmap/demo/demo.h"
 #include "occmap/pipeline/run.h"
 #include "occmap/sim/builtin_scenes.h"
 #include "occmap/sim/dataset_writer.h"

@@ -1,4 +1,4 @@
-#include "occmap/pipeline/demo.h"
+#include "occmap/demo/demo.h"
 
 #include <fmt/core.h>
 
