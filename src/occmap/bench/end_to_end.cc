@@ -30,7 +30,6 @@
 
 #include "occmap/bench/bench.h"
 #include "occmap/fusion/fast_fusion.h"
-#include "occmap/pipeline/fusion_path.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/pipeline/run.h"
 #include "occmap/sim/builtin_scenes.h"
@@ -129,9 +128,6 @@ bool PeopleDetectorOn(const Site& site) {
   return site.people.enabled && site.people.detector != PeopleDetector::kFloor;
 }
 
-// How RunSite computes changes and fuses on this site without video outputs: its own choice.
-std::string FusionPathText(const Site& site) { return ChooseFusionPath(site, false).Describe(site); }
-
 struct RunPass {
   RunSummary summary;
   double cpu_ms_per_set = 0, steady_cpu_ms_per_set = 0;
@@ -205,11 +201,6 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
   RunSummary run, floor_run;
   const bool people = PeopleDetectorOn(site);
   e.people_detector = people ? ToString(site.people.detector) : "floor";
-  if (people) {
-    site.people.enabled = false;
-    e.floor.fusion_path = FusionPathText(site);
-    site.people.enabled = true;
-  }
   for (int k = 0; k < kRepeats; ++k) {
     OCCMAP_ASSIGN_OR_RETURN(DecodePass par, Decode(site, parallel_options, /*parallel=*/true));
     OCCMAP_ASSIGN_OR_RETURN(DecodePass inter, Decode(site, interleaved_options, /*parallel=*/false));
@@ -270,6 +261,7 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
   if (people) {
     EndToEndResult::FloorPass& f = e.floor;
     f.measured = true;
+    f.fusion_path = floor_run.fusion_path;  // RunSite's own choice (RunFusionPlan)
     f.run_fps = Median(floor_fps);
     f.run_overall_fps = Median(floor_overall);
     f.run_startup_s = Median(floor_startup);
@@ -286,7 +278,7 @@ Result<EndToEndResult> MeasureEndToEnd(int frames, Context& ctx, const std::file
                        "medians of {} alternated passes; RunSite without video outputs ({}, detections, tracking, "
                        "text outputs); decoding: the faster of one thread per camera and the cameras in turn{}",
                        e.scene, e.cameras, size.width, size.height, e.frames, ctx.num_threads(), kWarmUp, kRepeats,
-                       FusionPathText(site),
+                       run.fusion_path,
                        people ? fmt::format("; also without the people detector ({})", e.floor.fusion_path)
                               : std::string());
   return e;

@@ -3,15 +3,19 @@
 // mask from another tool), fuse the change masks through the lookup tables into the tri-state
 // occupancy map (equation 5), find blobs, and write the outputs.
 //
-// A run is a pipeline of stages on their own threads joined by bounded queues: a reader
-// (decoding, synchronising) fills a ring of four frame sets; change detection and fusion (on the
-// calling thread, with ctx's pool) make each set's map; a post stage finds the detections,
-// tracks them and draws the pictures; a writer stage writes the outputs in frame order. The
-// stages overlap, so over video files the run is limited by decoding, and memory stays flat.
-//
-// The stages live in their own files: camera_inputs.h (sources, backgrounds), frame_reader.h
-// (the reader), fusion_path.h (the one choice of how changes are fused), and the outputs go to
-// FrameSinks (frame_sink.h), the run's own files first (output_files.h).
+// A run is a pipeline of stages on their own threads joined by bounded queues, each stage a
+// class in its own file with one input and one output:
+//   FrameReader (frame_reader.h)        sources (camera_inputs.h) -> a FrameSet's frames, in a
+//                                       ring of four frame sets
+//   FusionStage (fusion_stage.h)        FrameSet -> its changes and fused map (and the people's
+//                                       column map), the adaptive backgrounds updated; on the
+//                                       calling thread, with ctx's pool
+//   DetectTrackStage (detect_track_stage.h)  fused FrameSet -> FrameRecord: detections, tracks,
+//                                       zone and line events, pictures
+//   SinkStage (sink_stage.h)            FrameRecord -> every FrameSink (frame_sink.h), the run's
+//                                       files first (output_files.h); summary.json (summary_file.h)
+// How changes are computed and fused is chosen once (RunFusionPlan, fusion_path.h). The stages
+// overlap, so over video files the run is limited by decoding, and memory stays flat.
 //
 // Outputs in out_dir (RunOptions::output_mode; a run that stops early keeps what it finished):
 //   detections.jsonl   one line per frame: {"frame", "time_s", "blobs": [{x_m, y_m, area_m2, ...}]}
@@ -43,6 +47,7 @@
 
 #include "occmap/fusion/blobs.h"
 #include "occmap/pipeline/frame_sink.h"
+#include "occmap/pipeline/fusion_path.h"
 #include "occmap/pipeline/output_files.h"
 #include "occmap/site/site.h"
 #include "occmap/util/status.h"
@@ -138,6 +143,7 @@ struct RunSummary {
   int max_queued_outputs = 0;  // the most frames whose outputs waited for the writer at once
   std::string stop_reason;  // "end of streams", "frame limit", "camera C2 ended", ...
   std::vector<CameraRunInfo> cameras;
+  std::string fusion_path;  // how changes were computed and fused (FusionPlan::Describe)
   std::string lut_cache;    // ToString(LutCacheOutcome)
   double lut_seconds = 0;
   int64_t blobs_total = 0;          // detections over all frame sets
@@ -150,6 +156,11 @@ struct RunSummary {
 // The FFmpeg threads of each camera's decoder in a run: the cameras decode side by side, one
 // thread per camera, so each gets its share of num_threads, at least one.
 int DecoderThreadsPerCamera(int num_threads, int num_cameras);
+
+// The one choice of how RunSite computes and fuses changes for these options (the bench's
+// end-to-end pass reports it): ChooseFusionPath with the change buffer needed by the outputs
+// that draw changes (the mosaic video, change PNGs, frames for the sinks).
+FusionPlan RunFusionPlan(const Site& site, const RunOptions& options);
 
 // Runs the site; on a failed frame with OnCameraFailure::kStop, the outputs of the frames
 // processed so far are written, then the error is returned.

@@ -1,0 +1,51 @@
+#include "occmap/pipeline/camera_changes.h"
+
+#include "occmap/detect/background.h"
+#include "occmap/detect/change_detection.h"
+
+namespace occmap {
+
+void CameraChanges::EnsureBuffer(FrameSet& set) const {
+  if (set.changes.size() != static_cast<size_t>(lut_.total_pixels())) set.changes.assign(lut_.total_pixels(), 0);
+}
+
+ImageView<uint8_t> CameraChanges::Slice(FrameSet& set, size_t n) const {
+  const ImageSize size = cams_[n].cam->camera->image_size();
+  return ImageView<uint8_t>(set.changes.data() + lut_.pixel_offset(static_cast<int>(n)), size.width, size.height,
+                            size.width);
+}
+
+ImageView<const uint8_t> CameraChanges::Slice(const FrameSet& set, size_t n) const {
+  const ImageSize size = cams_[n].cam->camera->image_size();
+  return ImageView<const uint8_t>(set.changes.data() + lut_.pixel_offset(static_cast<int>(n)), size.width,
+                                  size.height, size.width);
+}
+
+void CameraChanges::Compute(FrameSet& set, size_t n, Image<uint8_t>& raw, std::vector<uint8_t>& scratch,
+                            bool dilate) const {
+  const CameraState& c = cams_[n];
+  const ImageSize size = c.cam->camera->image_size();
+  ImageView<uint8_t> slice = Slice(set, n);
+  const int r = site_.detection.tolerance_px;
+  const int threshold = site_.detection.threshold;
+  const Frame& frame = set.frames[n];
+  if (r > 0 && r <= 4 && !c.is_mask && !colour_ && !c.model && !change_pngs_) {
+    // small tolerances on grey: one pass, no raw image
+    DetectChangesGrayDilated(frame.gray.view(), c.background_gray.view(), threshold, r, slice, scratch);
+    return;
+  }
+  if (r > 0 && (raw.width() != size.width || raw.height() != size.height)) raw = Image<uint8_t>(size.width, size.height);
+  ImageView<uint8_t> target = r > 0 ? raw.view() : slice;
+  if (c.is_mask) {
+    MaskToChanges(frame.gray.view(), target);
+  } else if (c.model) {
+    c.model->DetectChanges(FrameYuv(frame), threshold, target);
+  } else if (colour_) {
+    DetectChangesRgb(frame.rgb.view(), c.background_rgb.view(), threshold, target);
+  } else {
+    DetectChangesGray(frame.gray.view(), c.background_gray.view(), threshold, target);
+  }
+  if (r > 0 && dilate) DilateChanges(raw.view(), r, slice, scratch);
+}
+
+}  // namespace occmap

@@ -1,0 +1,49 @@
+// CameraChanges: a camera's changes for one frame set, into the set's change buffer (global
+// pixel ids, GroundLut::pixel_offset): equation 4 on grey or RGB frames, the adaptive model's
+// test, or a foreground mask resampled, then the tolerance (DilateChanges). The fusion stage
+// (fusion_stage.h) computes them for the fusion; the detect/track stage (detect_track_stage.h)
+// for the mosaic of a frame set that was fully fused (FastFusion without a change buffer).
+//
+//   CameraChanges changes(site, lut, cams, plan.colour, options.change_pngs);
+//   changes.EnsureBuffer(set);
+//   changes.Compute(set, n, raw, scratch, /*dilate=*/true);
+//   ImageView<const uint8_t> c0 = changes.Slice(set, 0);
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "occmap/lut/ground_lut.h"
+#include "occmap/pipeline/camera_inputs.h"
+#include "occmap/pipeline/frame_set.h"
+#include "occmap/site/site.h"
+#include "occmap/util/image.h"
+
+namespace occmap {
+
+class CameraChanges {
+ public:
+  // change_pngs: the changes before the tolerance are kept (`raw`), never the one-pass path.
+  CameraChanges(const Site& site, const GroundLut& lut, const std::vector<CameraState>& cams, bool colour,
+                bool change_pngs)
+      : site_(site), lut_(lut), cams_(cams), colour_(colour), change_pngs_(change_pngs) {}
+
+  // set.changes sized for every camera's pixels (allocated once, then reused).
+  void EnsureBuffer(FrameSet& set) const;
+  // Camera n's slice of set.changes (its image size, its own rows).
+  ImageView<uint8_t> Slice(FrameSet& set, size_t n) const;
+  ImageView<const uint8_t> Slice(const FrameSet& set, size_t n) const;
+  // Camera n's changes of set.frames[n] into its slice. dilate false leaves the tolerance to the
+  // caller (the changes then in `raw` when tolerance_px > 0). raw and scratch: the caller's
+  // buffers, kept between frames (one pair per camera when cameras run in parallel).
+  void Compute(FrameSet& set, size_t n, Image<uint8_t>& raw, std::vector<uint8_t>& scratch, bool dilate) const;
+
+ private:
+  const Site& site_;
+  const GroundLut& lut_;
+  const std::vector<CameraState>& cams_;
+  const bool colour_;
+  const bool change_pngs_;
+};
+
+}  // namespace occmap
