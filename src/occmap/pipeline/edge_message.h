@@ -1,0 +1,66 @@
+// EdgeMessage: what an `occmap edge` process publishes per camera and frame for `occmap fuse`
+// (issue 17): the camera's changes after the tolerance, one bit per pixel compressed with
+// zstd, never the image. The fusion needs nothing else for the floor's AND, the vote rule, the
+// elevated check and the people's fusions: they all read the change buffer.
+//
+// Binary, little-endian, version 1:
+//   "OCME"  u16 schema version  u16 kind (0 changes, 1 end of the camera's source)
+//   u64 table key (GroundLutKey of the site: cameras, masks, grid)
+//   u64 settings key (the detection section: threshold, tolerance, colour, backgrounds)
+//   u32 camera index  u32 width  u32 height  i64 frame index
+//   f64 timestamp_s (NaN: none)  f64 t_unix
+//   u32 raw bytes (the packed bits: ceil(width * height / 8))  u32 payload bytes
+//   payload: zstd frame of the packed bits (bit k of byte k / 8 = pixel k, row-major)
+// A fuse process refuses a message of another schema version, or built for other tables or
+// other detection settings, with a message naming what differs.
+//
+//   std::string bytes = EncodeEdgeMessage(msg);                  // edge
+//   OCCMAP_ASSIGN_OR_RETURN(EdgeMessage m, DecodeEdgeMessage(bytes, expect));   // fuse
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "occmap/site/site.h"
+#include "occmap/util/image.h"
+#include "occmap/util/status.h"
+
+namespace occmap {
+
+constexpr uint16_t kEdgeSchemaVersion = 1;
+
+enum class EdgeMessageKind : uint16_t { kChanges = 0, kEnd = 1 };
+
+struct EdgeMessage {
+  EdgeMessageKind kind = EdgeMessageKind::kChanges;
+  uint64_t table_key = 0;
+  uint64_t settings_key = 0;
+  uint32_t camera = 0;
+  uint32_t width = 0, height = 0;
+  int64_t frame = 0;
+  double timestamp_s = 0;
+  double t_unix = 0;
+  // kChanges: width * height bytes, 1 changed, 0 not (decoded), or any non-zero changed (to encode).
+  std::vector<uint8_t> changes;
+};
+
+// What a fuse process accepts: its own keys, and each camera's image size.
+struct EdgeExpectation {
+  uint64_t table_key = 0;
+  uint64_t settings_key = 0;
+  std::vector<ImageSize> camera_sizes;
+};
+
+// The site's keys, as an edge and a fuse process of the same site file compute them.
+uint64_t EdgeTableKey(const Site& site);
+uint64_t EdgeSettingsKey(const Site& site);
+
+// changes: the camera's slice, row-major without padding (width * height).
+std::string EncodeEdgeMessage(const EdgeMessage& message);
+// source names the message in errors (e.g. its topic).
+Result<EdgeMessage> DecodeEdgeMessage(std::string_view bytes, const EdgeExpectation& expect,
+                                      std::string_view source);
+
+}  // namespace occmap
