@@ -196,6 +196,9 @@ CLI::App* AddCalibrateCommand(CLI::App& app, CalibrateCommand& cmd) {
   c->add_flag("--estimate-k3", cmd.estimate_k3, "also estimate k3 (wide-angle lenses)");
   c->add_option("--print-board", cmd.print_board, "write the board as a PNG to print (100 px a square)");
   c->add_option("--intrinsics", cmd.intrinsics_file, "the camera's intrinsics (OpenCV FileStorage) instead of a board");
+  c->add_flag("--fit-lens", cmd.fit_lens,
+              "no intrinsics: fit the focal length and distortion k1, k2 to the floor points too (6 at least, "
+              "better 8+ spread over the picture) instead of a floor homography");
   c->add_option("--points", cmd.points_file, "floor-point file (CSV: u_px,v_px,x_m,y_m[,label]; docs/formats.md)");
   c->add_option("--image", cmd.image, "the camera's picture: its size, and what --overlay draws on");
   c->add_option("--image-size", cmd.image_size, "the camera's image size WxH, without --image");
@@ -226,6 +229,9 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
   }
   if (board && !cmd.intrinsics_file.empty()) {
     return InvalidInput("--intrinsics: give either board views or an intrinsics file, not both");
+  }
+  if (cmd.fit_lens && (board || !cmd.intrinsics_file.empty() || !points)) {
+    return InvalidInput("--fit-lens: needs --points, and neither board views nor --intrinsics (which give the lens)");
   }
   if (!cmd.update_site.empty() && !points) return InvalidInput("--update-site: needs --points (the camera's pose)");
   if (!cmd.overlay.empty() && (cmd.image.empty() || !points)) {
@@ -287,6 +293,7 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
   FloorCalibrationOptions fo;
   fo.image_size = *size;
   fo.intrinsics = intrinsics;
+  fo.fit_lens = cmd.fit_lens;
   auto calibrated = CalibrateFromFloorPoints(pts, fo);
   if (!calibrated.ok()) return calibrated.status().WithContext(cmd.points_file);
   const FloorCalibration& cal = *calibrated;
@@ -335,7 +342,8 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
                          {"rvec", {rvec.x(), rvec.y(), rvec.z()}},
                          {"tvec_m", {p.cam_from_world_translation_m.x(), p.cam_from_world_translation_m.y(),
                                      p.cam_from_world_translation_m.z()}},
-                         {"camera_centre_m", {centre.x(), centre.y(), centre.z()}}};
+                         {"camera_centre_m", {centre.x(), centre.y(), centre.z()}},
+                         {"lens_fitted", cal.lens_fitted}};
   } else {
     const Eigen::Matrix3d& h = *cal.floor_from_image;
     report["floor_from_image"] = {{h(0, 0), h(0, 1), h(0, 2)}, {h(1, 0), h(1, 1), h(1, 2)}, {h(2, 0), h(2, 1), h(2, 2)}};
@@ -388,6 +396,10 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
   if (cal.pinhole) {
     const Eigen::Vector3d c = *model->CenterInWorld();
     fmt::print("camera centre ({:.3f}, {:.3f}, {:.3f}) m\n", c.x(), c.y(), c.z());
+    if (cal.lens_fitted) {
+      fmt::print("lens fitted to the points: focal length {:.1f} px, k1 {:.4f}, k2 {:.4f}\n", cal.pinhole->fx_px,
+                 cal.pinhole->distortion[0], cal.pinhole->distortion[1]);
+    }
   }
   for (const auto& w : cal.warnings) fmt::print("warning: {}\n", w);
   for (const auto& [k, v] : files.items()) fmt::print("wrote {}: {}\n", k, v.get<std::string>());

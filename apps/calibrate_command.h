@@ -31,6 +31,7 @@ struct CalibrateCommand {
   std::string print_board;
   // A camera from floor points.
   std::string intrinsics_file;
+  bool fit_lens = false;  // no intrinsics: focal length and k1, k2 from the floor points
   std::string points_file;
   std::string image;
   std::string image_size;

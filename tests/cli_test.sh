@@ -230,6 +230,12 @@ check calibrate_lab_homography 0 "cam1's calibration replaced" -- \
 check calibrate_lab_homography_loads 0 "cam1 +homography +320x240" -- "$occmap" check "$work/lab/site.yaml"
 check calibrate_lab_json 0 '"rms_reprojection_px"' -- \
   "$occmap" calibrate --camera cam1 --points "$work/lab/cam1.csv" --image-size 320x240 --out "$work/lab/newcalib" --json
+check calibrate_lab_fit_lens 0 "^lens fitted to the points: focal length [0-9.]+ px, k1 -0\.[0-9]+" -- \
+  "$occmap" calibrate --camera cam1 --fit-lens --points "$work/lab/cam1.csv" --image-size 320x240 \
+  --out "$work/lab/lenscalib"
+check calibrate_fit_lens_with_intrinsics 2 "--fit-lens: needs --points, and neither board views nor --intrinsics" -- \
+  "$occmap" calibrate --camera cam1 --fit-lens --intrinsics "$work/lab/calib/intr_cam1.xml" \
+  --points "$work/lab/cam1.csv" --out "$work/lab/lenscalib"
 check calibrate_unknown_camera 2 "no camera 'cam9' \(the site's cameras: cam1, cam2, cam3, cam4\)" -- \
   "$occmap" calibrate --camera cam9 --points "$work/lab/cam1.csv" --image-size 320x240 --out "$work/lab/newcalib" \
   --update-site "$work/lab/site.yaml"

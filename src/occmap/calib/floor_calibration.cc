@@ -6,6 +6,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
+#include <optional>
+#include <utility>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 
@@ -110,9 +113,90 @@ Status CheckSpread(std::span<const FloorPoint> points, std::string_view source, 
   return Status::Ok();
 }
 
+// The camera of `intr` at the pose OpenCV found (rvec, tvec: cam_from_world).
+Result<PinholeParameters> WithPose(const CameraIntrinsics& intr, ImageSize size, const cv::Mat& rvec,
+                                   const cv::Mat& tvec) {
+  PinholeParameters p = intr.AsPinhole();
+  p.image_size = size;
+  p.cam_from_world_rotation = RotationFromRodrigues({rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2)});
+  p.cam_from_world_translation_m = {tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)};
+  OCCMAP_RETURN_IF_ERROR(p.Validate().WithContext("floor points: the pose found"));
+  return p;
+}
+
+struct LensFit {
+  CameraIntrinsics intrinsics;
+  cv::Mat rvec, tvec;
+  double rms_px = 0;
+  bool holds_over_image = false;
+};
+
+// True when every pixel of the image has a ray: the radial polynomial still increases at the
+// image's corners (a fit can bend it back inside the picture, where nothing constrains it).
+bool DistortionHoldsOverImage(const CameraIntrinsics& in) {
+  auto cam = PinholeCamera::Create(in.AsPinhole());
+  if (!cam.ok()) return false;
+  const double w = in.image_size.width - 1, h = in.image_size.height - 1;
+  for (const Eigen::Vector2d& c : {Eigen::Vector2d(0, 0), Eigen::Vector2d(w, 0), Eigen::Vector2d(0, h),
+                                   Eigen::Vector2d(w, h)}) {
+    if (cam->Undistort(c).outcome != UndistortOutcome::kConverged) return false;
+  }
+  return true;
+}
+
+// One planar view calibrates a camera when the principal point is held at the image's centre
+// and fx = fy (Zhang's constraints leave one unknown): cv::calibrateCamera on the floor points,
+// started from horizontal fields of view of 50, 90 and 130 degrees; the lowest RMS wins, one
+// whose distortion holds over the whole picture before any other.
+Result<LensFit> FitLensAndPose(const std::vector<cv::Point3d>& world, const std::vector<cv::Point2d>& image,
+                               ImageSize size) {
+  std::vector<std::vector<cv::Point3f>> object(1);
+  std::vector<std::vector<cv::Point2f>> pixels(1);
+  for (const auto& w : world) object[0].emplace_back(static_cast<float>(w.x), static_cast<float>(w.y), 0.f);
+  for (const auto& p : image) pixels[0].emplace_back(static_cast<float>(p.x), static_cast<float>(p.y));
+  const int flags = cv::CALIB_USE_INTRINSIC_GUESS | cv::CALIB_FIX_PRINCIPAL_POINT | cv::CALIB_FIX_ASPECT_RATIO |
+                    cv::CALIB_ZERO_TANGENT_DIST | cv::CALIB_FIX_K3;
+  const cv::TermCriteria stop(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 200, 1e-12);
+  std::optional<LensFit> best;
+  // k1 and k2 follow a wide lens; from noisy points k2 sometimes bends the lens back inside the
+  // picture, where k1 alone (a little less exact) holds.
+  for (const int model_flags : {flags, flags | cv::CALIB_FIX_K2})
+  for (double fov_deg = 50; fov_deg <= 130; fov_deg += 40) {
+    const double f = 0.5 * size.width / std::tan(0.5 * fov_deg * std::numbers::pi / 180.0);
+    cv::Mat k = (cv::Mat_<double>(3, 3) << f, 0, (size.width - 1) / 2.0, 0, f, (size.height - 1) / 2.0, 0, 0, 1);
+    cv::Mat dist = cv::Mat::zeros(1, 5, CV_64F);
+    std::vector<cv::Mat> rvecs, tvecs;
+    double rms = 0;
+    try {
+      rms = cv::calibrateCamera(object, pixels, cv::Size(size.width, size.height), k, dist, rvecs, tvecs, model_flags,
+                              stop);
+    } catch (const cv::Exception&) {
+      continue;  // this start did not converge; the others may
+    }
+    LensFit fit;
+    fit.intrinsics.image_size = size;
+    fit.intrinsics.fx_px = k.at<double>(0, 0);
+    fit.intrinsics.fy_px = k.at<double>(1, 1);
+    fit.intrinsics.cx_px = k.at<double>(0, 2);
+    fit.intrinsics.cy_px = k.at<double>(1, 2);
+    for (int i = 0; i < 5; ++i) fit.intrinsics.distortion[i] = dist.at<double>(i);
+    if (!std::isfinite(rms) || !(fit.intrinsics.fx_px > 0)) continue;
+    fit.rvec = rvecs[0];
+    fit.tvec = tvecs[0];
+    fit.rms_px = rms;
+    fit.holds_over_image = DistortionHoldsOverImage(fit.intrinsics);
+    // A lens that holds over the whole picture first, then the lower RMS.
+    if (!best || std::pair(!fit.holds_over_image, rms) < std::pair(!best->holds_over_image, best->rms_px)) best = fit;
+  }
+  if (!best) return InvalidInput("floor points: no focal length and distortion fit them (cv::calibrateCamera failed)");
+  return *best;
+}
+
 }  // namespace
 
-Status CameraIntrinsics::Validate() const {
+Status CameraIntrinsics::Validate() const { return AsPinhole().Validate().WithContext("intrinsics"); }
+
+PinholeParameters CameraIntrinsics::AsPinhole() const {
   PinholeParameters p;
   p.image_size = image_size;
   p.fx_px = fx_px;
@@ -121,7 +205,7 @@ Status CameraIntrinsics::Validate() const {
   p.cy_px = cy_px;
   p.skew_px = skew_px;
   p.distortion = distortion;
-  return p.Validate().WithContext("intrinsics");
+  return p;
 }
 
 CameraIntrinsics CameraIntrinsics::Resized(ImageSize new_size) const { return ResizedIntrinsics(*this, new_size); }
@@ -307,27 +391,23 @@ Result<FloorCalibration> CalibrateFromFloorPoints(std::span<const FloorPoint> po
         return InvalidInput("floor points: no camera pose fits them (solvePnP failed)");
       }
       cv::solvePnPRefineLM(world_pts, image_pts, k, dist, rvec, tvec);
-      PinholeParameters p;
-      p.image_size = size;
-      p.fx_px = intr.fx_px;
-      p.fy_px = intr.fy_px;
-      p.cx_px = intr.cx_px;
-      p.cy_px = intr.cy_px;
-      p.skew_px = intr.skew_px;
-      p.distortion = intr.distortion;
-      p.cam_from_world_rotation =
-          RotationFromRodrigues({rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2)});
-      p.cam_from_world_translation_m = {tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)};
-      OCCMAP_RETURN_IF_ERROR(p.Validate().WithContext("floor points: the pose found"));
-      const Eigen::Vector3d centre = -p.cam_from_world_rotation.transpose() * p.cam_from_world_translation_m;
-      if (centre.z() < 0) {
-        cal.warnings.push_back(fmt::format(
-            "the camera comes out below the floor (z = {:.2f} m): the floor points' x and y axes are left-handed "
-            "seen from above; swap x and y (or negate one) so that z points up, or planes above the floor "
-            "(people's heights) will be wrong",
-            centre.z()));
-      }
+      OCCMAP_ASSIGN_OR_RETURN(PinholeParameters p, WithPose(intr, size, rvec, tvec));
       cal.pinhole = p;
+    } else if (options.fit_lens) {
+      if (points.size() < kLensMinPoints) {
+        return InvalidInput(fmt::format("floor points: fitting the lens (focal length, distortion) with the pose "
+                                        "needs at least {} points, found {}", kLensMinPoints, points.size()));
+      }
+      OCCMAP_ASSIGN_OR_RETURN(LensFit fit, FitLensAndPose(world_pts, image_pts, size));
+      OCCMAP_ASSIGN_OR_RETURN(PinholeParameters p, WithPose(fit.intrinsics, size, fit.rvec, fit.tvec));
+      cal.pinhole = p;
+      cal.lens_fitted = true;
+      if (!fit.holds_over_image) {
+        cal.warnings.push_back(
+            "the fitted lens distortion folds back before the picture's corners, whose pixels get no floor "
+            "position: add floor points nearer the picture's edges and corners, or give the camera intrinsics "
+            "from a board");
+      }
     } else {
       cv::Mat h = cv::findHomography(image_pts, floor_pts, 0);
       if (h.empty()) return InvalidInput("floor points: no homography fits them (findHomography failed)");
@@ -340,6 +420,17 @@ Result<FloorCalibration> CalibrateFromFloorPoints(std::span<const FloorPoint> po
     }
   } catch (const cv::Exception& e) {
     return InvalidInput(fmt::format("floor points: OpenCV failed: {}", e.err));
+  }
+  if (cal.pinhole) {
+    const PinholeParameters& p = *cal.pinhole;
+    const Eigen::Vector3d centre = -p.cam_from_world_rotation.transpose() * p.cam_from_world_translation_m;
+    if (centre.z() < 0) {
+      cal.warnings.push_back(fmt::format(
+          "the camera comes out below the floor (z = {:.2f} m): the floor points' x and y axes are left-handed "
+          "seen from above; swap x and y (or negate one) so that z points up, or planes above the floor "
+          "(people's heights) will be wrong",
+          centre.z()));
+    }
   }
   OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<CameraModel> model, cal.Model());
   MeasureFloorErrors(*model, points, cal);

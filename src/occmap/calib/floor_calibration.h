@@ -37,6 +37,8 @@ struct CameraIntrinsics {
   std::array<double, 5> distortion = {0, 0, 0, 0, 0};
 
   Status Validate() const;
+  // A pinhole camera with these intrinsics at the world's origin (identity pose).
+  PinholeParameters AsPinhole() const;
   // The same camera for images resized to new_size (u' = (u + 0.5) s - 0.5).
   CameraIntrinsics Resized(ImageSize new_size) const;
 };
@@ -61,11 +63,18 @@ Status ValidateFloorPoints(std::span<const FloorPoint> points, std::string_view 
 struct FloorCalibrationOptions {
   ImageSize image_size;                         // the camera's images (required)
   std::optional<CameraIntrinsics> intrinsics;   // with: pinhole; without: floor homography
+  // Without intrinsics: fit the lens too (a pinhole, not a homography): the focal length
+  // (fx = fy), radial distortion k1 and k2 and the pose, the principal point at the image's
+  // centre. Needs kLensMinPoints points (8 or more spread over the picture are better); wide
+  // lenses, whose distortion a homography cannot follow, fit to the pixels' noise this way.
+  bool fit_lens = false;
   // Pixels may lie this far outside the image (points clicked on its border).
   double max_outside_px = 2.0;
 
   Status Validate() const;
 };
+
+inline constexpr size_t kLensMinPoints = 6;
 
 struct FloorPointError {
   Eigen::Vector2d reprojected_px = Eigen::Vector2d::Zero();  // the world point through the model
@@ -79,6 +88,8 @@ struct FloorCalibration {
   // Exactly one of the two.
   std::optional<PinholeParameters> pinhole;          // with intrinsics
   std::optional<Eigen::Matrix3d> floor_from_image;   // without: (u, v, 1) -> (x, y, w), metres
+  // fit_lens: the pinhole's focal length and distortion k1, k2 came from the points.
+  bool lens_fitted = false;
 
   std::vector<FloorPointError> errors;  // one per point, in the input's order
   double rms_reprojection_px = 0, max_reprojection_px = 0;

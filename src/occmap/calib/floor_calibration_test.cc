@@ -164,6 +164,45 @@ TEST(FloorCalibration, HomographyWithoutIntrinsicsMeetsTheBars) {
               "%.4f m\n", worst_px, worst_rms_m, worst_max_m);
 }
 
+TEST(FloorCalibration, LensFitFromExactPointsRecoversFocalLengthAndDistortion) {
+  PinholeParameters truth_p = TrueCamera({-0.16, 0.035, 0, 0, 0});
+  truth_p.cx_px = 319.5;  // the fit holds the principal point at the image's centre
+  truth_p.cy_px = 239.5;
+  const PinholeCamera truth = PinholeCamera::Create(truth_p).value();
+  FloorCalibrationOptions o;
+  o.image_size = truth_p.image_size;
+  o.fit_lens = true;
+  ASSIGN_OR_FAIL(FloorCalibration cal, CalibrateFromFloorPoints(ClickedPoints(truth, 0, 1), o));
+  ASSERT_TRUE(cal.pinhole);
+  EXPECT_TRUE(cal.lens_fitted);
+  EXPECT_EQ(cal.kind(), "pinhole");
+  EXPECT_TRUE(cal.warnings.empty());
+  EXPECT_LE(cal.max_reprojection_px, 1e-3);
+  EXPECT_LE(cal.max_floor_m, 1e-4);
+  EXPECT_NEAR(cal.pinhole->fx_px, truth_p.fx_px, 0.05);
+  EXPECT_EQ(cal.pinhole->fy_px, cal.pinhole->fx_px);
+  EXPECT_NEAR(cal.pinhole->distortion[0], -0.16, 1e-3);
+  EXPECT_NEAR(cal.pinhole->distortion[1], 0.035, 1e-3);
+  EXPECT_LE((cal.pinhole->cam_from_world_translation_m - truth_p.cam_from_world_translation_m).norm(), 1e-3);
+  // The same points as a floor homography cannot follow the distortion.
+  o.fit_lens = false;
+  ASSIGN_OR_FAIL(FloorCalibration h, CalibrateFromFloorPoints(ClickedPoints(truth, 0, 1), o));
+  EXPECT_GE(h.rms_reprojection_px, 0.5);
+}
+
+TEST(FloorCalibration, LensFitNeedsSixPoints) {
+  const PinholeParameters truth_p = TrueCamera({-0.1, 0, 0, 0, 0});
+  const PinholeCamera truth = PinholeCamera::Create(truth_p).value();
+  std::vector<FloorPoint> pts = ClickedPoints(truth, 0, 1);
+  pts.resize(5);
+  FloorCalibrationOptions o;
+  o.image_size = truth_p.image_size;
+  o.fit_lens = true;
+  ExpectInvalid(CalibrateFromFloorPoints(pts, o).status(),
+                "floor points: fitting the lens (focal length, distortion) with the pose needs at least 6 points, "
+                "found 5");
+}
+
 TEST(FloorCalibration, LeftHandedFloorAxesGiveAWarning) {
   const PinholeParameters truth_p = TrueCamera({0, 0, 0, 0, 0});
   const PinholeCamera truth = PinholeCamera::Create(truth_p).value();
