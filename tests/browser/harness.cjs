@@ -125,12 +125,13 @@ function runOccmap(args) {
 }
 
 // The true floor points of a camera, projected through the scene's calibration
-// (tests/project_floor_points.py): [{u_px, v_px, x_m, y_m}].
-function trueFloorPoints(camera, points) {
+// (tests/project_floor_points.py), optionally perturbed by Gaussian noise of `noisePx` with a
+// fixed seed: [{u_px, v_px, x_m, y_m}].
+function trueFloorPoints(camera, points, { noisePx = 0, seed = 1 } = {}) {
   const calib = path.join(sceneDir, 'calib');
   const r = spawnSync(process.env.PYTHON || 'python3', [path.join(sourceDir, 'tests/project_floor_points.py'),
     path.join(calib, `intr_${camera}.xml`), path.join(calib, `extr_${camera}.xml`),
-    ...points.map(([x, y]) => `${x},${y}`)], { encoding: 'utf8' });
+    ...points.map(([x, y]) => `${x},${y}`), '--noise-px', String(noisePx), '--seed', String(seed)], { encoding: 'utf8' });
   if (r.status !== 0) throw new Error(`project_floor_points.py: ${r.stderr}`);
   return r.stdout.trim().split('\n').slice(1).map((line) => {
     const [u, v, x, y] = line.split(',').map(Number);

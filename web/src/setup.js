@@ -197,21 +197,24 @@ function CameraSetup({ camera, draft, update }) {
       </table>
       <div class="actions">
         <label>method
-          <select value=${draft.method || ''} onChange=${(e) => update({ method: e.target.value || undefined, result: null })}>
-            <option value="">default</option><option value="pnp">camera pose (intrinsics)</option><option value="homography">floor homography</option>
+          <select value=${draft.method || ''} data-testid="method" onChange=${(e) => update({ method: e.target.value || undefined, result: null })}>
+            <option value="">default</option><option value="pnp">camera pose (intrinsics)</option>
+            <option value="lens">lens and pose (focal length, distortion; 6+ points)</option><option value="homography">floor homography</option>
           </select></label>
         <button class="primary" disabled=${busy} onClick=${calibrate} data-testid="calibrate">Calibrate</button>
         ${result ? html`<span class="result" data-testid="calibration-result">
             RMS <b data-testid="rms-px">${fmt(result.rms_px, 2)}</b> px · floor <b data-testid="floor-cm">${fmt(result.floor_rms_m * 100, 1)}</b> cm
             ${result.rms_px <= 1 ? html`<span class="badge up">good</span>` : html`<span class="badge down">check the points</span>`}
             <span class="hint">${draft.calibrationPending ? "(pending until saved)" : "(saved)"}</span></span>` : null}
+        ${result && result.lens_fitted && result.intrinsics ? html`<span class="hint" data-testid="lens-fitted">lens fitted:
+            focal length ${fmt(result.intrinsics.fx_px, 1)} px, k1 ${fmt(result.intrinsics.distortion[0], 3)}, k2 ${fmt(result.intrinsics.distortion[1], 3)}</span>` : null}
         ${result && result.warnings && result.warnings.length
           ? html`<ul class="warnings">${result.warnings.map((w) => html`<li>${w}</li>`)}</ul>` : null}
         ${result && result.method === 'homography' && result.rms_px > 1
           ? html`<p class="hint" data-testid="homography-hint">A floor homography cannot follow lens distortion, which
-              bends the floor's straight lines near the picture's edges. Give this camera its intrinsics first
-              (<code>occmap calibrate</code> with a printed board, README "Calibrate your cameras"), then calibrate its
-              pose here.</p>` : null}
+              bends the floor's straight lines near the picture's edges. Choose <b>lens and pose</b> with 8 or more
+              points spread over the picture (near its edges too), or give this camera its intrinsics first
+              (<code>occmap calibrate</code> with a printed board, README "Calibrate your cameras").</p>` : null}
         ${error ? html`<span class="error" data-testid="calibration-error">${error}</span>` : null}
       </div>` : null}
     </div>`;

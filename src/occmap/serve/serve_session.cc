@@ -236,9 +236,10 @@ Result<json> ServeSession::Calibrate(const json& body) {
     points.push_back(std::move(fp));
   }
   const auto* pinhole = dynamic_cast<const PinholeCamera*>(cam->camera.get());
-  std::string method = pinhole != nullptr ? "pnp" : "homography";
+  // Without intrinsics a lens fit from 8 points: the wide lenses of cheap cameras defeat a homography.
+  std::string method = pinhole != nullptr ? "pnp" : points.size() >= 8 ? "lens" : "homography";
   if (body.contains("method")) {
-    if (!body["method"].is_string()) return InvalidInput("method: expected \"pnp\" or \"homography\"");
+    if (!body["method"].is_string()) return InvalidInput("method: expected \"pnp\", \"lens\" or \"homography\"");
     method = body["method"].get<std::string>();
   }
   FloorCalibrationOptions fo;
@@ -258,8 +259,10 @@ Result<json> ServeSession::Calibrate(const json& body) {
     in.skew_px = p.skew_px;
     in.distortion = p.distortion;
     fo.intrinsics = in;
+  } else if (method == "lens") {
+    fo.fit_lens = true;
   } else if (method != "homography") {
-    return InvalidInput(fmt::format("method: expected \"pnp\" or \"homography\", found \"{}\"", method));
+    return InvalidInput(fmt::format("method: expected \"pnp\", \"lens\" or \"homography\", found \"{}\"", method));
   }
   OCCMAP_ASSIGN_OR_RETURN(FloorCalibration cal, CalibrateFromFloorPoints(points, fo));
   json jp = json::array();
@@ -279,7 +282,13 @@ Result<json> ServeSession::Calibrate(const json& body) {
               {"floor_max_m", Finite(cal.max_floor_m)},
               {"points", jp},
               {"warnings", cal.warnings},
+              {"lens_fitted", cal.lens_fitted},
               {"overlay_url", fmt::format("/api/cameras/{}/frame.jpg?overlay=grid&calibration=pending", id)}};
+  if (cal.pinhole) {
+    const PinholeParameters& p = *cal.pinhole;
+    out["intrinsics"] = {{"fx_px", p.fx_px}, {"fy_px", p.fy_px}, {"cx_px", p.cx_px}, {"cy_px", p.cy_px},
+                         {"distortion", p.distortion}};
+  }
   std::lock_guard lock(mu_);
   pending_[id] = Pending{std::move(cal), std::move(points)};
   return out;
