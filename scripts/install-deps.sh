@@ -13,6 +13,7 @@ packages=(
   libcpp-httplib-dev curl
   ffmpeg
   chromium-headless-shell
+  pybind11-dev python3-dev python3-numpy python3-pytest
 )
 missing=()
 for p in "${packages[@]}"; do
