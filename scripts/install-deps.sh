@@ -14,6 +14,7 @@ packages=(
   ffmpeg
   chromium-headless-shell
   pybind11-dev python3-dev python3-numpy python3-pytest
+  dpkg-dev file
 )
 missing=()
 for p in "${packages[@]}"; do
