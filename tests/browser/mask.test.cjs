@@ -1,5 +1,6 @@
 // A floor mask in a real browser: on camera cam2's frame, draw a polygon with the mask tool,
-// save: the site file has it as the camera's mask polygon (`occmap check` loads it); reloaded,
+// (a click where geoman's Finish / Cancel pop-up would be reaches the picture), save: the site
+// file has it as the camera's mask polygon (`occmap check` loads it); reloaded,
 // the page shows the polygon again and /api/site lists it.
 'use strict';
 const test = require('node:test');
@@ -21,9 +22,39 @@ test('setup: a floor mask polygon drawn, saved and reloaded', { timeout: 240000 
     await h.picturesLoaded(page, '[data-testid=camera-map] img.leaflet-image-layer', 30000);
     await page.check('[data-testid=mode-mask]');
     await page.click('[data-testid=camera-map] .leaflet-pm-icon-polygon');
+
+    // Geoman's Finish / Cancel pop-up would open beside the tool, over the picture: it is hidden
+    // and a click where it would be reaches the map (a corner); the buttons above the map do its
+    // work ("Remove last corner" takes that corner back).
+    const popup = await page.evaluate(() => {
+      const el = [...document.querySelectorAll('[data-testid=camera-map] .leaflet-pm-actions-container')]
+        .find((e) => e.parentElement.querySelector('.leaflet-pm-icon-polygon'));
+      const shown = getComputedStyle(el).display;
+      el.style.setProperty('display', 'flex', 'important');
+      const r = el.getBoundingClientRect();
+      el.style.removeProperty('display');
+      return { shown, x: r.left + r.width / 2, y: r.top + r.height / 2, w: r.width };
+    });
+    assert.strictEqual(popup.shown, 'none', 'the pop-up is not shown');
+    assert.ok(popup.w > 20, `where the pop-up would be: ${JSON.stringify(popup)}`);
+    const vertices = () => page.evaluate(() => window.occmap.cameraMap.pm.Draw.Polygon._layer.getLatLngs().length);
+    assert.strictEqual(await vertices(), 0);
+    await page.waitForSelector('[data-testid=draw-actions] [data-testid=draw-finish]');
+    await page.mouse.click(popup.x, popup.y);
+    assert.strictEqual(await vertices(), 1, 'a click where the pop-up was adds a corner');
+    await clickPixel(page, 320, 300);
+    assert.strictEqual(await vertices(), 2);
+    await page.click('[data-testid=draw-undo]');
+    assert.strictEqual(await vertices(), 1, 'Remove last corner takes one back');
+    await page.click('[data-testid=draw-cancel]');
+    await page.waitForSelector('[data-testid=draw-actions]', { state: 'detached' });
+    assert.strictEqual(await page.locator('[data-testid=camera-map] path.leaflet-interactive').count(), 0, 'cancelled: no polygon');
+    await page.click('[data-testid=camera-map] .leaflet-pm-icon-polygon');
+
     for (const [u, v] of corners) await clickPixel(page, u, v);
     await clickPixel(page, ...corners[0]);
     await page.waitForFunction(() => document.querySelectorAll('[data-testid=camera-map] path.leaflet-interactive').length === 1);
+    assert.strictEqual(await page.locator('[data-testid=draw-actions]').count(), 0, 'the drawing buttons go with the drawing');
     assert.match(await page.textContent('.savebar'), /masks of cam2/);
     await h.screenshot(page, 'serve-mask.png');
 

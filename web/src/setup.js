@@ -23,6 +23,43 @@ function geomanControls(map, shapes) {
   map.pm.setGlobalOptions({ snappable: false, allowSelfIntersection: false });
 }
 
+// Geoman's Finish / Cancel pop-up opens over the map beside its button and takes the clicks
+// meant for corners beneath it; it is hidden (style.css) and these buttons, above the map, do
+// its work for whatever mode is on.
+function DrawActions({ map }) {
+  const [mode, setMode] = useState(null);
+  useEffect(() => {
+    if (!map) return undefined;
+    const sync = () => {
+      const pm = map.pm;
+      if (pm.globalDrawModeEnabled()) setMode({ kind: 'draw', shape: pm.Draw.getActiveShape() });
+      else if (pm.globalEditModeEnabled()) setMode({ kind: 'edit' });
+      else if (pm.globalDragModeEnabled()) setMode({ kind: 'drag' });
+      else if (pm.globalRemovalModeEnabled()) setMode({ kind: 'remove' });
+      else setMode(null);
+    };
+    const events = 'pm:drawstart pm:drawend pm:globaldrawmodetoggled pm:globaleditmodetoggled '
+      + 'pm:globaldragmodetoggled pm:globalremovalmodetoggled';
+    map.on(events, sync);
+    sync();
+    return () => map.off(events, sync);
+  }, [map]);
+  if (!mode) return null;
+  const pm = map.pm;
+  if (mode.kind === 'draw') {
+    const tool = pm.Draw[mode.shape];
+    return html`<span class="draw-actions" data-testid="draw-actions">
+      <span class="hint">drawing a ${mode.shape === 'Line' ? 'line' : 'polygon'}:</span>
+      ${mode.shape === 'Polygon' ? html`<button data-testid="draw-finish" onClick=${() => tool._finishShape()}>Finish</button>` : null}
+      <button data-testid="draw-undo" onClick=${() => tool._removeLastVertex()}>Remove last corner</button>
+      <button data-testid="draw-cancel" onClick=${() => pm.disableDraw()}>Cancel</button></span>`;
+  }
+  const done = { edit: () => pm.disableGlobalEditMode(), drag: () => pm.disableGlobalDragMode(), remove: () => pm.disableGlobalRemovalMode() };
+  const what = { edit: 'moving corners', drag: 'moving shapes', remove: 'click a shape to remove it' };
+  return html`<span class="draw-actions" data-testid="draw-actions"><span class="hint">${what[mode.kind]}</span>
+    <button data-testid="draw-done" onClick=${done[mode.kind]}>Done</button></span>`;
+}
+
 // A counting line is two points: finish the drawing at the second click.
 function twoPointLines(map) {
   map.on('pm:drawstart', ({ shape, workingLayer }) => {
@@ -51,6 +88,7 @@ function CameraSetup({ camera, draft, update }) {
   const [error, setError] = useState(null);
   const [showGrid, setShowGrid] = useState(true);
   const [snapshot, setSnapshot] = useState(Date.now());
+  const [leafletMap, setLeafletMap] = useState(null);
   const points = draft.points || [];
   const result = draft.result;
 
@@ -82,6 +120,7 @@ function CameraSetup({ camera, draft, update }) {
     // No picture before the camera's first frame (404): take another in a second.
     im.overlay.on('error', () => setTimeout(() => ctx.current && setSnapshot(Date.now()), 1000));
     ctx.current = { im, masks, pointsLayer };
+    setLeafletMap(im.map);
     window.occmap = Object.assign(window.occmap || {}, {
       cameraMap: im.map,
       cameraToClient: (u, v) => clientPoint(im.map, pixelToLatLng(u, v)),
@@ -174,6 +213,7 @@ function CameraSetup({ camera, draft, update }) {
           onChange=${() => setMode('points')} data-testid="mode-points" />Floor points</label>
         <label class=${mode === 'mask' ? 'on' : ''}><input type="radio" name="mode" checked=${mode === 'mask'}
           onChange=${() => setMode('mask')} data-testid="mode-mask" />Floor mask</label>
+        ${mode === 'mask' ? html`<${DrawActions} map=${leafletMap} />` : null}
         <span class="grow"></span>
         ${result ? html`<label><input type="checkbox" checked=${showGrid} onChange=${(e) => setShowGrid(e.target.checked)} />grid</label>` : null}
         <button onClick=${() => setSnapshot(Date.now())} title="Take the camera's current frame">New frame</button>
@@ -252,6 +292,7 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
   const div = useRef(null);
   const ctx = useRef(null);
   const [showCoverage, setShowCoverage] = useState(false);
+  const [leafletMap, setLeafletMap] = useState(null);
   const coverage = useCoverage(showCoverage);
   const readAll = () => {
     const c = ctx.current;
@@ -282,6 +323,7 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
     // Under the zones' drawings (the overlay pane, 400), over the live map it replaces.
     floor.map.createPane('coverage').style.zIndex = 350;
     ctx.current = { floor, zoneLayer, lineLayer, coverage: null };
+    setLeafletMap(floor.map);
     const watch = (layer) => layer.on('pm:edit pm:dragend', readAll);
     for (const z of zones) {
       const p = L.polygon(z.polygon_m.map(([x, y]) => [y, x]), { color: '#2563eb', weight: 2, fillOpacity: 0.12 }).addTo(zoneLayer);
@@ -363,6 +405,7 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
         <label class=${showCoverage ? 'on' : ''} title="How many cameras see each cell (as occmap lut's visibility.png)">
           <input type="checkbox" checked=${showCoverage} data-testid="show-coverage"
             onChange=${(e) => setShowCoverage(e.target.checked)} />camera coverage</label>
+        <${DrawActions} map=${leafletMap} />
         <span class="hint">click the corners, then the first one again; a line is two clicks ("in" crosses from its right to its left)</span>
       </div>
       <div class="zone-map" ref=${div} data-testid="zone-map"></div>
