@@ -46,3 +46,9 @@ def test_readme_python_example(tmp_path):
     (tmp_path / "example.py").write_text(code)
     out = run([tmp_path / "example.py"], cwd=tmp_path)
     assert "Track(id=" in out, out
+
+
+def test_bench_script_runs(datasets):
+    # Figures only: the ratio is the README's, measured by hand (no timed assertion here).
+    out = run([SOURCE_DIR / "scripts" / "bench_python.py", "--data-root", datasets, "--repeats", "2", "--rounds", "1"])
+    assert re.search(r"Python [\d.]+ ms, C\+\+ [\d.]+ ms per call, ratio [\d.]+", out), out
