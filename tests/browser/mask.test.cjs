@@ -52,11 +52,11 @@ test('setup: a floor mask polygon drawn, saved and reloaded', { timeout: 240000 
     await page.click('[data-testid=camera-map] .leaflet-pm-icon-polygon');
 
     for (const [u, v] of corners) await clickPixel(page, u, v);
+    await h.screenshot(page, 'serve-mask.png');  // the drawing's buttons above the picture
     await clickPixel(page, ...corners[0]);
     await page.waitForFunction(() => document.querySelectorAll('[data-testid=camera-map] path.leaflet-interactive').length === 1);
     assert.strictEqual(await page.locator('[data-testid=draw-actions]').count(), 0, 'the drawing buttons go with the drawing');
     assert.match(await page.textContent('.savebar'), /masks of cam2/);
-    await h.screenshot(page, 'serve-mask.png');
 
     await page.click('[data-testid=save]');
     await page.waitForSelector('[data-testid=save-message].ok', { timeout: 60000 });
