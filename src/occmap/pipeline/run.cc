@@ -215,6 +215,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
 
   std::optional<int64_t> total;
   for (const auto& c : cams) {
+    if (!c.source) continue;  // a live stream: the reader holds it now, and it has no end
     if (auto fc = c.source->frame_count()) total = total ? std::min(*total, *fc - options.start_frame) : *fc - options.start_frame;
   }
   if (options.max_frames > 0) total = total ? std::min(*total, options.max_frames) : options.max_frames;
