@@ -22,6 +22,7 @@
 #include "calibrate_command.h"
 #include "live_outputs.h"
 #include "run_support.h"
+#include "edge_fuse_command.h"
 #include "serve_command.h"
 #include "occmap/lut/visibility_image.h"
 #include "occmap/eval/benchmark_annotations.h"
@@ -646,6 +647,10 @@ int main(int argc, char** argv) {
   CLI::App* calibrate_cmd = AddCalibrateCommand(app, calibrate);
   ServeCommand serve;
   CLI::App* serve_cmd = AddServeCommand(app, serve);
+  EdgeCommand edge;
+  CLI::App* edge_cmd = AddEdgeCommand(app, edge);
+  FuseCommand fuse;
+  CLI::App* fuse_cmd = AddFuseCommand(app, fuse);
 
   try {
     app.parse(argc, argv);
@@ -663,5 +668,7 @@ int main(int argc, char** argv) {
   if (bench_cmd->parsed()) status = RunBenchCommand(common, bench_opts);
   if (calibrate_cmd->parsed()) status = RunCalibrate(calibrate, common.data_root);
   if (serve_cmd->parsed()) status = RunServe(serve, common.threads, common.data_root);
+  if (edge_cmd->parsed()) status = RunEdgeCommand(edge, common.threads, common.data_root);
+  if (fuse_cmd->parsed()) status = RunFuseCommand(fuse, common.threads, common.data_root);
   return status.ok() ? 0 : Fail(status);
 }

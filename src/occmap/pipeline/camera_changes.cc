@@ -5,19 +5,28 @@
 
 namespace occmap {
 
+CameraChanges::CameraChanges(const Site& site, const std::vector<CameraState>& cams, bool colour, bool change_pngs)
+    : site_(site), cams_(cams), colour_(colour), change_pngs_(change_pngs) {
+  offsets_.push_back(0);
+  for (const CameraState& c : cams) {
+    const ImageSize size = c.cam->camera->image_size();
+    offsets_.push_back(offsets_.back() + static_cast<uint32_t>(size.width * size.height));
+  }
+}
+
 void CameraChanges::EnsureBuffer(FrameSet& set) const {
-  if (set.changes.size() != static_cast<size_t>(lut_.total_pixels())) set.changes.assign(lut_.total_pixels(), 0);
+  if (set.changes.size() != static_cast<size_t>(total_pixels())) set.changes.assign(total_pixels(), 0);
 }
 
 ImageView<uint8_t> CameraChanges::Slice(FrameSet& set, size_t n) const {
   const ImageSize size = cams_[n].cam->camera->image_size();
-  return ImageView<uint8_t>(set.changes.data() + lut_.pixel_offset(static_cast<int>(n)), size.width, size.height,
+  return ImageView<uint8_t>(set.changes.data() + offsets_[n], size.width, size.height,
                             size.width);
 }
 
 ImageView<const uint8_t> CameraChanges::Slice(const FrameSet& set, size_t n) const {
   const ImageSize size = cams_[n].cam->camera->image_size();
-  return ImageView<const uint8_t>(set.changes.data() + lut_.pixel_offset(static_cast<int>(n)), size.width,
+  return ImageView<const uint8_t>(set.changes.data() + offsets_[n], size.width,
                                   size.height, size.width);
 }
 

@@ -4,7 +4,7 @@
 // (fusion_stage.h) computes them for the fusion; the detect/track stage (detect_track_stage.h)
 // for the mosaic of a frame set that was fully fused (FastFusion without a change buffer).
 //
-//   CameraChanges changes(site, lut, cams, plan.colour, options.change_pngs);
+//   CameraChanges changes(site, cams, plan.colour, options.change_pngs);
 //   changes.EnsureBuffer(set);
 //   changes.Compute(set, n, raw, scratch, /*dilate=*/true);
 //   ImageView<const uint8_t> c0 = changes.Slice(set, 0);
@@ -13,7 +13,6 @@
 #include <cstdint>
 #include <vector>
 
-#include "occmap/lut/ground_lut.h"
 #include "occmap/pipeline/camera_inputs.h"
 #include "occmap/pipeline/frame_set.h"
 #include "occmap/site/site.h"
@@ -24,9 +23,11 @@ namespace occmap {
 class CameraChanges {
  public:
   // change_pngs: the changes before the tolerance are kept (`raw`), never the one-pass path.
-  CameraChanges(const Site& site, const GroundLut& lut, const std::vector<CameraState>& cams, bool colour,
-                bool change_pngs)
-      : site_(site), lut_(lut), cams_(cams), colour_(colour), change_pngs_(change_pngs) {}
+  // The buffer holds cams' pixels one camera after the other, as GroundLut::pixel_offset
+  // (the run's tables) for the site's cameras; an edge process holds its own cameras only.
+  CameraChanges(const Site& site, const std::vector<CameraState>& cams, bool colour, bool change_pngs);
+  uint32_t offset(size_t n) const { return offsets_[n]; }
+  uint32_t total_pixels() const { return offsets_.back(); }
 
   // set.changes sized for every camera's pixels (allocated once, then reused).
   void EnsureBuffer(FrameSet& set) const;
@@ -40,8 +41,8 @@ class CameraChanges {
 
  private:
   const Site& site_;
-  const GroundLut& lut_;
   const std::vector<CameraState>& cams_;
+  std::vector<uint32_t> offsets_;  // cams.size() + 1
   const bool colour_;
   const bool change_pngs_;
 };

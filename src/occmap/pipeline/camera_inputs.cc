@@ -305,14 +305,19 @@ FrameSourceOptions RunSourceOptions(const FusionPlan& plan, int num_threads, int
 }
 
 Result<std::vector<CameraState>> OpenCameras(const Site& site, const RunOptions& options, const FusionPlan& plan,
-                                             Context& ctx) {
-  std::vector<CameraState> cams(site.cameras.size());
-  const FrameSourceOptions src_opts = RunSourceOptions(plan, ctx.num_threads(), static_cast<int>(site.cameras.size()));
+                                             Context& ctx, const std::vector<size_t>& only) {
+  std::vector<size_t> index = only;
+  if (index.empty()) {
+    for (size_t n = 0; n < site.cameras.size(); ++n) index.push_back(n);
+  }
+  std::vector<CameraState> cams(index.size());
+  const FrameSourceOptions src_opts = RunSourceOptions(plan, ctx.num_threads(), static_cast<int>(cams.size()));
   // A background estimated from one camera's frames uses all the threads.
   FrameSourceOptions background_opts = src_opts;
   background_opts.decoder_threads = ctx.num_threads();
-  for (size_t n = 0; n < cams.size(); ++n) {
-    CameraState& c = cams[n];
+  for (size_t k = 0; k < cams.size(); ++k) {
+    const size_t n = index[k];
+    CameraState& c = cams[k];
     c.cam = &site.cameras[n];
     c.info.id = c.cam->id;
     if (c.cam->source.kind == FrameSourceSpec::Kind::kNone) {

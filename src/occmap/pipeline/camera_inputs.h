@@ -45,8 +45,9 @@ Status WriteYuvPng(const std::filesystem::path& path, const YuvImage& yuv);
 // each camera's share of ctx's threads (the cameras decode side by side).
 FrameSourceOptions RunSourceOptions(const FusionPlan& plan, int num_threads, int num_cameras);
 
-// Every camera's source opened (at options.start_frame) and its background prepared.
+// Every camera's source opened (at options.start_frame) and its background prepared; with
+// `only` (indices into site.cameras, an edge process's cameras) those cameras alone, in that order.
 Result<std::vector<CameraState>> OpenCameras(const Site& site, const RunOptions& options, const FusionPlan& plan,
-                                             Context& ctx);
+                                             Context& ctx, const std::vector<size_t>& only = {});
 
 }  // namespace occmap

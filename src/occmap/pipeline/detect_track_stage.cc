@@ -201,7 +201,7 @@ void DetectTrackStage::Pictures(FrameSet& set, FrameRecord& record) {
       best_blobs_ = blobs.size();
     }
     record.mosaic = std::move(picture);
-  } else if (best) {
+  } else if (best && options_.mosaic_picture) {
     // mosaic.png only: the frame set is kept and drawn once at the end (a 7 x 1080p picture
     // with its changes costs more than the copy, and the best frame changes often early in a
     // run).

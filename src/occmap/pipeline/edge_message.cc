@@ -13,7 +13,7 @@ namespace occmap {
 namespace {
 
 constexpr char kMagic[4] = {'O', 'C', 'M', 'E'};
-constexpr size_t kHeaderBytes = 4 + 2 + 2 + 8 + 8 + 4 + 4 + 4 + 8 + 8 + 8 + 4 + 4;
+constexpr size_t kHeaderBytes = 4 + 2 + 2 + 8 + 8 + 4 + 4 + 4 + 8 + 8 + 8 + 8 + 4 + 4;
 // Change masks compress well at the fastest level; higher ones cost the edge CPU for little.
 constexpr int kZstdLevel = 1;
 
@@ -74,6 +74,7 @@ std::string EncodeEdgeMessage(const EdgeMessage& m) {
   Put<int64_t>(out, m.frame);
   Put<double>(out, m.timestamp_s);
   Put<double>(out, m.t_unix);
+  Put<double>(out, m.fps);
   Put<uint32_t>(out, static_cast<uint32_t>(packed.size()));
   Put<uint32_t>(out, static_cast<uint32_t>(payload.size()));
   out += payload;
@@ -116,6 +117,7 @@ Result<EdgeMessage> DecodeEdgeMessage(std::string_view bytes, const EdgeExpectat
   m.frame = Get<int64_t>(bytes, at);
   m.timestamp_s = Get<double>(bytes, at);
   m.t_unix = Get<double>(bytes, at);
+  m.fps = Get<double>(bytes, at);
   const uint32_t raw_bytes = Get<uint32_t>(bytes, at);
   const uint32_t payload_bytes = Get<uint32_t>(bytes, at);
   if (m.camera >= expect.camera_sizes.size()) {

@@ -8,7 +8,7 @@
 //   u64 table key (GroundLutKey of the site: cameras, masks, grid)
 //   u64 settings key (the detection section: threshold, tolerance, colour, backgrounds)
 //   u32 camera index  u32 width  u32 height  i64 frame index
-//   f64 timestamp_s (NaN: none)  f64 t_unix
+//   f64 timestamp_s (NaN: none)  f64 t_unix  f64 fps (the source's, 0: none)
 //   u32 raw bytes (the packed bits: ceil(width * height / 8))  u32 payload bytes
 //   payload: zstd frame of the packed bits (bit k of byte k / 8 = pixel k, row-major)
 // A fuse process refuses a message of another schema version, or built for other tables or
@@ -42,6 +42,7 @@ struct EdgeMessage {
   int64_t frame = 0;
   double timestamp_s = 0;
   double t_unix = 0;
+  double fps = 0;  // the camera source's frame rate (0: none): times of frames without timestamps
   // kChanges: width * height bytes, 1 changed, 0 not (decoded), or any non-zero changed (to encode).
   std::vector<uint8_t> changes;
 };

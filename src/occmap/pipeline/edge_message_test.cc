@@ -26,6 +26,7 @@ EdgeMessage Sample(uint32_t camera = 1) {
   m.frame = 41;
   m.timestamp_s = 4.1;
   m.t_unix = 1.7e9 + 0.25;
+  m.fps = 25;
   std::mt19937 rng(3);
   m.changes.resize(static_cast<size_t>(m.width) * m.height);
   for (uint8_t& c : m.changes) c = static_cast<uint8_t>(rng() % 3 == 0 ? (rng() % 2 ? 1 : 255) : 0);
@@ -41,6 +42,7 @@ TEST(EdgeMessage, RoundTripKeepsEveryFieldAndEveryChangedPixel) {
   EXPECT_EQ(back->frame, 41);
   EXPECT_EQ(back->timestamp_s, 4.1);
   EXPECT_EQ(back->t_unix, m.t_unix);
+  EXPECT_EQ(back->fps, 25);
   ASSERT_EQ(back->changes.size(), m.changes.size());  // 33 x 17: not a whole number of bytes
   for (size_t k = 0; k < m.changes.size(); ++k) ASSERT_EQ(back->changes[k], m.changes[k] != 0 ? 1 : 0) << k;
 }

@@ -26,6 +26,7 @@ struct FrameSet {
   OccupancyMap map;              // the fused map of this instant
   std::vector<uint8_t> changes;  // the change buffer (global pixel ids), allocated when first needed
   bool changes_ready = false;    // `changes` holds this instant's changes (not so when fully fused)
+  bool changes_given = false;    // the source filled `changes` (occmap fuse): no change detection
   ChangeBits change_bits;        // FastFusion::FuseTolerant's changes after the tolerance, as bits
   bool bits_ready = false;       // `change_bits` holds this instant's changes
   std::vector<Image<uint8_t>> change_pictures;  // --change-pngs: per camera, 255 changed (before the tolerance)

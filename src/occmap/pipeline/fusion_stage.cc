@@ -25,7 +25,7 @@ FusionStage::FusionStage(const Site& site, const RunOptions& options, const Fusi
       lut_(lut),
       cams_(cams),
       fps_(fps),
-      changes_(site, lut, cams, plan.colour, options.change_pngs),
+      changes_(site, cams, plan.colour, options.change_pngs),
       fusion_(lut),
       frame_views_(cams.size()),
       background_views_(cams.size()),
@@ -45,6 +45,10 @@ Result<std::unique_ptr<FusionStage>> FusionStage::Create(const Site& site, const
                                                          const FusionPlan& plan, const GroundLut& lut,
                                                          std::vector<CameraState>& cams, double fps, Context& ctx) {
   std::unique_ptr<FusionStage> s(new FusionStage(site, options, plan, lut, cams, fps));
+  for (size_t n = 0; n <= cams.size(); ++n) {
+    const uint32_t expected = n < cams.size() ? lut.pixel_offset(static_cast<int>(n)) : lut.total_pixels();
+    if (s->changes_.offset(n) != expected) return Internal("the change buffer and the tables order pixels apart");
+  }
   if (plan.paper_and) s->fast_.emplace(lut);
   if (plan.people_detector) {
     OCCMAP_ASSIGN_OR_RETURN(ColumnLut columns, BuildColumnLut(site.LutInputs(), site.grid, site.plane_height_m,
@@ -69,12 +73,16 @@ Result<std::unique_ptr<FusionStage>> FusionStage::Create(const Site& site, const
 void FusionStage::Process(FrameSet& set, Context& ctx) {
   // Fully fused (FastFusion::Fuse, FuseTolerant) only with every camera active.
   const bool all_active = std::all_of(set.active.begin(), set.active.end(), [](bool a) { return a; });
-  const bool fused_now =
-      (plan_.path == FusionPath::kFused || plan_.path == FusionPath::kFusedTolerant) && all_active;
+  const bool fused_now = (plan_.path == FusionPath::kFused || plan_.path == FusionPath::kFusedTolerant) &&
+                         all_active && !set.changes_given;
   auto t0 = Clock::now();
-  set.changes_ready = false;
   set.bits_ready = false;
-  if (!fused_now) DetectChanges(set, ctx);
+  if (set.changes_given) {  // the edges' changes (occmap fuse): fused from the buffer as they are
+    set.changes_ready = true;
+  } else {
+    set.changes_ready = false;
+    if (!fused_now) DetectChanges(set, ctx);
+  }
   detect_s_.Add(Since(t0));
   t0 = Clock::now();
   Fuse(set, fused_now, ctx);

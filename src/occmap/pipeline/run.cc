@@ -159,29 +159,11 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   OCCMAP_RETURN_IF_ERROR(EnsureDirectory(out));
   RemoveStaleTemporaries(out, /*recursive=*/true);  // of killed runs (util/file_util.h)
   OCCMAP_RETURN_IF_ERROR(WriteBackgrounds(out, cams, plan.colour, summary.outputs));
-  OutputFilesOptions file_options;
-  file_options.mode = options.output_mode;
-  file_options.track = options.track;
-  file_options.events = options.track && (!site.tracking.zones.empty() || !site.tracking.lines.empty());
-  file_options.occupancy_video = options.occupancy_video;
-  file_options.occupancy_pngs = options.occupancy_pngs;
-  file_options.mosaic_video = options.mosaic_video;
-  file_options.mosaic_size = post->mosaic_size();
-  file_options.change_pngs = options.change_pngs;
-  file_options.wall_clock_times = options.wall_clock_times;
-  auto files = std::make_shared<OutputFiles>(file_options);
-  std::vector<std::shared_ptr<FrameSink>> sinks = {files};
-  for (const auto& sink : options.sinks) {
-    if (sink) sinks.push_back(sink);
-  }
-  SinkStart sink_start;
-  sink_start.site = &site;
-  sink_start.lut = &lut;
-  sink_start.out_dir = out;
-  sink_start.fps = fps;
-  sink_start.track = options.track;
-  sink_start.wall_clock_times = options.wall_clock_times;
-  for (const auto& c : cams) sink_start.camera_ids.push_back(c.cam->id);
+  auto files = std::make_shared<OutputFiles>(RunFileOptions(site, options, post->mosaic_size()));
+  const std::vector<std::shared_ptr<FrameSink>> sinks = RunSinks(files, options);
+  std::vector<std::string> camera_ids;
+  for (const auto& c : cams) camera_ids.push_back(c.cam->id);
+  const SinkStart sink_start = RunSinkStart(site, lut, options, fps, camera_ids);
   const SummaryFile summary_file(out / "summary.json", site, options, plan, summary, cams, ctx.num_threads());
 
   // 1. The reader: one frame per active camera, by index or by timestamp, on its own thread
@@ -210,7 +192,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
                     post->track_s(), post->output_s(), fusion->background_s(), fusion->people_s(),
                     summary.lut_seconds};
   };
-  SinkStage sink_stage(sinks, sink_start.camera_ids, options, &summary_file, t_start, running_figures);
+  SinkStage sink_stage(sinks, camera_ids, options, &summary_file, t_start, running_figures);
   OCCMAP_RETURN_IF_ERROR(sink_stage.Open(sink_start));
 
   std::optional<int64_t> total;

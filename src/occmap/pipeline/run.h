@@ -81,6 +81,7 @@ struct RunOptions {
   bool occupancy_pngs = false;
   bool change_pngs = false;  // changes/<camera>/NNNNNN.png: each camera's changed pixels (255), before the tolerance
   bool mosaic_video = true;
+  bool mosaic_picture = true;  // mosaic.png (a run without frames, `occmap fuse`, has none to draw)
   // Every FrameRecord carries each camera's frame and change mask (frames_gray, frames_rgb,
   // change_masks), for a sink that shows them (`occmap serve`). Costs a copy per frame set.
   bool sink_frames = false;

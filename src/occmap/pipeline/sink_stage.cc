@@ -80,6 +80,41 @@ Status SinkStage::Consume(FrameRecord& r) {
   return Status::Ok();
 }
 
+OutputFilesOptions RunFileOptions(const Site& site, const RunOptions& options, ImageSize mosaic_size) {
+  OutputFilesOptions file_options;
+  file_options.mode = options.output_mode;
+  file_options.track = options.track;
+  file_options.events = options.track && (!site.tracking.zones.empty() || !site.tracking.lines.empty());
+  file_options.occupancy_video = options.occupancy_video;
+  file_options.occupancy_pngs = options.occupancy_pngs;
+  file_options.mosaic_video = options.mosaic_video;
+  file_options.mosaic_size = mosaic_size;
+  file_options.change_pngs = options.change_pngs;
+  file_options.wall_clock_times = options.wall_clock_times;
+  return file_options;
+}
+
+std::vector<std::shared_ptr<FrameSink>> RunSinks(std::shared_ptr<FrameSink> files, const RunOptions& options) {
+  std::vector<std::shared_ptr<FrameSink>> sinks = {std::move(files)};
+  for (const auto& sink : options.sinks) {
+    if (sink) sinks.push_back(sink);
+  }
+  return sinks;
+}
+
+SinkStart RunSinkStart(const Site& site, const GroundLut& lut, const RunOptions& options, double fps,
+                       const std::vector<std::string>& camera_ids) {
+  SinkStart start;
+  start.site = &site;
+  start.lut = &lut;
+  start.out_dir = options.out_dir;
+  start.fps = fps;
+  start.track = options.track;
+  start.wall_clock_times = options.wall_clock_times;
+  start.camera_ids = camera_ids;
+  return start;
+}
+
 Status SinkStage::Close(const std::string& stop_reason) {
   Status first;
   if (closed_) return first;

@@ -18,6 +18,7 @@
 
 #include "occmap/pipeline/frame_sink.h"
 #include "occmap/pipeline/latency.h"
+#include "occmap/pipeline/output_files.h"
 #include "occmap/pipeline/run.h"
 #include "occmap/pipeline/summary_file.h"
 
@@ -66,5 +67,13 @@ class SinkStage {
   int64_t blobs_total_ = 0, blobs_max_ = 0;
   Clock::time_point t_first_written_, t_summary_written_;
 };
+
+// The run's own files (output_files.h) as RunOptions asks for them.
+OutputFilesOptions RunFileOptions(const Site& site, const RunOptions& options, ImageSize mosaic_size);
+// The run's files first, then the caller's sinks (RunOptions::sinks).
+std::vector<std::shared_ptr<FrameSink>> RunSinks(std::shared_ptr<FrameSink> files, const RunOptions& options);
+// What every sink learns at the start of a run over these cameras.
+SinkStart RunSinkStart(const Site& site, const GroundLut& lut, const RunOptions& options, double fps,
+                       const std::vector<std::string>& camera_ids);
 
 }  // namespace occmap

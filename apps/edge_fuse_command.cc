@@ -1,0 +1,123 @@
+#include "edge_fuse_command.h"
+
+#include <fmt/core.h>
+
+#include <cstdio>
+#include <filesystem>
+
+#include "occmap/site/site.h"
+#include "occmap/util/thread_pool.h"
+#include "run_support.h"
+
+namespace occmap {
+namespace fs = std::filesystem;
+namespace {
+
+void AddCommonOptions(CLI::App& cmd, EdgeFuseCommon& c) {
+  cmd.add_option("site", c.site_path, "site file (YAML), the same for every edge and the fuse")->required();
+  cmd.add_option("--broker", c.broker, "MQTT broker: mqtt://HOST[:PORT]")->capture_default_str();
+  cmd.add_option("--topic-prefix", c.topic_prefix, "topic prefix (default occmap/<site>); messages on <prefix>/edge/<camera>");
+  cmd.add_option("--cache-dir", c.cache_dir, "folder of cached tables and backgrounds (default: ~/.cache/occmap)");
+  cmd.add_flag("--no-cache", c.no_cache, "never read or write cached tables or backgrounds");
+}
+
+Result<Site> Load(const EdgeFuseCommon& c, const std::string& data_root) {
+  SiteLoadOptions load;
+  if (!data_root.empty()) load.data_root = fs::path(data_root);
+  return LoadSite(c.site_path, load);
+}
+
+fs::path CacheDir(const EdgeFuseCommon& c) {
+  return c.no_cache ? fs::path() : c.cache_dir.empty() ? DefaultCacheDir() : fs::path(c.cache_dir);
+}
+
+}  // namespace
+
+CLI::App* AddEdgeCommand(CLI::App& app, EdgeCommand& cmd) {
+  CLI::App* c = app.add_subcommand(
+      "edge", "read some of the site's cameras and publish their changes per frame on MQTT for `occmap fuse`");
+  AddCommonOptions(*c, cmd.common);
+  c->add_option("--cameras", cmd.cameras, "camera ids of the site this edge reads, comma-separated (default: all)");
+  c->add_option("--frames", cmd.options.run.max_frames, "process at most N frames")
+      ->check(CLI::Range(int64_t{1}, int64_t{1'000'000'000'000}));
+  c->add_option("--start", cmd.options.run.start_frame, "first frame of every source")
+      ->capture_default_str()
+      ->check(CLI::Range(int64_t{0}, int64_t{1'000'000'000'000}));
+  c->add_option("--background-frames", cmd.options.run.background_frames,
+                "K: frames in the median background of a camera without one")
+      ->capture_default_str();
+  return c;
+}
+
+CLI::App* AddFuseCommand(CLI::App& app, FuseCommand& cmd) {
+  CLI::App* c = app.add_subcommand(
+      "fuse", "fuse the edges' changes from MQTT: the map, detections, tracks and outputs of `occmap run`");
+  AddCommonOptions(*c, cmd.common);
+  c->add_option("--out", cmd.options.run.out_dir, "output folder")->capture_default_str();
+  c->add_option("--frames", cmd.options.run.max_frames, "fuse at most N frame sets")
+      ->check(CLI::Range(int64_t{1}, int64_t{1'000'000'000'000}));
+  c->add_option("--latency-budget-s", cmd.options.latency_budget_s,
+                "a frame set waits this long for its cameras; the late ones are left out (their cells unseen)")
+      ->capture_default_str();
+  c->add_option("--dead-after-s", cmd.options.dead_after_s,
+                "a camera silent this long no longer holds frame sets up (until it sends again)")
+      ->capture_default_str();
+  c->add_option("--start-wait-s", cmd.options.start_wait_s,
+                "before the first frame set, wait this long for every camera's first message")
+      ->capture_default_str();
+  c->add_flag("--occupancy-pngs", cmd.options.run.occupancy_pngs, "also write occupancy/NNNNNN.png per frame set");
+  c->add_flag("--no-video", cmd.no_video, "do not write occupancy.mp4");
+  c->add_flag("--no-wall-clock", cmd.no_wall_clock, "leave t_unix (wall-clock time) out of the JSON lines");
+  c->add_flag("--atomic-outputs", cmd.atomic_outputs, "write the outputs through temporaries renamed at the end");
+  c->add_option("--summary-every-s", cmd.options.run.summary_every_s,
+                "rewrite summary.json with the running figures this often (0 = only at the end)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  return c;
+}
+
+Status RunEdgeCommand(EdgeCommand cmd, int threads, const std::string& data_root) {
+  OCCMAP_ASSIGN_OR_RETURN(Site site, Load(cmd.common, data_root));
+  OCCMAP_ASSIGN_OR_RETURN(cmd.options.broker, ParseMqttUrl(cmd.common.broker, "--broker"));
+  cmd.options.topic_prefix = cmd.common.topic_prefix;
+  cmd.options.run.cache_dir = CacheDir(cmd.common);
+  for (size_t at = 0; at < cmd.cameras.size();) {
+    const size_t comma = std::min(cmd.cameras.find(',', at), cmd.cameras.size());
+    if (comma > at) cmd.options.cameras.push_back(cmd.cameras.substr(at, comma - at));
+    at = comma + 1;
+  }
+  StopOnSignals signals(cmd.options.run.out_dir);
+  cmd.options.run.stop = signals.stop();
+  Context ctx(threads);
+  OCCMAP_ASSIGN_OR_RETURN(EdgeSummary s, RunEdge(site, cmd.options, ctx));
+  std::fputs(fmt::format("{} frame sets, {} messages, {:.1f} kB ({:.0f} bytes per message) in {:.2f} s: {}; "
+                         "{} reconnects\n",
+                         s.frame_sets, s.messages, static_cast<double>(s.bytes) / 1e3,
+                         s.messages > 0 ? static_cast<double>(s.bytes) / static_cast<double>(s.messages) : 0.0,
+                         s.seconds, s.stop_reason, s.reconnects)
+                 .c_str(),
+             stdout);
+  return Status::Ok();
+}
+
+Status RunFuseCommand(FuseCommand cmd, int threads, const std::string& data_root) {
+  OCCMAP_ASSIGN_OR_RETURN(Site site, Load(cmd.common, data_root));
+  OCCMAP_ASSIGN_OR_RETURN(cmd.options.broker, ParseMqttUrl(cmd.common.broker, "--broker"));
+  cmd.options.topic_prefix = cmd.common.topic_prefix;
+  RunOptions& o = cmd.options.run;
+  o.cache_dir = CacheDir(cmd.common);
+  if (cmd.no_video) o.occupancy_video = false;
+  o.output_mode = cmd.atomic_outputs ? OutputMode::kAtomic : OutputMode::kLive;
+  o.wall_clock_times = !cmd.no_wall_clock;
+  StopOnSignals signals(o.out_dir);
+  o.stop = signals.stop();
+  Context ctx(threads);
+  OCCMAP_ASSIGN_OR_RETURN(RunSummary s, RunFuse(site, cmd.options, ctx));
+  std::fputs(fmt::format("{} frame sets in {:.2f} s: {}; tracks {}\nwrote {}\n", s.frames, s.seconds, s.stop_reason,
+                         s.tracks, (o.out_dir / "summary.json").string())
+                 .c_str(),
+             stdout);
+  return Status::Ok();
+}
+
+}  // namespace occmap

@@ -1,0 +1,41 @@
+// `occmap edge` and `occmap fuse` (pipeline/edge_fuse.h): cameras on many hosts joined by an
+// MQTT broker. The commands parse and wire; the library does the work.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <string>
+
+#include "occmap/pipeline/edge_fuse.h"
+#include "occmap/util/status.h"
+
+namespace occmap {
+
+struct EdgeFuseCommon {
+  std::string site_path;
+  std::string broker = "mqtt://127.0.0.1:1883";
+  std::string topic_prefix;
+  std::string cache_dir;
+  bool no_cache = false;
+};
+
+struct EdgeCommand {
+  EdgeFuseCommon common;
+  std::string cameras;  // comma-separated ids
+  EdgeOptions options;
+};
+
+struct FuseCommand {
+  EdgeFuseCommon common;
+  FuseOptions options;
+  bool no_video = false;
+  bool no_wall_clock = false;
+  bool atomic_outputs = false;
+};
+
+CLI::App* AddEdgeCommand(CLI::App& app, EdgeCommand& cmd);
+CLI::App* AddFuseCommand(CLI::App& app, FuseCommand& cmd);
+Status RunEdgeCommand(EdgeCommand cmd, int threads, const std::string& data_root);
+Status RunFuseCommand(FuseCommand cmd, int threads, const std::string& data_root);
+
+}  // namespace occmap

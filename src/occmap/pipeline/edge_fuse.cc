@@ -1,0 +1,376 @@
+#include "occmap/pipeline/edge_fuse.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <optional>
+#include <set>
+#include <thread>
+
+#include "occmap/pipeline/camera_changes.h"
+#include "occmap/pipeline/camera_inputs.h"
+#include "occmap/pipeline/detect_track_stage.h"
+#include "occmap/pipeline/edge_message.h"
+#include "occmap/pipeline/frame_reader.h"
+#include "occmap/pipeline/fusion_path.h"
+#include "occmap/pipeline/fusion_stage.h"
+#include "occmap/pipeline/mqtt_link.h"
+#include "occmap/pipeline/sink_stage.h"
+#include "occmap/pipeline/summary_file.h"
+#include "occmap/site/site_lut.h"
+#include "occmap/util/file_util.h"
+#include "occmap/util/safe_files.h"
+
+namespace occmap {
+namespace fs = std::filesystem;
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+std::string Prefix(const Site& site, const std::string& given) {
+  return given.empty() ? "occmap/" + TopicSlug(site.name) : given;
+}
+
+// The edge's change test needs nothing from the other cameras; the adaptive backgrounds do.
+Status RefuseAdaptive(const Site& site, std::string_view command) {
+  if (!site.backgrounds.adaptive) return Status::Ok();
+  return InvalidInput(fmt::format("occmap {}: site '{}': backgrounds.adaptive: expected false (edge and fuse "
+                                  "support given or estimated backgrounds; the adaptive ones follow the fused map), "
+                                  "found true; run it with `occmap run`",
+                                  command, site.name));
+}
+
+}  // namespace
+
+std::string EdgeTopic(const std::string& prefix, const std::string& camera_id) {
+  return prefix + "/edge/" + TopicSlug(camera_id);
+}
+
+Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx) {
+  OCCMAP_RETURN_IF_ERROR(o.run.Validate());
+  OCCMAP_RETURN_IF_ERROR(site.detection.Validate());
+  OCCMAP_RETURN_IF_ERROR(RefuseAdaptive(site, "edge"));
+  const auto t_start = Clock::now();
+  std::vector<size_t> index;
+  for (const std::string& id : o.cameras) {
+    auto it = std::find_if(site.cameras.begin(), site.cameras.end(), [&](const SiteCamera& c) { return c.id == id; });
+    if (it == site.cameras.end()) {
+      std::string ids;
+      for (const SiteCamera& c : site.cameras) ids += (ids.empty() ? "" : ", ") + c.id;
+      return InvalidInput(fmt::format("--cameras: expected camera ids of site '{}' ({}), found '{}'", site.name, ids, id));
+    }
+    const size_t n = static_cast<size_t>(it - site.cameras.begin());
+    if (std::find(index.begin(), index.end(), n) != index.end()) {
+      return InvalidInput(fmt::format("--cameras: camera '{}' given twice", id));
+    }
+    index.push_back(n);
+  }
+  if (index.empty()) {
+    for (size_t n = 0; n < site.cameras.size(); ++n) index.push_back(n);
+  }
+  // The fuse process fuses change buffers: the edge computes them as a run with them does.
+  const FusionPlan plan = ChooseFusionPath(site, /*needs_change_buffer=*/true);
+  OCCMAP_ASSIGN_OR_RETURN(std::vector<CameraState> cams, OpenCameras(site, o.run, plan, ctx, index));
+  const std::string prefix = Prefix(site, o.topic_prefix);
+  const std::string client_id =
+      o.client_id.empty() ? fmt::format("occmap-edge-{}-{}", TopicSlug(site.name), TopicSlug(cams[0].cam->id)) : o.client_id;
+  OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<MqttLink> link, MqttLink::Start(o.broker, client_id, {}));
+  // Asked before the reader takes the live streams' sources.
+  std::vector<double> fps;
+  for (const CameraState& c : cams) fps.push_back(c.source->fps().value_or(0.0));
+  FrameReader reader(cams, o.run, ctx.num_threads(), RunSourceOptions(plan, ctx.num_threads(), static_cast<int>(cams.size())));
+  const CameraChanges changes(site, cams, plan.colour, /*change_pngs=*/false);
+  FrameSet set;
+  set.frames.resize(cams.size());
+  set.active.assign(cams.size(), false);
+  std::vector<Image<uint8_t>> raw(cams.size());
+  std::vector<std::vector<uint8_t>> scratch(cams.size());
+  EdgeMessage m;
+  m.table_key = EdgeTableKey(site);
+  m.settings_key = EdgeSettingsKey(site);
+  std::vector<std::string> topics;
+  for (const CameraState& c : cams) topics.push_back(EdgeTopic(prefix, c.cam->id));
+  auto stop_requested = [&] { return o.run.stop != nullptr && o.run.stop->load(); };
+  // While the broker is away the edge waits (a live source meanwhile keeps its newest frame).
+  auto wait_for_broker = [&] {
+    while (!link->connected() && !stop_requested()) link->WaitConnected(std::chrono::milliseconds(100));
+  };
+  EdgeSummary summary;
+  int64_t next_frame = o.run.start_frame;
+  while (!stop_requested() && reader.Read(set)) {
+    changes.EnsureBuffer(set);
+    wait_for_broker();
+    for (size_t k = 0; k < cams.size(); ++k) {
+      if (!set.active[k]) continue;
+      changes.Compute(set, k, raw[k], scratch[k], /*dilate=*/true);
+      const ImageSize size = cams[k].cam->camera->image_size();
+      m.kind = EdgeMessageKind::kChanges;
+      m.camera = static_cast<uint32_t>(index[k]);
+      m.width = static_cast<uint32_t>(size.width);
+      m.height = static_cast<uint32_t>(size.height);
+      m.frame = set.frame_index;
+      m.timestamp_s = set.frames[k].timestamp_s;
+      m.t_unix = set.t_unix;
+      m.fps = fps[k];
+      const uint8_t* first = set.changes.data() + changes.offset(k);
+      m.changes.assign(first, first + static_cast<size_t>(size.width) * size.height);
+      const std::string bytes = EncodeEdgeMessage(m);
+      OCCMAP_RETURN_IF_ERROR(link->Publish(topics[k], bytes));
+      ++summary.messages;
+    }
+    next_frame = set.frame_index + 1;
+    ++summary.frame_sets;
+  }
+  // The end of every source (not on a stop request: a restarted edge goes on where it was).
+  if (!stop_requested()) {
+    wait_for_broker();
+    for (size_t k = 0; k < cams.size(); ++k) {
+      m.kind = EdgeMessageKind::kEnd;
+      m.camera = static_cast<uint32_t>(index[k]);
+      m.frame = next_frame;
+      m.changes.clear();
+      OCCMAP_RETURN_IF_ERROR(link->Publish(topics[k], EncodeEdgeMessage(m)));
+      ++summary.messages;
+    }
+  }
+  link->WaitPublished(std::chrono::seconds(10));
+  summary.bytes = link->bytes_published();
+  summary.reconnects = std::max<int64_t>(0, link->connects() - 1);
+  summary.seconds = Since(t_start);
+  summary.stop_reason = !reader.stop_reason().empty() ? reader.stop_reason() : stop_requested() ? "stop requested" : "stopped";
+  if (!reader.failure().ok()) return reader.failure();
+  return summary;
+}
+
+Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx, const ProgressCallback& progress) {
+  OCCMAP_RETURN_IF_ERROR(o.run.Validate());
+  OCCMAP_RETURN_IF_ERROR(site.detection.Validate());
+  OCCMAP_RETURN_IF_ERROR(site.fusion.Validate(static_cast<int>(site.cameras.size())));
+  OCCMAP_RETURN_IF_ERROR(RefuseAdaptive(site, "fuse"));
+  if (!(o.latency_budget_s > 0)) return InvalidInput(fmt::format("--latency-budget-s: expected > 0, found {}", o.latency_budget_s));
+  if (!(o.dead_after_s > 0)) return InvalidInput(fmt::format("--dead-after-s: expected > 0, found {}", o.dead_after_s));
+  if (!(o.start_wait_s >= 0)) return InvalidInput(fmt::format("--start-wait-s: expected >= 0, found {}", o.start_wait_s));
+  const auto t_start = Clock::now();
+  auto stop_requested = [&] { return o.run.stop != nullptr && o.run.stop->load(); };
+  RunOptions options = o.run;
+  // No frames reach the fuse: nothing to draw the cameras' tiles from.
+  options.mosaic_video = options.mosaic_picture = options.change_pngs = options.sink_frames = false;
+  RunSummary summary;
+  const FusionPlan plan = ChooseFusionPath(site, /*needs_change_buffer=*/true);
+  summary.fusion_path = plan.Describe(site);
+  const size_t n_cams = site.cameras.size();
+  const std::string prefix = Prefix(site, o.topic_prefix);
+  std::vector<CameraState> cams(n_cams);
+  std::vector<ImageSize> sizes;
+  for (size_t n = 0; n < n_cams; ++n) {
+    cams[n].cam = &site.cameras[n];
+    cams[n].is_mask = site.cameras[n].source.kind == FrameSourceSpec::Kind::kMasks;
+    cams[n].info.id = site.cameras[n].id;
+    cams[n].info.source = "edge: " + EdgeTopic(prefix, site.cameras[n].id);
+    cams[n].info.background = "at the edge";
+    sizes.push_back(site.cameras[n].camera->image_size());
+  }
+  const EdgeExpectation expect{EdgeTableKey(site), EdgeSettingsKey(site), sizes};
+  // Subscribed first: the edges' messages wait in the link (and, while it is away, at the
+  // broker: a persistent session) while the tables are built.
+  const std::string client_id = o.client_id.empty() ? "occmap-fuse-" + TopicSlug(prefix) : o.client_id;
+  OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<MqttLink> link,
+                          MqttLink::Start(o.broker, client_id, {prefix + "/edge/+"}, /*persistent=*/true));
+  const auto t_lut = Clock::now();
+  OCCMAP_ASSIGN_OR_RETURN(CachedLut cached, LoadOrBuildSiteLut(site, options.cache_dir, ctx));
+  summary.lut_cache = ToString(cached.outcome);
+  summary.lut_seconds = Since(t_lut);
+  const GroundLut& lut = cached.lut;
+  while (!link->subscribed() && !stop_requested()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  std::fputs(fmt::format("occmap fuse: subscribed to {}/edge/+ on mqtt://{}:{}\n", prefix, o.broker.host, o.broker.port).c_str(),
+             stderr);
+  std::map<std::string, size_t> camera_of_topic;
+  for (size_t n = 0; n < n_cams; ++n) camera_of_topic[EdgeTopic(prefix, site.cameras[n].id)] = n;
+
+  // The messages, aligned by frame index.
+  struct Pending {
+    std::vector<std::optional<EdgeMessage>> cams;
+    Clock::time_point first;
+  };
+  std::map<int64_t, Pending> pending;
+  std::vector<std::optional<int64_t>> ended_at(n_cams);
+  std::vector<Clock::time_point> last_heard(n_cams, t_start);
+  std::vector<bool> heard(n_cams, false);
+  std::set<std::string> refused_topics;
+  int64_t last_emitted = std::numeric_limits<int64_t>::min();
+  int64_t late_messages = 0;
+  double fps = 0;
+  auto receive = [&](const MqttReceived& r) {
+    auto topic = camera_of_topic.find(r.topic);
+    if (topic == camera_of_topic.end()) return;
+    auto m = DecodeEdgeMessage(r.payload, expect, r.topic);
+    if (!m.ok() || m->camera != topic->second) {
+      if (refused_topics.insert(r.topic).second) {
+        std::fputs(fmt::format("occmap fuse: refused: {}\n", m.ok() ? fmt::format("{}: camera index {} on camera {}'s topic",
+                                                                                  r.topic, m->camera, topic->second)
+                                                                    : m.status().message())
+                       .c_str(),
+                   stderr);
+      }
+      return;
+    }
+    const size_t c = m->camera;
+    last_heard[c] = r.arrival;
+    heard[c] = true;
+    if (m->kind == EdgeMessageKind::kEnd) {
+      ended_at[c] = m->frame;
+      return;
+    }
+    ended_at[c].reset();  // an edge that sends again (restarted) is back
+    if (fps == 0 && m->fps > 0) fps = m->fps;
+    if (m->frame <= last_emitted) {
+      ++late_messages;
+      return;
+    }
+    Pending& p = pending[m->frame];
+    if (p.cams.empty()) {
+      p.cams.resize(n_cams);
+      p.first = r.arrival;
+    }
+    p.cams[c] = std::move(m).value();
+  };
+  // The stages need the frame rate (times of frames without timestamps): from the first message.
+  while (pending.empty() && !stop_requested()) {
+    if (auto r = link->Pop(std::chrono::milliseconds(50))) receive(*r);
+    if (std::all_of(ended_at.begin(), ended_at.end(), [](const auto& e) { return e.has_value(); })) break;
+  }
+  if (fps == 0) fps = 10;
+
+  OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FusionStage> fusion, FusionStage::Create(site, options, plan, lut, cams, fps, ctx));
+  OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<DetectTrackStage> post,
+                          DetectTrackStage::Create(site, options, plan, lut, cams, fusion->changes(), fusion->column_lut(), fps));
+  const fs::path out = options.out_dir;
+  OCCMAP_RETURN_IF_ERROR(EnsureDirectory(out));
+  RemoveStaleTemporaries(out, /*recursive=*/true);
+  auto files = std::make_shared<OutputFiles>(RunFileOptions(site, options, post->mosaic_size()));
+  const std::vector<std::shared_ptr<FrameSink>> sinks = RunSinks(files, options);
+  std::vector<std::string> camera_ids;
+  for (const auto& c : cams) camera_ids.push_back(c.cam->id);
+  const SummaryFile summary_file(out / "summary.json", site, options, plan, summary, cams, ctx.num_threads());
+  auto running_figures = [&](const FrameRecord& r, RunStats& stats) {
+    const auto now = Clock::now();
+    for (size_t n = 0; n < n_cams; ++n) {
+      stats.cameras[n].active = !ended_at[n].has_value();
+      stats.cameras[n].connected = std::chrono::duration<double>(now - last_heard[n]).count() < o.dead_after_s;
+      stats.cameras[n].background_age_s = std::numeric_limits<double>::quiet_NaN();
+    }
+    (void)r;
+    stats.stages = {0, fusion->detect_s(), fusion->fuse_s(), post->blobs_s(), post->track_s(), post->output_s(),
+                    0, fusion->people_s(), summary.lut_seconds};
+  };
+  SinkStage sink_stage(sinks, camera_ids, options, &summary_file, t_start, running_figures);
+  OCCMAP_RETURN_IF_ERROR(sink_stage.Open(RunSinkStart(site, lut, options, fps, camera_ids)));
+
+  FrameSet set;
+  set.frames.resize(n_cams);
+  set.active.assign(n_cams, false);
+  set.map = OccupancyMap(site.grid);
+  const CameraChanges& changes = fusion->changes();
+  std::optional<Clock::time_point> t_first_set;
+  Status failure;
+  auto emit = [&](int64_t frame, Pending& p) -> Status {
+    if (!t_first_set) t_first_set = Clock::now();
+    set.frame_index = frame;
+    set.timestamp_s = std::nan("");
+    set.arrival = p.first;
+    changes.EnsureBuffer(set);
+    for (size_t n = 0; n < n_cams; ++n) {
+      set.active[n] = p.cams[n].has_value();
+      if (!set.active[n]) continue;
+      const EdgeMessage& m = *p.cams[n];
+      if (std::isnan(set.timestamp_s)) {
+        set.timestamp_s = m.timestamp_s;
+        set.t_unix = m.t_unix;
+      }
+      std::memcpy(set.changes.data() + changes.offset(n), m.changes.data(), m.changes.size());
+    }
+    set.changes_given = true;
+    fusion->Process(set, ctx);
+    FrameRecord record;
+    OCCMAP_RETURN_IF_ERROR(post->Process(set, record));
+    OCCMAP_RETURN_IF_ERROR(sink_stage.Consume(record));
+    ++summary.frames;
+    last_emitted = frame;
+    if (progress) progress({summary.frames, std::nullopt, Since(t_start)});
+    if (options.max_frames > 0 && summary.frames >= options.max_frames) return Status::Ok();
+    return Status::Ok();
+  };
+  auto all_ended = [&] { return std::all_of(ended_at.begin(), ended_at.end(), [](const auto& e) { return e.has_value(); }); };
+  const auto fuse_started = Clock::now();
+  while (failure.ok() && !stop_requested() && !(options.max_frames > 0 && summary.frames >= options.max_frames)) {
+    if (auto r = link->Pop(std::chrono::milliseconds(10))) receive(*r);
+    const auto now = Clock::now();
+    const bool ended = all_ended();
+    const bool starting = summary.frames == 0 && !std::all_of(heard.begin(), heard.end(), [](bool h) { return h; }) &&
+                          std::chrono::duration<double>(now - fuse_started).count() < o.start_wait_s;
+    while (!pending.empty() && failure.ok() && (!starting || ended)) {
+      auto it = pending.begin();
+      const int64_t f = it->first;
+      bool complete = true;
+      for (size_t n = 0; n < n_cams && complete; ++n) {
+        if (it->second.cams[n]) continue;
+        if (ended_at[n] && *ended_at[n] <= f) continue;
+        // Dead: silent too long (never heard: since the fuse started).
+        const auto since = std::max(last_heard[n], fuse_started);
+        if (std::chrono::duration<double>(now - since).count() >= o.dead_after_s) continue;
+        complete = false;
+      }
+      const bool expired = std::chrono::duration<double>(now - it->second.first).count() >= o.latency_budget_s;
+      if (!complete && !expired && !ended) break;
+      failure = emit(f, it->second);
+      pending.erase(it);
+      if (options.max_frames > 0 && summary.frames >= options.max_frames) break;
+    }
+    if (ended && pending.empty()) break;
+  }
+  const RunStats& stats = sink_stage.stats();
+  summary.stop_reason = !failure.ok()                                                      ? failure.message()
+                        : stop_requested()                                                 ? "stop requested"
+                        : options.max_frames > 0 && summary.frames >= options.max_frames ? "frame limit"
+                                                                                         : "end of streams";
+  if (!failure.ok()) files->Abandon();
+  Status closed = sink_stage.Close(summary.stop_reason);
+  if (failure.ok()) failure = closed;
+  for (const fs::path& p : files->written()) summary.outputs.push_back(p.string());
+  summary.latency = stats.latency;
+  summary.detect_s = fusion->detect_s();
+  summary.fuse_s = fusion->fuse_s();
+  summary.people_s = fusion->people_s();
+  summary.blobs_s = post->blobs_s();
+  summary.track_s = post->track_s();
+  summary.output_s = post->output_s() + sink_stage.write_s();
+  if (t_first_set) summary.startup_s = std::chrono::duration<double>(*t_first_set - t_start).count();
+  summary.tracks = stats.tracks;
+  summary.zone_events = stats.zone_events;
+  summary.blobs_total = sink_stage.blobs_total();
+  summary.blobs_max_per_frame = sink_stage.blobs_max_per_frame();
+  summary.seconds = Since(t_start);
+  summary.frames_per_second = summary.seconds > 0 ? static_cast<double>(summary.frames) / summary.seconds : 0;
+  for (size_t n = 0; n < n_cams; ++n) {
+    CameraRunInfo info = cams[n].info;
+    if (ended_at[n]) info.ended_at_frame = *ended_at[n];
+    summary.cameras.push_back(info);
+  }
+  if (late_messages > 0) {
+    std::fputs(fmt::format("occmap fuse: {} messages came after their frame set was fused (dropped)\n", late_messages).c_str(),
+               stderr);
+  }
+  summary.outputs.push_back(summary_file.path().string());
+  const Status written = summary_file.WriteFinal(summary, stats, cams, options.start_frame);
+  OCCMAP_RETURN_IF_ERROR(failure);
+  OCCMAP_RETURN_IF_ERROR(written);
+  return summary;
+}
+
+}  // namespace occmap

@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# `occmap edge` x 3 + `occmap fuse` through a mosquitto of the test's own (127.0.0.1, an
+# ephemeral port) on a rendered lab scene: the fuse's detections, tracks and events equal
+# `occmap run`'s byte for byte; a fuse given a site with other detection settings refuses the
+# edges' messages, naming what differs.
+#
+#   tests/edge_fuse_test.sh OCCMAP_BINARY
+set -uo pipefail
+occmap=$(realpath "${1:?usage: edge_fuse_test.sh OCCMAP_BINARY}")
+source "$(dirname "$0")/test_lib.sh"
+for tool in /usr/sbin/mosquitto mosquitto_pub; do
+  command -v "$tool" >/dev/null || { echo "SKIP: no $tool (scripts/install-deps.sh installs it)"; exit 0; }
+done
+tl_init
+tl_synth_lab "$occmap" "$work/lab" --video --frames 60
+tl_broker
+broker="mqtt://127.0.0.1:$broker_port"
+common=(--no-cache --threads 1)
+
+"$occmap" run "$work/lab/site.yaml" --out "$work/run" --no-video --no-wall-clock "${common[@]}" >"$work/run.log" 2>&1 ||
+  fail "occmap run: $(tail -2 "$work/run.log")"
+
+# 1. Three edges (two cameras, one, one) and the fuse: the same outputs as the run.
+# Over files the edges race ahead of each other: a budget longer than their lag keeps every
+# frame set whole, as the run's.
+"$occmap" fuse "$work/lab/site.yaml" --broker "$broker" --out "$work/fuse" --no-video --no-wall-clock \
+  --latency-budget-s 60 --dead-after-s 60 "${common[@]}" >"$work/fuse.log" 2>&1 &
+fuse_pid=$!
+tl_track $fuse_pid
+for _ in $(seq 200); do grep -q "subscribed to" "$work/fuse.log" && break; sleep 0.05; done
+edge_pids=()
+for cams in cam1,cam2 cam3 cam4; do
+  "$occmap" edge "$work/lab/site.yaml" --cameras $cams --broker "$broker" "${common[@]}" >"$work/edge-$cams.log" 2>&1 &
+  edge_pids+=($!)
+  tl_track $!
+done
+for p in "${edge_pids[@]}"; do wait "$p" || fail "an edge exited $? ($(cat "$work"/edge-*.log | tail -3))"; done
+for _ in $(seq 600); do kill -0 $fuse_pid 2>/dev/null || break; sleep 0.05; done
+if kill -0 $fuse_pid 2>/dev/null; then
+  fail "the fuse did not finish after every edge ended: $(tail -3 "$work/fuse.log")"
+else
+  wait $fuse_pid
+  code=$?
+  [ $code -eq 0 ] && ok || fail "occmap fuse exited $code: $(tail -3 "$work/fuse.log")"
+fi
+for f in detections.jsonl tracks.jsonl tracks_mot.csv $([ -f "$work/run/events.jsonl" ] && echo events.jsonl); do
+  if [ -f "$work/run/$f" ] && cmp -s "$work/run/$f" "$work/fuse/$f"; then
+    ok
+  else
+    fail "fuse's $f differs from run's ($(wc -l <"$work/run/$f" 2>/dev/null) vs $(wc -l <"$work/fuse/$f" 2>/dev/null) lines)"
+  fi
+done
+frames=$(summary_field "$work/fuse" "s['frames']")
+[ "$frames" = 60 ] && ok || fail "fuse: 60 frame sets expected, found $frames"
+grep -q "edge messages\|bytes per message" "$work"/edge-cam3.log && ok || fail "edge: no figures printed: $(cat "$work/edge-cam3.log")"
+
+# 2. A fuse whose site has another threshold refuses the edges' messages, and says why.
+sed 's/^\(  threshold:\).*/\1 41/' "$work/lab/site.yaml" >"$work/lab/other.yaml"
+"$occmap" fuse "$work/lab/other.yaml" --broker "$broker" --out "$work/other" --no-video --frames 1 \
+  --topic-prefix occmap-test/other "${common[@]}" >"$work/other.log" 2>&1 &
+other_pid=$!
+tl_track $other_pid
+for _ in $(seq 200); do grep -q "subscribed to" "$work/other.log" && break; sleep 0.05; done
+"$occmap" edge "$work/lab/site.yaml" --cameras cam1 --frames 3 --topic-prefix occmap-test/other --broker "$broker" \
+  "${common[@]}" >/dev/null 2>&1
+for _ in $(seq 40); do grep -q "refused" "$work/other.log" && break; sleep 0.05; done
+grep -q "other detection settings" "$work/other.log" && ok ||
+  fail "a fuse with another threshold did not refuse: $(cat "$work/other.log")"
+kill -INT $other_pid 2>/dev/null
+
+tl_finish edge_fuse
