@@ -507,6 +507,30 @@ void BackgroundModel::Reset(const YuvImage& background) {
   shadow_lessons_ = 0;
 }
 
+bool BackgroundModel::BackgroundIsShadowOfAlternative(int x, int y) const {
+  const size_t i = Index(x, y);
+  if (!alt_valid_[i] || !options_.shadows.enabled) return false;
+  const double lit = alt_y_[i], shaded = BackgroundLevel(x, y);
+  if (lit < 1 || shaded < options_.shadows.min_ratio * lit || shaded > options_.shadows.max_ratio * lit) return false;
+  if (!chroma_ || alt_u_.empty()) return true;
+  const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+  const int u = (bu_[c] + 128) >> 8, v = (bv_[c] + 128) >> 8;
+  const int limit = std::max(1, options_.chroma_threshold);
+  return std::abs(u - alt_u_[c]) <= limit && std::abs(v - alt_v_[c]) <= limit;
+}
+
+int64_t BackgroundModel::PreferLitAlternatives() {
+  int64_t swapped = 0;
+  for (int y = 0; y < height_; ++y) {
+    for (int x = 0; x < width_; ++x) {
+      if (!BackgroundIsShadowOfAlternative(x, y)) continue;
+      SwapWithAlternative(x, y);
+      ++swapped;
+    }
+  }
+  return swapped;
+}
+
 void BackgroundModel::SetAlternative(const BackgroundLearner::Alternative& alternative, int min_support) {
   OCCMAP_CHECK(alternative.levels.y.width() == width_ && alternative.levels.y.height() == height_ &&
                    alternative.support.width() == width_ && alternative.support.height() == height_,

@@ -214,6 +214,16 @@ class BackgroundModel {
   void SwapWithAlternative(int x, int y);
   // Forgets (x, y)'s alternative: which of the two is the floor has been decided.
   void DropAlternative(int x, int y) { alt_valid_[Index(x, y)] = 0; }
+  // Whether (x, y)'s background looks like its alternative under a cast shadow: darker by a
+  // ratio in the shadow test's range, of about the same chroma.
+  bool BackgroundIsShadowOfAlternative(int x, int y) const;
+  // Swaps every pixel whose background is its alternative's shadow (with the shadow test on):
+  // the learner took for the floor the shadow of someone who stood near, which every camera saw
+  // alike, so the cross-camera check cannot undo it; dark clothing of a standing person looks
+  // the same and is undone too. Taking the lit cluster is the safe side: the shadow, when it is
+  // back, is a shadow to the change test, while a shadow taken for the floor makes the lit floor
+  // a change. Returns the pixels swapped.
+  int64_t PreferLitAlternatives();
 
   int width() const { return width_; }
   int height() const { return height_; }

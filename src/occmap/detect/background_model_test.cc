@@ -324,6 +324,45 @@ TEST(BackgroundModel, OnlyTaughtPixelsMoveTheLook) {
   EXPECT_EQ(changes(50, 10), 1);
 }
 
+// A learner that took someone's cast shadow for the floor (they stood near for most of the
+// window, the lit floor the second cluster) is turned to the lit floor; a dark-clad person of
+// another hue, a pixel lit above its alternative, and a model without the shadow test are not.
+TEST(BackgroundModel, PreferLitAlternativesUndoesALearnedInShadow) {
+  const int w = 32, h = 16;
+  const YuvImage lit = GreyFloor(w, h, 180);
+  YuvImage learned = lit;
+  Paint(learned, 0, 0, 8, h, 72, 128, 128);     // the shadow: 0.4 of the floor, grey
+  Paint(learned, 8, 0, 16, h, 72, 100, 170);    // a red coat as dark: another hue
+  Paint(learned, 16, 0, 24, h, 220, 128, 128);  // brighter than its alternative
+  BackgroundLearner::Alternative alternative;
+  alternative.levels = lit;
+  alternative.support = Image<uint8_t>(w, h, uint8_t{10});
+  for (int y = 0; y < h; ++y) std::fill_n(alternative.support.row(y) + 24, 8, uint8_t{0});  // none
+  auto model_with = [&](bool shadows) {
+    BackgroundOptions o;
+    o.shadows.enabled = shadows;
+    auto m = std::make_unique<BackgroundModel>(o, 10);
+    m->Reset(learned);
+    m->SetAlternative(alternative, 3);
+    return m;
+  };
+  auto model = model_with(true);
+  EXPECT_TRUE(model->BackgroundIsShadowOfAlternative(2, 2));
+  EXPECT_FALSE(model->BackgroundIsShadowOfAlternative(10, 2));
+  EXPECT_EQ(model->PreferLitAlternatives(), 8 * h);
+  EXPECT_EQ(model->BackgroundLevel(2, 2), 180);
+  EXPECT_EQ(model->AlternativeLevel(2, 2), 72);  // the shadow kept as the alternative
+  EXPECT_EQ(model->Current().u(1, 1), 128);
+  EXPECT_EQ(model->BackgroundLevel(10, 2), 72);
+  EXPECT_EQ(model->BackgroundLevel(18, 2), 220);
+  EXPECT_EQ(model->BackgroundLevel(28, 2), 180);
+  // The lit floor is no change now, and the shadow back is a shadow, not a change.
+  Image<uint8_t> changes(w, h);
+  model->DetectChanges(lit.view(), 20, changes.view());
+  EXPECT_EQ(changes(2, 2), 0);
+  EXPECT_EQ(model_with(false)->PreferLitAlternatives(), 0);
+}
+
 TEST(BackgroundModel, DetectChangesEqualsItsReference) {
   for (bool chroma : {true, false}) {
     for (uint32_t seed = 0; seed < 4; ++seed) {

@@ -194,6 +194,7 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
   c.model->Reset(background);
   if (alternative) {
     c.model->SetAlternative(*alternative, static_cast<int>(std::ceil(bo.alternative_min_share * bo.learn_samples)));
+    c.model->PreferLitAlternatives();
   }
   if (bo.shadows.enabled && bo.shadows.learn) {
     // The shadow look before the first frame, so that the first frames are tested with it: from
