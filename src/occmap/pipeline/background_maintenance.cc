@@ -311,7 +311,7 @@ ShadowTeachers::ShadowTeachers(const GroundLut& lut) : lut_(lut) {
 
 void ShadowTeachers::Compute(const std::vector<ImageView<const uint8_t>>& classes,
                              const std::vector<ImageView<const uint8_t>>& ratios,
-                             const std::vector<Eigen::Vector2d>& people_m, double radius_m) {
+                             const OccupancyMap& map, const std::vector<Eigen::Vector2d>& people_m, double radius_m) {
   const int cameras = lut_.num_cameras();
   OCCMAP_CHECK(static_cast<int>(classes.size()) == cameras && ratios.size() == classes.size(),
                "shadow teachers: one class and ratio image per camera");
@@ -319,10 +319,8 @@ void ShadowTeachers::Compute(const std::vector<ImageView<const uint8_t>>& classe
   const FloorGrid& g = lut_.grid();
   for (uint32_t c : near_person_cells_) near_person_[c] = 0;
   near_person_cells_.clear();
-  const int r = static_cast<int>(std::ceil(radius_m / g.cell_size_m));
-  for (const Eigen::Vector2d& p : people_m) {
-    const int ci = static_cast<int>(std::floor((p.x() - g.origin_x_m) / g.cell_size_m));
-    const int cj = static_cast<int>(std::floor((p.y() - g.origin_y_m) / g.cell_size_m));
+  OCCMAP_CHECK(map.grid().num_cells() == g.num_cells(), "shadow teachers: map of another grid");
+  auto exclude_disc = [&](int ci, int cj, int r) {
     for (int j = std::max(0, cj - r); j <= std::min(g.cells_y - 1, cj + r); ++j) {
       for (int i = std::max(0, ci - r); i <= std::min(g.cells_x - 1, ci + r); ++i) {
         if ((i - ci) * (i - ci) + (j - cj) * (j - cj) > r * r) continue;
@@ -332,6 +330,18 @@ void ShadowTeachers::Compute(const std::vector<ImageView<const uint8_t>>& classe
           near_person_cells_.push_back(cell);
         }
       }
+    }
+  };
+  const int r = static_cast<int>(std::ceil(radius_m / g.cell_size_m));
+  for (const Eigen::Vector2d& p : people_m) {
+    exclude_disc(static_cast<int>(std::floor((p.x() - g.origin_x_m) / g.cell_size_m)),
+                 static_cast<int>(std::floor((p.y() - g.origin_y_m) / g.cell_size_m)), r);
+  }
+  const int object_r = static_cast<int>(std::ceil(kObjectMarginM / g.cell_size_m));
+  const std::vector<CellState>& states = map.states();
+  for (int j = 0; j < g.cells_y; ++j) {
+    for (int i = 0; i < g.cells_x; ++i) {
+      if (states[static_cast<size_t>(j) * g.cells_x + i] == CellState::kOccupied) exclude_disc(i, j, object_r);
     }
   }
   for (uint32_t c : touched_) cell_state_[c] = kCellUnknown;

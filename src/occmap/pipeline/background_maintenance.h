@@ -137,20 +137,22 @@ class WalkedPeople {
 // shadow pixel whose floor cell (L1) has every pixel that views it (L2, the cameras that are
 // active) darker within the shadows' range and by one ratio (within 0.15: a matte floor looks
 // alike from every side, an object's sides are each lit their own way), away from where people
-// stand (their feet meet that test too). Without cast shadows in a scene little teaches, and
-// no look is learned.
+// stand and from what the fused map holds (feet, and the dark base of a robot or a box, meet
+// that test too). Without cast shadows in a scene little teaches, and no look is learned.
 //
 //   ShadowTeachers teachers(lut);
-//   teachers.Compute(classes, protection.person_positions(), 0.3);   // after the fusion
+//   teachers.Compute(classes, ratios, map, protection.person_positions(), 0.3);   // after the fusion
 //   model.LearnShadows(frame, teachers.image(n));
 class ShadowTeachers {
  public:
   explicit ShadowTeachers(const GroundLut& lut);  // lut must outlive this
 
   // classes[n]: camera n's BackgroundModel::pixel_classes(), empty when the camera is not active
-  // (it abstains). Cells within radius_m of people_m never teach.
+  // (it abstains). Cells within radius_m of people_m, and within kObjectMarginM of the map's
+  // occupied cells, never teach.
   void Compute(const std::vector<ImageView<const uint8_t>>& classes, const std::vector<ImageView<const uint8_t>>& ratios,
-               const std::vector<Eigen::Vector2d>& people_m, double radius_m);
+               const OccupancyMap& map, const std::vector<Eigen::Vector2d>& people_m, double radius_m);
+  static constexpr double kObjectMarginM = 0.1;
 
   const Image<uint8_t>& image(size_t camera) const { return images_[camera]; }
   int64_t teachers() const { return teachers_; }  // of the last Compute, over the cameras
@@ -161,7 +163,7 @@ class ShadowTeachers {
   std::vector<uint8_t> ratios_;     // per global pixel id: its ratio (BackgroundModel::pixel_ratios)
   std::vector<uint8_t> cell_state_;  // per cell: kUnknown, kDark or kNotDark
   std::vector<uint32_t> touched_;    // cells whose state was set this frame
-  std::vector<uint8_t> near_person_;  // per cell: within the radius of a person
+  std::vector<uint8_t> near_person_;  // per cell: within the radius of a person or near an object
   std::vector<uint32_t> near_person_cells_;
   std::vector<Image<uint8_t>> images_;
   int64_t teachers_ = 0;

@@ -391,7 +391,8 @@ TEST(ShadowTeachers, TheFloorEveryCameraSeesDarkTeachesClothingDoesNot) {
   for (const auto& c : classes) views.push_back(c.view());
   for (const auto& r : ratios) ratio_views.push_back(r.view());
   ShadowTeachers teachers(*lut);
-  teachers.Compute(views, ratio_views, {}, 0.35);
+  OccupancyMap map(room.grid);  // nothing held: every cell unseen
+  teachers.Compute(views, ratio_views, map, {}, 0.35);
   int64_t taught_shadow = 0, taught_clothing = 0;
   for (int y = 0; y < 120; ++y) {
     for (int x = 0; x < 160; ++x) {
@@ -405,20 +406,33 @@ TEST(ShadowTeachers, TheFloorEveryCameraSeesDarkTeachesClothingDoesNot) {
   EXPECT_GT(taught_shadow, shadow_pixels * 8 / 10);  // its edge cells may hold lit pixels too
   // A camera that is not active abstains: the others still agree.
   views[3] = ratio_views[3] = {};
-  teachers.Compute(views, ratio_views, {}, 0.35);
+  teachers.Compute(views, ratio_views, map, {}, 0.35);
   const int64_t three = teachers.teachers();
   EXPECT_GT(three, 0);
   EXPECT_EQ(teachers.image(3)(80, 60), 0);
   // Where a person stands, the dark cells are their feet.
-  teachers.Compute(views, ratio_views, {Eigen::Vector2d(1.5, 1.3)}, 1.0);
+  teachers.Compute(views, ratio_views, map, {Eigen::Vector2d(1.5, 1.3)}, 1.0);
   EXPECT_EQ(teachers.teachers(), 0);
+  // Where the map holds an object (a robot's dark base), its cells and their margin do not teach.
+  OccupancyMap held(room.grid);
+  const FloorGrid& g = room.grid;
+  for (int j = 0; j < g.cells_y; ++j) {
+    for (int i = 0; i < g.cells_x; ++i) {
+      const double x = g.origin_x_m + (i + 0.5) * g.cell_size_m, y = g.origin_y_m + (j + 0.5) * g.cell_size_m;
+      if (InCastShadow({x, y})) held.states()[static_cast<size_t>(j) * g.cells_x + i] = CellState::kOccupied;
+    }
+  }
+  teachers.Compute(views, ratio_views, held, {}, 0.35);
+  EXPECT_EQ(teachers.teachers(), 0);
+  teachers.Compute(views, ratio_views, map, {}, 0.35);
+  EXPECT_EQ(teachers.teachers(), three);
   // An object's sides, each lit its own way: camera 1 sees it far darker than the others.
   for (int y = 0; y < 120; ++y) {
     for (int x = 0; x < 160; ++x) {
       if (ratios[1](x, y) != 0) ratios[1](x, y) = 40;
     }
   }
-  teachers.Compute(views, ratio_views, {}, 0.35);
+  teachers.Compute(views, ratio_views, map, {}, 0.35);
   EXPECT_LT(teachers.teachers(), three / 10);
 }
 

@@ -193,7 +193,8 @@ void FusionStage::UpdateBackgrounds(FrameSet& set, Context& ctx) {
       teacher_classes_[n] = active[n] && cams_[n].model ? cams_[n].model->pixel_classes() : ImageView<const uint8_t>();
       teacher_ratios_[n] = active[n] && cams_[n].model ? cams_[n].model->pixel_ratios() : ImageView<const uint8_t>();
     }
-    teachers_->Compute(teacher_classes_, teacher_ratios_, protection_->person_positions(), kShadowTeacherPersonRadiusM);
+    teachers_->Compute(teacher_classes_, teacher_ratios_, set.map, protection_->person_positions(),
+                        kShadowTeacherPersonRadiusM);
   }
   ParallelFor(ctx, 0, static_cast<int64_t>(n_cams), [&](int64_t b, int64_t e, int) {
     for (int64_t n = b; n < e; ++n) {
