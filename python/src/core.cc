@@ -21,7 +21,10 @@
 #include "occmap/objects/object_detector.h"
 #include "occmap/site/site.h"
 #include "occmap/site/site_lut.h"
+#include "occmap/track/count_lines.h"
 #include "occmap/track/multi_target_tracker.h"
+#include "occmap/track/track_output.h"
+#include "occmap/track/zones.h"
 #include "occmap/track/window_tracker.h"
 #include "occmap/util/image_io.h"
 
@@ -332,7 +335,11 @@ class PyDetector {
 // The site's tracker, whichever algorithm it names (as pipeline/run.cc's).
 class PyTracker {
  public:
-  explicit PyTracker(const Site& site) : options_(site.tracking), grid_(site.grid) {
+  explicit PyTracker(const Site& site)
+      : options_(site.tracking),
+        grid_(site.grid),
+        zones_(Unwrap(ZoneMonitor::Create(options_.zones, options_.zone_count_every_frame))),
+        lines_(Unwrap(LineCounter::Create(options_.lines))) {
     if (options_.algorithm == TrackerAlgorithm::kWindow) {
       window_ = std::make_unique<WindowTracker>(Unwrap(WindowTracker::Create(options_)));
     } else {
@@ -340,7 +347,8 @@ class PyTracker {
     }
   }
 
-  std::vector<Track> Update(const Objects& objects, double time_s, bool all) {
+  // As the run: the tracker, then the zones and counting lines over every live track.
+  std::vector<Track> Update(const Objects& objects, double time_s, bool all, std::optional<int64_t> frame) {
     std::vector<Track> tracks;
     {
       py::gil_scoped_release release;
@@ -351,18 +359,32 @@ class PyTracker {
         throw StatusError(r.status());
       }
       tracks = std::move(r).value();
+      const int64_t f = frame.value_or(next_frame_);
+      next_frame_ = f + 1;
+      events_.clear();
+      for (const ZoneEvent& e : zones_.Update(f, time_s, tracks).events) events_.push_back(ZoneEventJsonLine(e));
+      for (const LineEvent& e : lines_.Update(f, time_s, tracks).events) events_.push_back(LineEventJsonLine(e));
     }
     if (!all) std::erase_if(tracks, [&](const Track& t) { return !IsReported(t, options_.report_coasting_s); });
     return tracks;
   }
 
-  std::vector<Track> UpdateDetections(const std::vector<Detection>& detections, double time_s, bool all) {
+  // The last update's zone events and line crossings, as events.jsonl's lines.
+  py::list Events() const {
+    py::object loads = py::module_::import("json").attr("loads");
+    py::list out;
+    for (const std::string& line : events_) out.append(loads(line));
+    return out;
+  }
+
+  std::vector<Track> UpdateDetections(const std::vector<Detection>& detections, double time_s, bool all,
+                                      std::optional<int64_t> frame) {
     if (window_) ThrowInvalid("detections: the window tracker reads a map's groups; give it detect()'s result");
     Objects objects;
     objects.objects.grid = grid_;
     objects.objects.detections = detections;
     for (Detection& d : objects.objects.detections) d.group = -1;  // no groups: never guided
-    return Update(objects, time_s, all);
+    return Update(objects, time_s, all, frame);
   }
 
  private:
@@ -375,6 +397,10 @@ class PyTracker {
   FloorGrid grid_;
   std::unique_ptr<WindowTracker> window_;
   std::unique_ptr<MultiTargetTracker> multi_;
+  ZoneMonitor zones_;
+  LineCounter lines_;
+  int64_t next_frame_ = 0;
+  std::vector<std::string> events_;
   std::vector<Blob> groups_;
   std::mutex mutex_;
 };
@@ -698,11 +724,15 @@ void BindCore(py::module_& m) {
   py::class_<PyTracker>(m, "Tracker", "The site's tracker (tracking.algorithm), stepped one frame at a time.")
       .def(py::init([](const Site& site) { return std::make_unique<PyTracker>(site); }), "site"_a)
       .def(py::init([](const Tables& t) { return std::make_unique<PyTracker>(*t.site); }), "tables"_a)
-      .def("update", &PyTracker::Update, "objects"_a, "time_s"_a, "all"_a = false,
+      .def("update", &PyTracker::Update, "objects"_a, "time_s"_a, "all"_a = false, "frame"_a = py::none(),
            "One frame: detect()'s Objects at time_s (strictly increasing, else InvalidInputError).\n"
-           "Returns the tracks `occmap run` writes (all=True: coasting ones past report_coasting_s too).")
-      .def("update", &PyTracker::UpdateDetections, "detections"_a, "time_s"_a, "all"_a = false,
-           "One frame from a list of Detection (any detector's; multi-target tracker only).");
+           "Returns the tracks `occmap run` writes (all=True: coasting ones past report_coasting_s too).\n"
+           "frame: the frame number in events (default: one more than the last). Releases the GIL.")
+      .def("update", &PyTracker::UpdateDetections, "detections"_a, "time_s"_a, "all"_a = false, "frame"_a = py::none(),
+           "One frame from a list of Detection (any detector's; multi-target tracker only).")
+      .def_property_readonly("events", &PyTracker::Events,
+           "The last update's zone events (enter, leave, dwell, count) and line crossings (in, out) of\n"
+           "the site's tracking.zones and tracking.lines, as dicts like events.jsonl's lines.");
 
   // --- metrics
   m.def("detection_metrics", &DetectionMetricsDict, "ground_truth"_a, "detections"_a, "match_threshold_m"_a = 0.5,

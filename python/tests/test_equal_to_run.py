@@ -27,7 +27,7 @@ def run_through_module(site_path, mask_paths_of_frame, frames, data_root=None):
         masks = [occmap.read_image(p) for p in mask_paths_of_frame(site, f)]
         occupancy = fusion.fuse(masks)
         objects = detector.detect(occupancy)
-        yield f, occupancy, objects, tracker.update(objects, time_s)
+        yield f, occupancy, objects, tracker.update(objects, time_s, frame=f), tracker
 
 
 def test_lab_maps_detections_and_tracks_equal_the_run(lab):
@@ -37,8 +37,11 @@ def test_lab_maps_detections_and_tracks_equal_the_run(lab):
     assert len(detections) == lab["frames"] and len(tracks) == lab["frames"]
     frames = [(line["frame"], line["time_s"]) for line in detections]
     paths = lambda site, f: [data / "gt" / "changes" / c.id / f"{f:06d}.png" for c in site.cameras]
+    events = read_lines(run / "events.jsonl")
+    my_events = []
     total_tracks = 0
-    for f, occupancy, objects, my_tracks in run_through_module(lab["site"], paths, frames):
+    for f, occupancy, objects, my_tracks, tracker in run_through_module(lab["site"], paths, frames):
+        my_events += tracker.events
         picture = occmap.read_image(run / "occupancy" / f"{f:06d}.png")
         assert np.array_equal(occupancy.to_image(), picture), f"frame {f}: map differs from the run's"
         assert_detections_equal(objects.detections, detections[f]["blobs"], f"frame {f}")
@@ -50,6 +53,7 @@ def test_lab_maps_detections_and_tracks_equal_the_run(lab):
             assert t.object_class == r["class"]
         total_tracks += len(my_tracks)
     assert total_tracks > 0, "the lab run should confirm tracks"
+    assert my_events == events and any(e.get("line") for e in events) and any(e.get("zone") for e in events)
 
 
 def test_gopro4_map_and_detections_equal_the_run(occmap_bin, datasets, tmp_path):
@@ -64,7 +68,7 @@ def test_gopro4_map_and_detections_equal_the_run(occmap_bin, datasets, tmp_path)
     assert len(detections) == 1
     paths = lambda site, f: [datasets / "gopro4" / f"bgsub_{c.id}.png" for c in site.cameras]
     results = list(run_through_module(site_path, paths, [(0, detections[0]["time_s"])], data_root=datasets))
-    _, occupancy, objects, _ = results[0]
+    _, occupancy, objects, _, _ = results[0]
     picture = occmap.read_image(run / "occupancy" / "000000.png")
     assert np.array_equal(occupancy.to_image(), picture)
     assert len(objects) == 4  # the four people the reference POM finds
