@@ -64,7 +64,8 @@ set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "python3, python3-numpy")
 set(CPACK_DEBIAN_PACKAGE_SUGGESTS "libopencv-dev, libeigen3-dev, libyaml-cpp-dev, nlohmann-json3-dev, libfmt-dev, libmosquitto-dev, libavcodec-dev, libavformat-dev, libswscale-dev, libavdevice-dev")
 include(CPack)
 
-if(OCCMAP_BUILD_TESTS)
+# Not in sanitized builds: the consumer project would link their instrumented libraries plainly.
+if(OCCMAP_BUILD_TESTS AND NOT CMAKE_CXX_FLAGS MATCHES "sanitize")
   # Install into a scratch prefix, a consumer project against it, the .deb unpacked and run.
   if(NOT OCCMAP_PYTHON_EXECUTABLE)
     set(OCCMAP_PYTHON_EXECUTABLE python3)
