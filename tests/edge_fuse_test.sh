@@ -2,7 +2,7 @@
 # `occmap edge` x 3 + `occmap fuse` through a mosquitto of the test's own (127.0.0.1, an
 # ephemeral port) on a rendered lab scene: the fuse's detections, tracks and events equal
 # `occmap run`'s byte for byte; a fuse given a site with other detection settings refuses the
-# edges' messages, naming what differs.
+# edges' messages, naming what differs; a fuse survives a restart of the broker.
 #
 #   tests/edge_fuse_test.sh OCCMAP_BINARY
 set -uo pipefail
@@ -67,5 +67,32 @@ for _ in $(seq 40); do grep -q "refused" "$work/other.log" && break; sleep 0.05;
 grep -q "other detection settings" "$work/other.log" && ok ||
   fail "a fuse with another threshold did not refuse: $(cat "$work/other.log")"
 kill -INT $other_pid 2>/dev/null
+
+# 3. The broker restarted under a waiting fuse: it reconnects and subscribes again, and the
+# edges started after the restart give the run's outputs again.
+"$occmap" fuse "$work/lab/site.yaml" --broker "$broker" --out "$work/again" --no-video --no-wall-clock \
+  --latency-budget-s 60 --dead-after-s 60 --topic-prefix occmap-test/again "${common[@]}" >"$work/again.log" 2>&1 &
+again_pid=$!
+tl_track $again_pid
+for _ in $(seq 200); do grep -q "subscribed to" "$work/again.log" && break; sleep 0.05; done
+kill "$broker_pid"
+wait "$broker_pid" 2>/dev/null
+/usr/sbin/mosquitto -c "$work/mosquitto.conf" 2>>"$work/broker.log" &
+broker_pid=$!
+tl_track "$broker_pid"
+for _ in $(seq 100); do mosquitto_pub -h 127.0.0.1 -p "$broker_port" -t occmap-test/probe -m x 2>/dev/null && break; sleep 0.05; done
+sleep 7  # the fuse's reconnect back-off (1 s, then 2, 4) and its subscription
+for cams in cam1,cam2,cam3 cam4; do
+  "$occmap" edge "$work/lab/site.yaml" --cameras $cams --topic-prefix occmap-test/again --broker "$broker" \
+    "${common[@]}" >/dev/null 2>&1 || fail "an edge after the broker's restart failed"
+done
+for _ in $(seq 600); do kill -0 $again_pid 2>/dev/null || break; sleep 0.05; done
+if kill -0 $again_pid 2>/dev/null; then
+  fail "after the broker's restart the fuse did not finish: $(tail -3 "$work/again.log")"
+elif cmp -s "$work/run/tracks.jsonl" "$work/again/tracks.jsonl"; then
+  ok
+else
+  fail "after the broker's restart the fuse's tracks differ from the run's"
+fi
 
 tl_finish edge_fuse
