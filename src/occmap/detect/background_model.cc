@@ -23,7 +23,8 @@ constexpr double kLookDecay = 0.95;      // per frame
 constexpr double kLookMinMass = 2000;    // pixels before a look is trusted
 constexpr double kLookMinPeakShare = 0.15; // of them within the mode's three bins
 constexpr double kLookJumpFactor = 2;      // a new mode this many times the look's own moves it
-constexpr int64_t kWarmUpLookLessons = 3;  // lessons without shadows that drop the warm-up's look
+constexpr int64_t kWarmUpLookLessons = 3;  // lessons without shadows that drop the warm-up's look,
+constexpr double kWarmUpLookMinMass = kLookMinMass / 4;  // when they taught fewer pixels than this
 
 // One row of the luma test: cls = out = 1 where |frame - expected| > threshold or the chroma
 // test said so (cc), expected = clamp((gq b + cq) >> 16); returns the count. Cloned for AVX2
@@ -652,8 +653,8 @@ void BackgroundModel::LearnShadowLook(const ShadowLearning& frame) {
   const bool settled = shadow_lessons_ >= static_cast<int64_t>(std::lround(1 / (1 - kLookDecay)));
   if (mass < kLookMinMass) {
     // The warm-up's look (clothing may have taught it) stands until the map has had its say:
-    // a few frames in which the teachers find no shadows drop it.
-    if (shadow_lessons_ >= kWarmUpLookLessons) look_.ratio = 0;
+    // a few frames in which the teachers find next to no shadows drop it.
+    if (settled || (shadow_lessons_ >= kWarmUpLookLessons && mass < kWarmUpLookMinMass)) look_.ratio = 0;
     return;
   }
   // The mode over three bins: over all ratios, and within the window of the look learned.

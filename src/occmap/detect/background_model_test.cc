@@ -327,6 +327,19 @@ TEST(BackgroundModel, OnlyTaughtPixelsMoveTheLook) {
   EXPECT_EQ(fresh.shadow_look().ratio, 0.0);
   EXPECT_LE(kept, 3);
   EXPECT_EQ(changes(50, 10), 1);
+  // A few taught pixels (a scene whose shadows are small in view) keep it for the while the
+  // teachers need to gather theirs.
+  BackgroundModel few(BackgroundOptions{}, 10);
+  few.Reset(b);
+  few.WarmUp({clothes.view(), clothes.view()}, 20);
+  few.DetectChanges(clothes.view(), 20, changes.view());
+  Image<uint8_t> some(w, h, 0);
+  for (int y = 0; y < 5; ++y) std::fill_n(some.row(y), w, uint8_t{1});  // 480 pixels a frame
+  for (int k = 0; k < 4; ++k) {  // taught mass 1780 by then: under the trusted 2000
+    few.LearnShadows(clothes.view(), some.view());
+    few.DetectChanges(clothes.view(), 20, changes.view());
+  }
+  EXPECT_NEAR(few.shadow_look().ratio, 0.7, 0.02);
 }
 
 // A learner that took someone's cast shadow for the floor (they stood near for most of the
