@@ -469,6 +469,10 @@ TEST(RedactUrl, HidesTheStreamPasswordOnly) {
   EXPECT_EQ(RedactUrl("udp://127.0.0.1:23001?pkt_size=1316"), "udp://127.0.0.1:23001?pkt_size=1316");
   EXPECT_EQ(RedactUrl("http://cam/a@b.mjpg"), "http://cam/a@b.mjpg");           // @ in the path
   EXPECT_EQ(RedactUrl("frames/c1.mp4"), "frames/c1.mp4");
+  EXPECT_EQ(RedactUrl("rtsp://admin:pa/ss@cam/1"), "rtsp://admin:***@cam/1");     // '/' in the password
+  EXPECT_EQ(RedactUrl("rtsp://admin:a/b/c@10.0.0.7:554/s"), "rtsp://admin:***@10.0.0.7:554/s");
+  EXPECT_EQ(RedactUrl("http://cam:8080/a@b.mjpg"), "http://cam:***@b.mjpg");       // over-redacted
+  EXPECT_EQ(RedactUrl("http://cam:8080/a.mjpg"), "http://cam:8080/a.mjpg");
 }
 
 }  // namespace

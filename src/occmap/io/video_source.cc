@@ -39,10 +39,15 @@ std::string RedactUrl(const std::string& url) {
   if (scheme == std::string::npos) return url;
   const size_t host_start = scheme + 3;
   const size_t host_end = std::min(url.find('/', host_start), url.size());
-  const size_t at = url.rfind('@', host_end);
-  if (at == std::string::npos || at < host_start) return url;
+  size_t at = url.rfind('@', host_end);
+  if (at == std::string::npos || at < host_start) {
+    // A password with a raw '/' ends the authority early: redact up to the next '@' (a port
+    // followed by an '@' in the path is redacted too; hiding more is the safe side).
+    at = url.find('@', host_end);
+    if (at == std::string::npos) return url;
+  }
   const size_t colon = url.find(':', host_start);
-  if (colon == std::string::npos || colon > at) return url;
+  if (colon == std::string::npos || colon > at || colon > host_end) return url;
   return url.substr(0, colon + 1) + "***" + url.substr(at);
 }
 
