@@ -10,37 +10,14 @@ const fs = require('node:fs');
 const path = require('node:path');
 const h = require('./harness.cjs');
 
-// Four floor points of cam1's view, spread and with no three on a line, from candidates.
-function chooseFloorPoints(camera) {
-  const candidates = [];
-  for (let x = 0.5; x <= 8.5; x += 1) for (let y = 0.5; y <= 6.0; y += 1) candidates.push([x, y]);
-  const pts = h.trueFloorPoints(camera, candidates)
-    .filter((p) => p.u_px > 40 && p.u_px < 600 && p.v_px > 40 && p.v_px < 440);
-  assert.ok(pts.length >= 4, `cam1 sees ${pts.length} candidate points`);
-  // Spread: the two farthest apart, then each time the point farthest from those chosen.
-  const d2 = (a, b) => (a.u_px - b.u_px) ** 2 + (a.v_px - b.v_px) ** 2;
-  let chosen = [pts[0]];
-  chosen = [pts.reduce((best, p) => (d2(p, chosen[0]) > d2(best, chosen[0]) ? p : best))];
-  while (chosen.length < 4) {
-    const far = (p) => Math.min(...chosen.map((c) => d2(p, c)));
-    chosen.push(pts.reduce((best, p) => (far(p) > far(best) ? p : best)));
-  }
-  return chosen;
-}
-
 test('setup: four clicked floor points calibrate a camera, saved to the site file', { timeout: 240000 }, async (t) => {
   const s = await h.start(t, 'calibrate');
   const page = await s.open('/#setup');
   await s.check(async () => {
     await h.picturesLoaded(page, '[data-testid=camera-map] img.leaflet-image-layer', 30000);
-    const points = chooseFloorPoints('cam1');
+    const points = h.spreadFloorPoints('cam1');
     assert.strictEqual(points.length, 4);
-    for (const [i, p] of points.entries()) {
-      const at = await page.evaluate(([u, v]) => window.occmap.cameraToClient(u, v), [p.u_px, p.v_px]);
-      await page.mouse.click(at.x, at.y);
-      await page.fill(`[data-testid=x-${i}]`, String(p.x_m));
-      await page.fill(`[data-testid=y-${i}]`, String(p.y_m));
-    }
+    await h.clickFloorPoints(page, points);
     assert.strictEqual(await page.locator('[data-testid=points] tr').count(), 5, 'a header and four points');
     await page.click('[data-testid=calibrate]');
     await page.waitForSelector('[data-testid=rms-px]', { timeout: 30000 });

@@ -181,6 +181,34 @@ async function start(t, name, { streams = false, listen, args } = {}) {
   return world;
 }
 
+// `count` floor points of a camera's view (true pixels, 40 px inside its 640x480 picture), spread
+// and with no three on a line: the two farthest apart, then each time the point farthest from
+// those chosen.
+function spreadFloorPoints(camera, count = 4) {
+  const candidates = [];
+  for (let x = 0.5; x <= 8.5; x += 1) for (let y = 0.5; y <= 6.0; y += 1) candidates.push([x, y]);
+  const pts = trueFloorPoints(camera, candidates)
+    .filter((p) => p.u_px > 40 && p.u_px < 600 && p.v_px > 40 && p.v_px < 440);
+  assert.ok(pts.length >= count, `${camera} sees ${pts.length} candidate points`);
+  const d2 = (a, b) => (a.u_px - b.u_px) ** 2 + (a.v_px - b.v_px) ** 2;
+  const chosen = [pts.reduce((best, p) => (d2(p, pts[0]) > d2(best, pts[0]) ? p : best))];
+  while (chosen.length < count) {
+    const far = (p) => Math.min(...chosen.map((c) => d2(p, c)));
+    chosen.push(pts.reduce((best, p) => (far(p) > far(best) ? p : best)));
+  }
+  return chosen;
+}
+
+// Clicks the points on the setup's camera picture and types their floor positions.
+async function clickFloorPoints(page, points) {
+  for (const [i, p] of points.entries()) {
+    const at = await page.evaluate(([u, v]) => window.occmap.cameraToClient(u, v), [p.u_px, p.v_px]);
+    await page.mouse.click(at.x, at.y);
+    await page.fill(`[data-testid=x-${i}]`, String(p.x_m));
+    await page.fill(`[data-testid=y-${i}]`, String(p.y_m));
+  }
+}
+
 // Waits until every picture matching `selector` has loaded.
 function picturesLoaded(page, selector, timeout = 60000) {
   return page.waitForFunction((sel) => {
@@ -197,5 +225,6 @@ function assertSiteValid(site) {
 
 module.exports = {
   sceneDir, sourceDir, tempDir, siteCopy, freeUdpPorts, streamCameras, stopProcess, startServe,
-  launchBrowser, openPage, screenshot, runOccmap, trueFloorPoints, start, picturesLoaded, assertSiteValid,
+  launchBrowser, openPage, screenshot, runOccmap, trueFloorPoints, spreadFloorPoints, clickFloorPoints, start,
+  picturesLoaded, assertSiteValid,
 };

@@ -82,12 +82,7 @@ test('setup: wide lenses calibrated without intrinsics fit within 1 px and find 
     await page.reload();
     await h.picturesLoaded(page, '[data-testid=camera-map] img.leaflet-image-layer', 60000);
     await page.selectOption('[data-testid=method]', 'lens');
-    for (const [i, p] of points.cam1.entries()) {
-      const at = await page.evaluate(([u, v]) => window.occmap.cameraToClient(u, v), [p.u_px, p.v_px]);
-      await page.mouse.click(at.x, at.y);
-      await page.fill(`[data-testid=x-${i}]`, String(p.x_m));
-      await page.fill(`[data-testid=y-${i}]`, String(p.y_m));
-    }
+    await h.clickFloorPoints(page, points.cam1);
     await page.click('[data-testid=calibrate]');
     await page.waitForSelector('[data-testid=lens-fitted]', { timeout: 30000 });
     const rms1 = Number(await page.textContent('[data-testid=rms-px]'));

@@ -22,6 +22,7 @@ async function request(method, path, body) {
     const message = (data && data.error) || `${method} ${path}: HTTP ${res.status}`;
     const err = new Error(message);
     err.status = res.status;
+    err.body = data;
     throw err;
   }
   return data;

@@ -1,4 +1,5 @@
-// The setup: per camera, floor points clicked on its current frame and typed in metres ->
+// The setup: per camera, its lens from board views (board.js), floor points clicked on its
+// current frame and typed in metres ->
 // POST /api/calibrate (errors and the floor grid shown), floor-mask polygons drawn on the image;
 // zones and counting lines drawn on the floor map; Save -> PUT /api/site.
 import { h } from 'preact';
@@ -8,6 +9,7 @@ import L from 'leaflet';
 import '@geoman-io/leaflet-geoman-free';
 import { fmt, getJSON, latLngToPixel, pixelToLatLng, postJSON, putJSON, url } from './api.js';
 import { clientPoint, createFloorMap, createImageMap } from './leafmaps.js';
+import { BoardPanel } from './board.js';
 
 const html = htm.bind(h);
 
@@ -91,6 +93,7 @@ function CameraSetup({ camera, draft, update }) {
   const [leafletMap, setLeafletMap] = useState(null);
   const points = draft.points || [];
   const result = draft.result;
+  const boardLens = draft.board && draft.board.state && draft.board.state.calibration;
 
   // The map and its layers, once per camera.
   useEffect(() => {
@@ -133,7 +136,7 @@ function CameraSetup({ camera, draft, update }) {
     const c = ctx.current;
     if (!c) return;
     const map = c.im.map;
-    if (mode === 'points') {
+    if (mode !== 'mask') {
       map.pm.disableDraw();
       map.pm.disableGlobalEditMode();
       map.pm.disableGlobalDragMode();
@@ -213,13 +216,18 @@ function CameraSetup({ camera, draft, update }) {
           onChange=${() => setMode('points')} data-testid="mode-points" />Floor points</label>
         <label class=${mode === 'mask' ? 'on' : ''}><input type="radio" name="mode" checked=${mode === 'mask'}
           onChange=${() => setMode('mask')} data-testid="mode-mask" />Floor mask</label>
+        <label class=${mode === 'lens' ? 'on' : ''} title="The camera's intrinsics from a printed checkerboard or ChArUco board">
+          <input type="radio" name="mode" checked=${mode === 'lens'} onChange=${() => setMode('lens')} data-testid="mode-lens" />Lens (board)</label>
         ${mode === 'mask' ? html`<${DrawActions} map=${leafletMap} />` : null}
         <span class="grow"></span>
         ${result ? html`<label><input type="checkbox" checked=${showGrid} onChange=${(e) => setShowGrid(e.target.checked)} />grid</label>` : null}
         <button onClick=${() => setSnapshot(Date.now())} title="Take the camera's current frame">New frame</button>
       </div>
       <div class="camera-map" ref=${div} data-testid="camera-map"></div>
-      <p class="hint">${mode === 'points'
+      ${mode === 'lens' ? html`<${BoardPanel} camera=${camera} board=${draft.board || {}}
+        update=${(patch) => update((d) => ({ board: { ...(d.board || {}), ...patch }, result: null }))}
+        onNewFrame=${() => setSnapshot(Date.now())} />` : null}
+      <p class="hint">${mode === 'lens' ? '' : mode === 'points'
         ? 'Click a floor mark you measured (tile corner, tape), then type where it is in metres. 4 points at least, better 8, spread over the floor; drag a number to move it.'
         : 'Draw the polygons of floor this camera should map (the tools on the left); pixels outside every polygon are ignored. No polygon: the whole image.'}</p>
       ${mode === 'points' ? html`<table class="points" data-testid="points">
@@ -238,14 +246,15 @@ function CameraSetup({ camera, draft, update }) {
       <div class="actions">
         <label>method
           <select value=${draft.method || ''} data-testid="method" onChange=${(e) => update({ method: e.target.value || undefined, result: null })}>
-            <option value="">default</option><option value="pnp">camera pose (intrinsics)</option>
+            <option value="">default</option><option value="pnp">camera pose (${boardLens ? 'the lens from the board' : 'intrinsics'})</option>
             <option value="lens">lens and pose (focal length, distortion; 6+ points)</option><option value="homography">floor homography</option>
           </select></label>
         <button class="primary" disabled=${busy} onClick=${calibrate} data-testid="calibrate">Calibrate</button>
         ${result ? html`<span class="result" data-testid="calibration-result">
             RMS <b data-testid="rms-px">${fmt(result.rms_px, 2)}</b> px · floor <b data-testid="floor-cm">${fmt(result.floor_rms_m * 100, 1)}</b> cm
             ${result.rms_px <= 1 ? html`<span class="badge up">good</span>` : html`<span class="badge down">check the points</span>`}
-            <span class="hint">${draft.calibrationPending ? "(pending until saved)" : "(saved)"}</span></span>` : null}
+            <span class="hint">${draft.calibrationPending ? "(pending until saved)" : "(saved)"}</span>
+            ${result.intrinsics_from === 'board' ? html`<span class="hint" data-testid="intrinsics-from-board">with the lens from the board</span>` : null}</span>` : null}
         ${result && result.lens_fitted && result.intrinsics ? html`<span class="hint" data-testid="lens-fitted">lens fitted:
             focal length ${fmt(result.intrinsics.fx_px, 1)} px, k1 ${fmt(result.intrinsics.distortion[0], 3)}, k2 ${fmt(result.intrinsics.distortion[1], 3)}</span>` : null}
         ${result && result.warnings && result.warnings.length

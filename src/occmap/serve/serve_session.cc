@@ -6,6 +6,10 @@
 #include <cmath>
 #include <cstdio>
 
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
 #include "occmap/calib/calibration_overlay.h"
 #include "occmap/calib/opencv_storage.h"
 #include "occmap/geometry/pinhole_camera.h"
@@ -96,6 +100,57 @@ bool SafeId(const std::string& id) {
     if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '-' && c != '.') return false;
   }
   return id.front() != '.';
+}
+
+json IntrinsicsJson(const CameraIntrinsics& in) {
+  return {{"width_px", in.image_size.width}, {"height_px", in.image_size.height}, {"fx_px", in.fx_px},
+          {"fy_px", in.fy_px}, {"cx_px", in.cx_px}, {"cy_px", in.cy_px}, {"distortion", in.distortion}};
+}
+
+// The board of a request: {"kind", "cols", "rows", "square_m", "marker_m"?, "dictionary"?,
+// "max_blur_px"?}, checked by IntrinsicsOptions::Validate.
+Result<IntrinsicsOptions> BoardOptionsFromJson(const json& j) {
+  if (!j.is_object()) {
+    return InvalidInput(fmt::format("board: expected {{\"kind\", \"cols\", \"rows\", \"square_m\"}}, found {}", j.dump()));
+  }
+  IntrinsicsOptions o;
+  BoardOptions& b = o.board;
+  const std::string kind = j.value("kind", std::string("checkerboard"));
+  if (kind == "charuco") {
+    b.kind = BoardKind::kCharuco;
+  } else if (kind != "checkerboard") {
+    return InvalidInput(fmt::format("board.kind: expected \"checkerboard\" or \"charuco\", found \"{}\"", kind));
+  }
+  auto integer = [&](const char* key, int& out) -> Status {
+    if (!j.contains(key)) return InvalidInput(fmt::format("board.{}: missing", key));
+    if (!j[key].is_number_integer()) return InvalidInput(fmt::format("board.{}: expected a whole number, found {}", key, j[key].dump()));
+    out = j[key].get<int>();
+    return Status::Ok();
+  };
+  OCCMAP_RETURN_IF_ERROR(integer("cols", b.cols));
+  OCCMAP_RETURN_IF_ERROR(integer("rows", b.rows));
+  if (!j.contains("square_m")) return InvalidInput("board.square_m: missing");
+  OCCMAP_ASSIGN_OR_RETURN(b.square_m, Number(j["square_m"], "board.square_m"));
+  if (j.contains("marker_m") && !j["marker_m"].is_null()) {
+    OCCMAP_ASSIGN_OR_RETURN(b.marker_m, Number(j["marker_m"], "board.marker_m"));
+  }
+  if (j.contains("dictionary")) {
+    if (!j["dictionary"].is_string()) return InvalidInput("board.dictionary: expected a name such as \"4x4_50\"");
+    b.dictionary = j["dictionary"].get<std::string>();
+  }
+  if (j.contains("max_blur_px")) {
+    OCCMAP_ASSIGN_OR_RETURN(o.max_blur_px, Number(j["max_blur_px"], "board.max_blur_px"));
+  }
+  OCCMAP_RETURN_IF_ERROR(o.Validate().WithContext("board"));
+  return o;
+}
+
+json BoardViewJson(const BoardView& v, const Image<uint8_t>& image, bool used) {
+  return {{"name", v.name},         {"accepted", v.reason.empty()}, {"used", used},
+          {"reason", v.reason},     {"corners", v.corners},          {"blur_px", Finite(v.blur_px)},
+          {"board_fraction", Finite(v.board_fraction)}, {"tilt_deg", Finite(v.tilt_deg)},
+          {"rms_px", used ? Finite(v.rms_px) : json(nullptr)}, {"width_px", image.width()},
+          {"height_px", image.height()}};
 }
 
 }  // namespace
@@ -236,18 +291,32 @@ Result<json> ServeSession::Calibrate(const json& body) {
     points.push_back(std::move(fp));
   }
   const auto* pinhole = dynamic_cast<const PinholeCamera*>(cam->camera.get());
+  // Intrinsics from board views made in the page come before the site's.
+  std::optional<CameraIntrinsics> board;
+  {
+    std::lock_guard lock(mu_);
+    if (auto it = boards_.find(id); it != boards_.end() && it->second.calibration) {
+      board = it->second.calibration->intrinsics;
+    }
+  }
   // Without intrinsics a lens fit from 8 points: the wide lenses of cheap cameras defeat a homography.
-  std::string method = pinhole != nullptr ? "pnp" : points.size() >= 8 ? "lens" : "homography";
+  std::string method = pinhole != nullptr || board ? "pnp" : points.size() >= 8 ? "lens" : "homography";
   if (body.contains("method")) {
     if (!body["method"].is_string()) return InvalidInput("method: expected \"pnp\", \"lens\" or \"homography\"");
     method = body["method"].get<std::string>();
   }
   FloorCalibrationOptions fo;
   fo.image_size = cam->camera->image_size();
-  if (method == "pnp") {
+  std::string intrinsics_from;
+  if (method == "pnp" && board) {
+    fo.intrinsics = *board;
+    intrinsics_from = "board";
+  } else if (method == "pnp") {
+    intrinsics_from = "site";
     if (pinhole == nullptr) {
       return InvalidInput(fmt::format("method: pnp needs the camera's intrinsics; camera '{}' has a {} calibration "
-                                      "(use \"homography\")", id, cam->calibration_format));
+                                      "(calibrate its lens from board views first, or use \"lens\" or \"homography\")",
+                                      id, cam->calibration_format));
     }
     const PinholeParameters& p = pinhole->params();
     CameraIntrinsics in;
@@ -261,6 +330,7 @@ Result<json> ServeSession::Calibrate(const json& body) {
     fo.intrinsics = in;
   } else if (method == "lens") {
     fo.fit_lens = true;
+    intrinsics_from = "points";
   } else if (method != "homography") {
     return InvalidInput(fmt::format("method: expected \"pnp\", \"lens\" or \"homography\", found \"{}\"", method));
   }
@@ -283,6 +353,7 @@ Result<json> ServeSession::Calibrate(const json& body) {
               {"points", jp},
               {"warnings", cal.warnings},
               {"lens_fitted", cal.lens_fitted},
+              {"intrinsics_from", intrinsics_from.empty() ? json(nullptr) : json(intrinsics_from)},
               {"overlay_url", fmt::format("/api/cameras/{}/frame.jpg?overlay=grid&calibration=pending", id)}};
   if (cal.pinhole) {
     const PinholeParameters& p = *cal.pinhole;
@@ -292,6 +363,211 @@ Result<json> ServeSession::Calibrate(const json& body) {
   std::lock_guard lock(mu_);
   pending_[id] = Pending{std::move(cal), std::move(points)};
   return out;
+}
+
+const SiteCamera* ServeSession::FindCamera(const Site& site, const std::string& camera_id) const {
+  for (const SiteCamera& c : site.cameras) {
+    if (c.id == camera_id) return &c;
+  }
+  return nullptr;
+}
+
+json ServeSession::BoardJsonLocked(const std::string& camera_id, const BoardSet& b) const {
+  json views = json::array();
+  for (size_t i = 0; i < b.images.size(); ++i) views.push_back(BoardViewJson(b.inspected[i], *b.images[i], b.used[i]));
+  json out = {{"camera", camera_id}, {"views", views}, {"max_views", kMaxBoardViews}, {"calibration", nullptr}};
+  if (b.calibration) {
+    out["calibration"] = {{"rms_px", Finite(b.calibration->rms_px)}, {"views_used", b.calibration->views_used},
+                          {"intrinsics", IntrinsicsJson(b.calibration->intrinsics)},
+                          {"warnings", b.calibration->warnings}};
+  }
+  return out;
+}
+
+Result<json> ServeSession::BoardViews(const std::string& camera_id) {
+  const std::shared_ptr<const Site> site = this->site();
+  if (FindCamera(*site, camera_id) == nullptr) return NotFound(fmt::format("no camera '{}'", camera_id));
+  std::lock_guard lock(mu_);
+  auto it = boards_.find(camera_id);
+  return BoardJsonLocked(camera_id, it == boards_.end() ? BoardSet{} : it->second);
+}
+
+Result<json> ServeSession::AddBoardView(const json& body) {
+  if (!body.is_object()) return InvalidInput("expected a JSON object {\"camera\", \"board\", \"capture\" or \"image\"}");
+  if (!body.contains("camera") || !body["camera"].is_string()) return InvalidInput("camera: expected a camera id");
+  const std::string id = body["camera"].get<std::string>();
+  const std::shared_ptr<const Site> site = this->site();
+  if (FindCamera(*site, id) == nullptr) return InvalidInput(fmt::format("camera: no camera '{}' in the site", id));
+  if (!body.contains("board")) return InvalidInput("board: missing");
+  OCCMAP_ASSIGN_OR_RETURN(IntrinsicsOptions options, BoardOptionsFromJson(body["board"]));
+  const bool capture = body.value("capture", false);
+  if (capture == body.contains("image")) {
+    return InvalidInput("expected either \"capture\": true (the camera's current frame) or \"image\" (base64 PNG or JPEG)");
+  }
+  auto gray = std::make_shared<Image<uint8_t>>();
+  std::string name;
+  if (capture) {
+    const std::shared_ptr<const LiveSnapshot> snap = state_->Latest();
+    size_t n = snap->camera_ids.size();
+    for (size_t i = 0; i < snap->camera_ids.size(); ++i) {
+      if (snap->camera_ids[i] == id) n = i;
+    }
+    if (n == snap->camera_ids.size() || n >= snap->frames_gray.size() || snap->frames_gray[n].empty()) {
+      return InvalidInput(fmt::format("capture: camera '{}' has no frame yet", id));
+    }
+    const Image<uint8_t>& f = snap->frames_gray[n];
+    *gray = Image<uint8_t>(f.width(), f.height());
+    for (int y = 0; y < f.height(); ++y) std::copy(f.row(y), f.row(y) + f.width(), gray->row(y));
+    name = fmt::format("frame {}", snap->frame);
+  } else {
+    if (!body["image"].is_string()) return InvalidInput("image: expected a base64 PNG or JPEG");
+    OCCMAP_ASSIGN_OR_RETURN(std::string bytes, DecodeBase64(body["image"].get<std::string>(), "image"));
+    cv::Mat decoded;
+    try {
+      decoded = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, bytes.data()), cv::IMREAD_GRAYSCALE);
+    } catch (const cv::Exception&) {
+      decoded = cv::Mat();
+    }
+    if (decoded.empty()) return InvalidInput("image: not a picture OpenCV reads (expected PNG or JPEG)");
+    *gray = Image<uint8_t>(decoded.cols, decoded.rows);
+    for (int y = 0; y < decoded.rows; ++y) std::copy_n(decoded.ptr<uint8_t>(y), decoded.cols, gray->row(y));
+    if (body.contains("name") && body["name"].is_string()) name = body["name"].get<std::string>().substr(0, 120);
+  }
+  // Inspected outside the lock: corner detection on a large picture takes a while.
+  std::lock_guard run_lock(board_mu_);
+  int number = 0;
+  {
+    std::lock_guard lock(mu_);
+    BoardSet& b = boards_[id];
+    if (b.images.size() >= kMaxBoardViews) {
+      return InvalidInput(fmt::format("camera '{}' holds {} board views already (the most kept): remove some first",
+                                      id, kMaxBoardViews));
+    }
+    if (!b.images.empty() && (b.images[0]->width() != gray->width() || b.images[0]->height() != gray->height())) {
+      return InvalidInput(fmt::format("{}: {}x{}, the camera's other board views are {}x{}",
+                                      name.empty() ? "image" : name, gray->width(), gray->height(),
+                                      b.images[0]->width(), b.images[0]->height()));
+    }
+    number = b.next_number++;
+  }
+  if (name.empty()) name = fmt::format("view {}", number);
+  BoardView view = InspectBoardView({name, gray->view()}, options);
+  std::lock_guard lock(mu_);
+  BoardSet& b = boards_[id];
+  // Another board: every view is inspected again with it.
+  if (b.options.board.kind != options.board.kind || b.options.board.cols != options.board.cols ||
+      b.options.board.rows != options.board.rows || b.options.board.square_m != options.board.square_m ||
+      b.options.board.marker_m != options.board.marker_m || b.options.board.dictionary != options.board.dictionary ||
+      b.options.max_blur_px != options.max_blur_px) {
+    for (size_t i = 0; i < b.images.size(); ++i) b.inspected[i] = InspectBoardView({b.names[i], b.images[i]->view()}, options);
+    b.used.assign(b.images.size(), false);
+    b.calibration.reset();
+    b.options = options;
+  }
+  b.names.push_back(name);
+  b.images.push_back(std::move(gray));
+  b.inspected.push_back(view);
+  b.used.push_back(false);
+  json out = BoardJsonLocked(id, b);
+  out["view"] = out["views"].back();
+  out["index"] = b.images.size() - 1;
+  return out;
+}
+
+Result<json> ServeSession::RemoveBoardViews(const std::string& camera_id, int index) {
+  const std::shared_ptr<const Site> site = this->site();
+  if (FindCamera(*site, camera_id) == nullptr) return NotFound(fmt::format("no camera '{}'", camera_id));
+  std::lock_guard lock(mu_);
+  BoardSet& b = boards_[camera_id];
+  if (index < 0) {
+    b = BoardSet{};
+  } else {
+    if (static_cast<size_t>(index) >= b.images.size()) {
+      return InvalidInput(fmt::format("index: expected 0..{}, found {}", static_cast<int>(b.images.size()) - 1, index));
+    }
+    const auto at = static_cast<ptrdiff_t>(index);
+    b.names.erase(b.names.begin() + at);
+    b.images.erase(b.images.begin() + at);
+    b.inspected.erase(b.inspected.begin() + at);
+    b.used.erase(b.used.begin() + at);
+  }
+  return BoardJsonLocked(camera_id, b);
+}
+
+Result<json> ServeSession::CalibrateBoard(const json& body) {
+  if (!body.is_object()) return InvalidInput("expected a JSON object {\"camera\", \"board\"}");
+  if (!body.contains("camera") || !body["camera"].is_string()) return InvalidInput("camera: expected a camera id");
+  const std::string id = body["camera"].get<std::string>();
+  const std::shared_ptr<const Site> site = this->site();
+  const SiteCamera* cam = FindCamera(*site, id);
+  if (cam == nullptr) return InvalidInput(fmt::format("camera: no camera '{}' in the site", id));
+  if (!body.contains("board")) return InvalidInput("board: missing");
+  OCCMAP_ASSIGN_OR_RETURN(IntrinsicsOptions options, BoardOptionsFromJson(body["board"]));
+  std::vector<std::string> names;
+  std::vector<std::shared_ptr<const Image<uint8_t>>> images;
+  {
+    std::lock_guard lock(mu_);
+    auto it = boards_.find(id);
+    if (it == boards_.end() || it->second.images.empty()) {
+      return InvalidInput(fmt::format("camera '{}' has no board views: capture or upload some first", id));
+    }
+    names = it->second.names;
+    images = it->second.images;
+  }
+  std::lock_guard run_lock(board_mu_);
+  std::vector<BoardImage> views;
+  for (size_t i = 0; i < images.size(); ++i) views.push_back({names[i], images[i]->view()});
+  const ImageSize camera_size = cam->camera->image_size();
+  const double aspect_views = static_cast<double>(images[0]->width()) / images[0]->height();
+  const double aspect_camera = static_cast<double>(camera_size.width) / camera_size.height;
+  if (std::abs(aspect_views / aspect_camera - 1) > 0.01) {
+    return InvalidInput(fmt::format("board views: {}x{}, the camera's images are {}x{} (another aspect ratio)",
+                                    images[0]->width(), images[0]->height(), camera_size.width, camera_size.height));
+  }
+  auto cal = CalibrateIntrinsics(views, options);
+  std::lock_guard lock(mu_);
+  BoardSet& b = boards_[id];
+  if (b.images != images) return InvalidInput("board views changed meanwhile: calibrate again");
+  b.options = options;
+  b.used.assign(b.images.size(), false);
+  if (!cal.ok()) {
+    // Every view's reason still goes back to the page.
+    for (size_t i = 0; i < b.images.size(); ++i) b.inspected[i] = InspectBoardView(views[i], options);
+    b.calibration.reset();
+    json out = BoardJsonLocked(id, b);
+    out["error"] = cal.status().message();
+    return out;
+  }
+  for (size_t i = 0; i < b.images.size(); ++i) {
+    b.inspected[i] = cal->views[i];
+    b.used[i] = cal->views[i].used;
+  }
+  b.calibration = std::move(*cal);
+  return BoardJsonLocked(id, b);
+}
+
+Result<std::string> ServeSession::BoardViewJpeg(const std::string& camera_id, int index) {
+  std::shared_ptr<const Image<uint8_t>> image;
+  BoardView view;
+  {
+    std::lock_guard lock(mu_);
+    auto it = boards_.find(camera_id);
+    if (it == boards_.end() || index < 0 || static_cast<size_t>(index) >= it->second.images.size()) {
+      return NotFound(fmt::format("camera '{}' has no board view {}", camera_id, index));
+    }
+    image = it->second.images[static_cast<size_t>(index)];
+    view = it->second.inspected[static_cast<size_t>(index)];
+  }
+  const cv::Mat g(image->height(), image->width(), CV_8UC1, const_cast<uint8_t*>(image->view().data()),
+                  static_cast<size_t>(image->stride_elems()));
+  cv::Mat bgr;
+  cv::cvtColor(g, bgr, cv::COLOR_GRAY2BGR);
+  const cv::Scalar colour = view.reason.empty() ? cv::Scalar(60, 200, 60) : cv::Scalar(40, 40, 230);
+  const int r = std::max(2, image->width() / 200);
+  for (const Eigen::Vector2d& c : view.corners_px) cv::circle(bgr, cv::Point(cvRound(c.x()), cvRound(c.y())), r, colour, -1);
+  std::vector<uint8_t> buf;
+  if (!cv::imencode(".jpg", bgr, buf, {cv::IMWRITE_JPEG_QUALITY, 80})) return Internal("JPEG encoding failed");
+  return std::string(buf.begin(), buf.end());
 }
 
 Result<json> ServeSession::UpdateSite(const json& body) {

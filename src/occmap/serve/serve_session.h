@@ -9,6 +9,8 @@
 //   s->Start();  ...  s->Stop();
 #pragma once
 
+#include <fmt/core.h>
+
 #include <atomic>
 #include <filesystem>
 #include <functional>
@@ -21,6 +23,7 @@
 #include <thread>
 #include <vector>
 
+#include "occmap/calib/board_calibration.h"
 #include "occmap/calib/floor_calibration.h"
 #include "occmap/pipeline/run.h"
 #include "occmap/serve/live_state.h"
@@ -46,6 +49,30 @@ class ServeBackend {
   // Camera `camera_id`'s latest frame with the floor grid of its calibration (the pending
   // result of Calibrate when `pending`) as JPEG; NotFound for an unknown camera.
   virtual Result<std::string> GridJpeg(const std::string& camera_id, bool pending) = 0;
+  // The board route to a camera's intrinsics (docs/formats.md, "Web API"): views captured from
+  // its live frame or uploaded, each inspected as it comes, then cv::calibrateCamera on them;
+  // the intrinsics are kept for the camera's next POST /api/calibrate.
+  virtual Result<nlohmann::json> BoardViews(const std::string& camera_id) {
+    return NotFound(fmt::format("no board views for '{}'", camera_id));
+  }
+  virtual Result<nlohmann::json> AddBoardView(const nlohmann::json& body) {
+    (void)body;
+    return NotFound("board views are not kept here");
+  }
+  // index < 0: every view and the kept intrinsics.
+  virtual Result<nlohmann::json> RemoveBoardViews(const std::string& camera_id, int index) {
+    (void)index;
+    return NotFound(fmt::format("no board views for '{}'", camera_id));
+  }
+  virtual Result<nlohmann::json> CalibrateBoard(const nlohmann::json& body) {
+    (void)body;
+    return NotFound("board views are not kept here");
+  }
+  // View `index` of the camera's board views with the corners found drawn, as JPEG.
+  virtual Result<std::string> BoardViewJpeg(const std::string& camera_id, int index) {
+    (void)index;
+    return NotFound(fmt::format("no board views for '{}'", camera_id));
+  }
 };
 
 struct ServeSessionOptions {
@@ -79,6 +106,13 @@ class ServeSession : public ServeBackend {
   Result<nlohmann::json> Calibrate(const nlohmann::json& body) override;
   Result<nlohmann::json> UpdateSite(const nlohmann::json& body) override;
   Result<std::string> GridJpeg(const std::string& camera_id, bool pending) override;
+  Result<nlohmann::json> BoardViews(const std::string& camera_id) override;
+  Result<nlohmann::json> AddBoardView(const nlohmann::json& body) override;
+  Result<nlohmann::json> RemoveBoardViews(const std::string& camera_id, int index) override;
+  Result<nlohmann::json> CalibrateBoard(const nlohmann::json& body) override;
+  Result<std::string> BoardViewJpeg(const std::string& camera_id, int index) override;
+
+  static constexpr size_t kMaxBoardViews = 40;  // a camera's views kept at once (grey, in memory)
 
  private:
   explicit ServeSession(ServeSessionOptions options);
@@ -91,6 +125,18 @@ class ServeSession : public ServeBackend {
     FloorCalibration calibration;
     std::vector<FloorPoint> points;
   };
+  // A camera's board views: the pictures, their latest inspection, the intrinsics found.
+  struct BoardSet {
+    std::vector<std::string> names;
+    std::vector<std::shared_ptr<const Image<uint8_t>>> images;
+    std::vector<BoardView> inspected;
+    std::vector<bool> used;  // by the latest calibration
+    IntrinsicsOptions options;
+    std::optional<IntrinsicsCalibration> calibration;
+    int next_number = 1;
+  };
+  nlohmann::json BoardJsonLocked(const std::string& camera_id, const BoardSet& b) const;
+  const SiteCamera* FindCamera(const Site& site, const std::string& camera_id) const;
 
   ServeSessionOptions options_;
   std::shared_ptr<LiveState> state_;
@@ -99,6 +145,8 @@ class ServeSession : public ServeBackend {
   std::shared_ptr<const Site> site_;
   std::string site_text_;
   std::map<std::string, Pending> pending_;
+  std::map<std::string, BoardSet> boards_;  // under mu_
+  std::mutex board_mu_;  // one board inspection or calibration at a time (they take seconds)
   std::optional<RunSummary> summary_;
   Status error_;
   std::atomic<int64_t> site_version_{1};

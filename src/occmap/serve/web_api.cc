@@ -181,6 +181,47 @@ std::string ContentTypeFor(std::string_view name) {
   return "application/octet-stream";
 }
 
+Result<std::string> DecodeBase64(std::string_view text, std::string_view field) {
+  if (text.substr(0, 5) == "data:") {
+    const size_t comma = text.find(',');
+    if (comma == std::string_view::npos || text.substr(0, comma).find(";base64") == std::string_view::npos) {
+      return InvalidInput(fmt::format("{}: expected a base64 data URL (data:image/png;base64,...)", field));
+    }
+    text.remove_prefix(comma + 1);
+  }
+  std::string out;
+  out.reserve(text.size() / 4 * 3);
+  uint32_t acc = 0;
+  int bits = 0;
+  size_t pad = 0;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    int v = -1;
+    if (c >= 'A' && c <= 'Z') v = c - 'A';
+    else if (c >= 'a' && c <= 'z') v = c - 'a' + 26;
+    else if (c >= '0' && c <= '9') v = c - '0' + 52;
+    else if (c == '+' || c == '-') v = 62;
+    else if (c == '/' || c == '_') v = 63;
+    else if (c == '=') {
+      ++pad;
+      continue;
+    } else if (c == ' ' || c == '\n' || c == '\r' || c == '\t') {
+      continue;
+    }
+    if (v < 0 || pad > 0) {
+      return InvalidInput(fmt::format("{}: expected base64, found '{}' at character {}", field, c, i + 1));
+    }
+    acc = (acc << 6) | static_cast<uint32_t>(v);
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      out += static_cast<char>((acc >> bits) & 0xff);
+    }
+  }
+  if (bits >= 6 || pad > 2) return InvalidInput(fmt::format("{}: base64 cut short", field));
+  return out;
+}
+
 std::string SseEvent(std::string_view event, std::string_view data) {
   std::string out = fmt::format("event: {}\n", event);
   size_t start = 0;

@@ -38,6 +38,10 @@ bool IsTraversal(std::string_view raw_target);
 std::string StaticFileName(std::string_view path);
 std::string ContentTypeFor(std::string_view file_name);
 
+// Base64 (RFC 4648, padding optional, whitespace ignored) to bytes; a data URL's
+// "data:...;base64," prefix is skipped. `field` names it in messages.
+Result<std::string> DecodeBase64(std::string_view text, std::string_view field);
+
 // One Server-Sent Event: "event: NAME\ndata: LINE\n...\n\n" (a data line per line of `data`).
 std::string SseEvent(std::string_view event, std::string_view data);
 

@@ -35,6 +35,20 @@ TEST(WebApi, ParsesListenAddresses) {
   }
 }
 
+TEST(WebApi, DecodesBase64AndDataUrls) {
+  EXPECT_EQ(DecodeBase64("b2NjbWFw", "image").value(), "occmap");
+  EXPECT_EQ(DecodeBase64("b2NjbWFwIQ==", "image").value(), "occmap!");
+  EXPECT_EQ(DecodeBase64("b2NjbWFwIQ", "image").value(), "occmap!");  // padding optional
+  EXPECT_EQ(DecodeBase64("data:image/png;base64,b2Nj\nbWFw", "image").value(), "occmap");
+  EXPECT_EQ(DecodeBase64("", "image").value(), "");
+  const auto bad = DecodeBase64("b2Nj*bWFw", "image");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().message(), "image: expected base64, found '*' at character 5");
+  EXPECT_FALSE(DecodeBase64("b", "image").ok());                       // cut short
+  EXPECT_FALSE(DecodeBase64("b2==Nj", "image").ok());                  // data after the padding
+  EXPECT_FALSE(DecodeBase64("data:image/png,b2Nj", "image").ok());     // not a base64 data URL
+}
+
 TEST(WebApi, LoopbackHosts) {
   EXPECT_TRUE(IsLoopbackHost("127.0.0.1"));
   EXPECT_TRUE(IsLoopbackHost("127.1.2.3"));

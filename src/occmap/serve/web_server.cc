@@ -195,6 +195,46 @@ void WebServer::Routes() {
     if (!r.ok()) return ErrorReply(res, HttpStatusFor(r.status()) == 500 ? 500 : 400, r.status().message());
     JsonReply(res, 200, *r);
   });
+  // Board views (a camera's intrinsics): ?camera=ID names the camera of GET and DELETE.
+  auto board_reply = [](httplib::Response& res, const Result<json>& r) {
+    if (!r.ok()) return ErrorReply(res, HttpStatusFor(r.status()), r.status().message());
+    // A calibration that failed still lists every view with its reason.
+    JsonReply(res, r->contains("error") ? 400 : 200, *r);
+  };
+  svr.Get("/api/board/views", [this, board_reply](const httplib::Request& req, httplib::Response& res) {
+    board_reply(res, backend_.BoardViews(req.get_param_value("camera")));
+  });
+  svr.Post("/api/board/views", [this, board_reply](const httplib::Request& req, httplib::Response& res) {
+    const json body = json::parse(req.body, nullptr, false);
+    if (body.is_discarded()) return ErrorReply(res, 400, "body: expected JSON");
+    board_reply(res, backend_.AddBoardView(body));
+  });
+  svr.Delete("/api/board/views", [this, board_reply](const httplib::Request& req, httplib::Response& res) {
+    int index = -1;
+    if (req.has_param("index")) {
+      const std::string v = req.get_param_value("index");
+      char* end = nullptr;
+      const long n = std::strtol(v.c_str(), &end, 10);
+      if (v.empty() || *end != '\0' || n < 0 || n > 1000) return ErrorReply(res, 400, "index: expected a view number 0, 1, ...");
+      index = static_cast<int>(n);
+    }
+    board_reply(res, backend_.RemoveBoardViews(req.get_param_value("camera"), index));
+  });
+  svr.Post("/api/board/calibrate", [this, board_reply](const httplib::Request& req, httplib::Response& res) {
+    const json body = json::parse(req.body, nullptr, false);
+    if (body.is_discarded()) return ErrorReply(res, 400, "body: expected JSON");
+    board_reply(res, backend_.CalibrateBoard(body));
+  });
+  svr.Get("/api/board/view.jpg", [this](const httplib::Request& req, httplib::Response& res) {
+    const std::string v = req.get_param_value("index");
+    char* end = nullptr;
+    const long n = std::strtol(v.c_str(), &end, 10);
+    if (v.empty() || *end != '\0' || n < 0 || n > 1000) return ErrorReply(res, 400, "index: expected a view number 0, 1, ...");
+    auto jpeg = backend_.BoardViewJpeg(req.get_param_value("camera"), static_cast<int>(n));
+    if (!jpeg.ok()) return ErrorReply(res, HttpStatusFor(jpeg.status()), jpeg.status().message());
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(*jpeg, "image/jpeg");
+  });
   svr.Put("/api/site", [this](const httplib::Request& req, httplib::Response& res) {
     const json body = json::parse(req.body, nullptr, false);
     if (body.is_discarded()) return ErrorReply(res, 400, "body: expected JSON");

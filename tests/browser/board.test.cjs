@@ -1,0 +1,120 @@
+// The lens from a board in a real browser: pictures of a checkerboard seen through camera cam1's
+// true intrinsics (k1 -0.16: rendered here, board_views.cjs) are uploaded in Setup's "Lens
+// (board)", each listed as usable or with its reason (a blurred one, one without a board, the
+// live frame captured from the camera); "Calibrate the lens" gives the RMS and the focal length
+// and distortion, which the floor points then use for the pose; Save writes them. The API's
+// refusals are checked first (Node's fetch).
+'use strict';
+const test = require('node:test');
+const assert = require('node:assert');
+const fs = require('node:fs');
+const path = require('node:path');
+const h = require('./harness.cjs');
+const b = require('./board_views.cjs');
+
+const board = { cols: 9, rows: 6, square: 0.04 };
+const boardJson = { kind: 'checkerboard', cols: 9, rows: 6, square_m: 0.04 };
+
+function renderViews(dir, cam) {
+  const files = b.poses.map((pose, i) => {
+    const file = path.join(dir, `board${String(i + 1).padStart(2, '0')}.png`);
+    fs.writeFileSync(file, b.png(b.renderBoard(cam, board, pose, i + 1)));
+    return file;
+  });
+  const blurred = path.join(dir, 'blurred.png');
+  fs.writeFileSync(blurred, b.png(b.blur(b.renderBoard(cam, board, { rx: 20, ry: 15, rz: 0, distance: 0.6, ox: 0, oy: 0 }, 99), 4)));
+  const empty = path.join(dir, 'wall.png');
+  fs.writeFileSync(empty, b.png({ width: cam.width, height: cam.height, gray: new Uint8Array(cam.width * cam.height).fill(128) }));
+  return { good: files, blurred, empty };
+}
+
+async function call(base, method, p, body) {
+  const r = await fetch(base + p, {
+    method, headers: body === undefined ? {} : { 'Content-Type': 'application/json' },
+    body: body === undefined ? undefined : JSON.stringify(body),
+  });
+  const text = await r.text();
+  return { status: r.status, body: text.startsWith('{') ? JSON.parse(text) : text, type: r.headers.get('content-type') };
+}
+
+test('setup: the lens from board pictures, then the pose from floor points', { timeout: 300000 }, async (t) => {
+  const s = await h.start(t, 'board');
+  const truth = b.readIntrinsics(path.join(h.sceneDir, 'calib', 'intr_cam1.xml'));
+  const views = renderViews(s.dir, truth);
+  const page = await s.open('/#setup');
+  await s.check(async () => {
+    // The API: bad requests are refused with the field named; cam2's views stay apart from cam1's.
+    const image = fs.readFileSync(views.good[0]).toString('base64');
+    let r = await call(s.base, 'POST', '/api/board/views', { camera: 'cam2', board: { ...boardJson, square_m: -1 }, image });
+    assert.strictEqual(r.status, 400);
+    assert.match(r.body.error, /board square/);
+    r = await call(s.base, 'POST', '/api/board/views', { camera: 'nope', board: boardJson, capture: true });
+    assert.strictEqual(r.status, 400);
+    assert.match(r.body.error, /no camera 'nope'/);
+    r = await call(s.base, 'POST', '/api/board/views', { camera: 'cam2', board: boardJson, image: 'not*base64' });
+    assert.strictEqual(r.status, 400);
+    assert.match(r.body.error, /image: expected base64/);
+    r = await call(s.base, 'POST', '/api/board/views', { camera: 'cam2', board: boardJson, image: Buffer.from('no picture').toString('base64') });
+    assert.strictEqual(r.status, 400);
+    assert.match(r.body.error, /not a picture/);
+    r = await call(s.base, 'POST', '/api/board/views', { camera: 'cam2', board: boardJson, image: `data:image/png;base64,${image}`, name: 'one.png' });
+    assert.strictEqual(r.status, 200, JSON.stringify(r.body));
+    assert.deepStrictEqual([r.body.view.name, r.body.view.accepted, r.body.view.corners], ['one.png', true, 54]);
+    r = await call(s.base, 'POST', '/api/board/calibrate', { camera: 'cam2', board: boardJson });
+    assert.strictEqual(r.status, 400, 'one view is not enough');
+    assert.match(r.body.error, /1 of 1 usable, at least 3 needed/);
+    assert.strictEqual(r.body.views.length, 1, 'the views come back with the error');
+    r = await call(s.base, 'GET', '/api/board/view.jpg?camera=cam2&index=0');
+    assert.strictEqual(r.type, 'image/jpeg');
+    r = await call(s.base, 'DELETE', '/api/board/views?camera=cam2&index=3');
+    assert.strictEqual(r.status, 400);
+    r = await call(s.base, 'DELETE', '/api/board/views?camera=cam2');
+    assert.deepStrictEqual([r.status, r.body.views.length], [200, 0]);
+
+    // The page: the pictures uploaded, the live frame captured.
+    await h.picturesLoaded(page, '[data-testid=camera-map] img.leaflet-image-layer', 60000);
+    await page.click('[data-testid=mode-lens]');
+    await page.fill('[data-testid=board-size]', '9x6');
+    await page.fill('[data-testid=board-square]', '0.04');
+    await page.setInputFiles('[data-testid=board-upload]', [...views.good, views.blurred, views.empty]);
+    const n = views.good.length + 2;
+    await page.waitForSelector(`[data-testid=board-view-${n - 1}]`, { timeout: 120000 });
+    await page.click('[data-testid=board-capture]');
+    await page.waitForSelector(`[data-testid=board-view-${n}]`, { timeout: 30000 });
+    const status = await page.$$eval('[data-testid=board-view-status]', (tds) => tds.map((td) => td.textContent));
+    assert.deepStrictEqual(status.slice(0, views.good.length), views.good.map(() => 'usable'), `views: ${status}`);
+    assert.match(status[n - 2], /blurred/);
+    assert.match(status[n - 1], /no 9x6 checkerboard found/);
+    assert.match(status[n], /no 9x6 checkerboard found/, 'the lab camera shows no board');
+
+    await page.click('[data-testid=board-calibrate]');
+    await page.waitForSelector('[data-testid=board-result]', { timeout: 120000 });
+    const rms = Number(await page.textContent('[data-testid=board-rms]'));
+    const fx = Number(await page.textContent('[data-testid=board-fx]'));
+    const k1 = Number(await page.textContent('[data-testid=board-k1]'));
+    console.log(`board: RMS ${rms} px, fx ${fx} px (true ${truth.fx}), k1 ${k1} (true ${truth.d[0]})`);
+    assert.ok(rms < 0.3, `RMS ${rms} px`);
+    assert.ok(Math.abs(fx / truth.fx - 1) < 0.01, `fx ${fx} px, true ${truth.fx}`);
+    assert.ok(Math.abs(k1 - truth.d[0]) < 0.02, `k1 ${k1}, true ${truth.d[0]}`);
+    const used = await page.$$eval('[data-testid=board-view-status]', (tds) => tds.filter((td) => td.textContent === 'used').length);
+    assert.strictEqual(used, views.good.length);
+    await h.screenshot(page, 'serve-board.png');
+
+    // The floor points give the pose with these intrinsics.
+    await page.click('[data-testid=mode-points]');
+    await h.clickFloorPoints(page, h.spreadFloorPoints('cam1'));
+    await page.click('[data-testid=calibrate]');
+    await page.waitForSelector('[data-testid=intrinsics-from-board]', { timeout: 30000 });
+    const prms = Number(await page.textContent('[data-testid=rms-px]'));
+    const floorCm = Number(await page.textContent('[data-testid=floor-cm]'));
+    assert.ok(prms < 1, `pose RMS ${prms} px`);
+    assert.ok(floorCm < 3, `floor ${floorCm} cm`);
+
+    await page.click('[data-testid=save]');
+    await page.waitForSelector('[data-testid=save-message].ok', { timeout: 60000 });
+    h.assertSiteValid(s.site);
+    const saved = b.readIntrinsics(path.join(s.dir, 'calib', 'serve_intr_cam1.xml'));
+    assert.ok(Math.abs(saved.fx / truth.fx - 1) < 0.01, `saved fx ${saved.fx}, true ${truth.fx}`);
+    assert.ok(Math.abs(saved.d[0] - truth.d[0]) < 0.02, `saved k1 ${saved.d[0]}, true ${truth.d[0]}`);
+  });
+});
