@@ -141,17 +141,19 @@ function trueFloorPoints(camera, points, { noisePx = 0, seed = 1 } = {}) {
 
 // One test's world, torn down by node:test's t.after whatever happens: a folder, a copy of the
 // scene's site (its cameras streamed over UDP when `streams`), `occmap serve` on it and a
-// browser. open(path) gives a page of it; check(body) runs the test's steps, then asserts that
+// browser (`editSite(text)` changes the site file's text first). open(path) gives a page of it;
+// check(body) runs the test's steps, then asserts that
 // no page had a script error, and on a failure keeps a screenshot and the server's log.
 //   const s = await h.start(t, 'zones', { streams: true });
 //   const page = await s.open('/#setup');
 //   await s.check(async () => { ... });
-async function start(t, name, { streams = false, listen, args } = {}) {
+async function start(t, name, { streams = false, listen, args, editSite } = {}) {
   const dir = tempDir(name);
   const cameras = fs.readdirSync(path.join(sceneDir, 'frames')).filter((f) => /^cam\d+\.mp4$/.test(f)).length;
   const ports = streams ? await freeUdpPorts(cameras) : null;
   const senders = ports ? streamCameras(ports) : [];
   const world = { dir, site: siteCopy(dir, ports), senders, serve: null, browser: null, pages: [] };
+  if (editSite) fs.writeFileSync(world.site, editSite(fs.readFileSync(world.site, 'utf8')));
   world.original = fs.readFileSync(world.site, 'utf8');
   t.after(async () => {
     if (world.browser) await world.browser.close();

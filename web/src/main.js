@@ -38,6 +38,10 @@ function App() {
   if (error) return html`<div class="fatal"><h1>occmap</h1><p>${error}</p></div>`;
   if (!site) return html`<p class="loading">occmap: loading the site…</p>`;
   const fps = frame ? frame.fps : state && state.fps;
+  // A run that failed (a camera that cannot be opened, frames of another size than the site
+  // says): its message, which otherwise only the terminal shows.
+  const failed = state && state.running === false && !state.starting && /^error: /.test(state.stop_reason || '')
+    ? state.stop_reason.slice(7) : null;
   return html`
     <header>
       <span class="brand">occmap</span>
@@ -54,6 +58,8 @@ function App() {
           title="opening the cameras, taking their backgrounds, loading or building the tables">starting…</span>` : null}
       </span>
     </header>
+    ${failed ? html`<div class="banner" data-testid="pipeline-error"><b>The pipeline stopped:</b> ${failed}
+      <span class="hint">Correct the site file (${site.path}) and start <code>occmap serve</code> again.</span></div>` : null}
     <main>
       ${tab === 'live'
         ? html`<${LiveView} site=${site} state=${state} frame=${frame} />`

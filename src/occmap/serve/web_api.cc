@@ -265,7 +265,7 @@ json FrameEventJson(const LiveSnapshot& s) {
           {"tracks", tracks}, {"zones", zones}, {"lines", lines}};
 }
 
-json StateJson(const LiveSnapshot& s, bool running, double uptime_s, bool starting) {
+json StateJson(const LiveSnapshot& s, bool running, double uptime_s, bool starting, std::string_view ended) {
   json cams = json::array();
   for (const CameraStats& c : s.stats.cameras) {
     const double fps = CameraFps(s.stats, c);
@@ -285,7 +285,7 @@ json StateJson(const LiveSnapshot& s, bool running, double uptime_s, bool starti
           {"cameras", cams},
           {"tracks_total", s.stats.tracks},
           {"zone_events", s.stats.zone_events},
-          {"stop_reason", s.stats.stop_reason},
+          {"stop_reason", !running && !starting && !ended.empty() ? std::string(ended) : s.stats.stop_reason},
           {"stages_s", StagesJson(s.stats.stages)}};
 }
 

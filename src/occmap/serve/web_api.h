@@ -46,8 +46,10 @@ Result<std::string> DecodeBase64(std::string_view text, std::string_view field);
 std::string SseEvent(std::string_view event, std::string_view data);
 
 nlohmann::json FrameEventJson(const LiveSnapshot& s);
-// `running`, `uptime_s`, `starting`: the run's life (LiveState).
-nlohmann::json StateJson(const LiveSnapshot& s, bool running, double uptime_s, bool starting = false);
+// `running`, `uptime_s`, `starting`, `ended`: the run's life (LiveState); `ended` (why the run
+// stopped: an error's message) is the stop_reason of a run that is not running.
+nlohmann::json StateJson(const LiveSnapshot& s, bool running, double uptime_s, bool starting = false,
+                         std::string_view ended = {});
 // The site as the pages need it; `site_text` is the file's text (its mask polygons are read
 // from it: the loaded site keeps only the rasterised masks).
 nlohmann::json SiteJson(const Site& site, std::string_view site_text);

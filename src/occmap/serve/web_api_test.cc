@@ -160,6 +160,9 @@ TEST(WebApi, FrameAndStateJson) {
   EXPECT_EQ(st["running"], true);
   EXPECT_EQ(st["starting"], false);
   EXPECT_EQ(StateJson(s, false, 5, true)["starting"], true);
+  // A run that stopped on an error says so; a running one keeps its stats' reason.
+  EXPECT_EQ(StateJson(s, false, 5, false, "error: c1: no frames")["stop_reason"], "error: c1: no frames");
+  EXPECT_EQ(StateJson(s, true, 5, false, "error: old")["stop_reason"], s.stats.stop_reason);
   EXPECT_EQ(st["cameras"][1]["connected"], false);
   EXPECT_EQ(st["cameras"][0]["fps"], 6.5);
   EXPECT_EQ(st["cameras"][1]["fps"], 5.0);  // in 10 of the 13 frame sets

@@ -144,7 +144,7 @@ void WebServer::Routes() {
   });
   svr.Get("/api/state", [this](const httplib::Request&, httplib::Response& res) {
     LiveState& st = backend_.state();
-    JsonReply(res, 200, StateJson(*st.Latest(), st.running(), st.uptime_s(), st.starting()));
+    JsonReply(res, 200, StateJson(*st.Latest(), st.running(), st.uptime_s(), st.starting(), st.ended()));
   });
   svr.Get("/api/cameras", [this](const httplib::Request&, httplib::Response& res) {
     const json site = backend_.SiteJson();
@@ -356,7 +356,7 @@ void WebServer::Routes() {
             c.last_frame = now;
           }
           if (Seconds(now - c.last_state) >= options_.state_interval_s) {
-            out += SseEvent("state", StateJson(*snap, st.running(), st.uptime_s(), st.starting()).dump());
+            out += SseEvent("state", StateJson(*snap, st.running(), st.uptime_s(), st.starting(), st.ended()).dump());
             c.last_state = now;
           }
           if (Seconds(now - c.last_ping) >= options_.ping_interval_s) {
