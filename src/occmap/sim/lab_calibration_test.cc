@@ -1,12 +1,14 @@
 // occmap calibrate's done-when check on the simulator's cameras: 8 floor points of each lab
 // camera, projected with the true camera and perturbed by 0.5 px (fixed seed), give back the
 // camera within 1 px RMS, and within 2 cm RMS on the floor against the true camera in the median
-// of 50 draws of the noise (single draws reach about 3 cm: the points reach 9 m from a camera of
-// 350 px focal length, where a pixel spans 5-9 cm of floor); the same without the intrinsics,
-// the lens fitted to the points; 16 points for the 90th percentile within 2 cm.
+// of 50 draws of the noise, within 2.5 cm at their 90th percentile (single draws reach about
+// 3.5 cm: the points reach 9 m from a camera of 350 px focal length, where a pixel spans 5-9 cm
+// of floor); the same without the intrinsics, the lens fitted to the points; 16 points for the
+// 90th percentile within 2 cm.
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <opencv2/calib3d.hpp>
 #include <random>
 
 #include "occmap/calib/floor_calibration.h"
@@ -118,8 +120,8 @@ TEST(LabCalibration, EightNoisyFloorPointsGiveEachCameraBackWithinTheBars) {
     }
     EXPECT_LE(Quantile(px, 1.0), 1.0) << cs.id;
     EXPECT_LE(Quantile(at_points, 0.5), 0.02) << cs.id;
-    EXPECT_LE(Quantile(area, 0.5), 0.02) << cs.id;
-    EXPECT_LE(Quantile(area, 0.9), 0.03) << cs.id;
+    EXPECT_LE(Quantile(area, 0.5), 0.015) << cs.id;  // 0.0115-0.0126 measured
+    EXPECT_LE(Quantile(area, 0.9), 0.025) << cs.id;  // 0.0207-0.0231 measured
     std::printf("lab %s, 8 points, 0.5 px noise, 50 draws: reprojection RMS median %.2f max %.2f px; floor vs truth "
                 "RMS at the points median %.4f p90 %.4f m, over their bounding box median %.4f p90 %.4f max %.4f m\n",
                 cs.id.c_str(), Quantile(px, 0.5), Quantile(px, 1.0), Quantile(at_points, 0.5),
@@ -158,12 +160,64 @@ TEST(LabCalibration, LensFitFromEightFloorPointsAloneMeetsTheBars) {
     EXPECT_LE(exact.area_rms_m, 1e-3) << cs.id;
     const Figures f = Draws(cs, spec.grid, Fit::kLens, 8, rng);
     EXPECT_LE(f.rms_max_px, 1.0) << cs.id;
-    EXPECT_LE(f.area_median_m, 0.02) << cs.id;
-    EXPECT_LE(f.area_p90_m, 0.03) << cs.id;
+    EXPECT_LE(f.area_median_m, 0.017) << cs.id;  // 0.0120-0.0154 measured
+    EXPECT_LE(f.area_p90_m, 0.027) << cs.id;     // 0.0227-0.0246 measured
     std::printf("lab %s without intrinsics, 8 points: homography (exact points) RMS %.2f px, floor %.4f m; lens fit, "
                 "0.5 px noise, 50 draws: RMS max %.2f px, floor over the points' box median %.4f p90 %.4f max %.4f m\n",
                 cs.id.c_str(), homography.reprojection_px, homography.area_rms_m, f.rms_max_px, f.area_median_m,
                 f.area_p90_m, f.area_max_m);
+  }
+}
+
+// Where the pose search starts does not matter: OpenCV's iterative solvePnP (a homography of the
+// points decomposed, then Levenberg-Marquardt) ends where calibrate's IPPE + LM ends, on every
+// draw: the maximum-likelihood pose, which no other start improves (docs/perf-log.md has the
+// weightings tried as well).
+TEST(LabCalibration, TheHomographyStartEndsAtTheSamePose) {
+  const SceneSpec spec = MakeLabSceneSpec(BuiltinSceneOptions{});
+  std::mt19937 rng(16);
+  std::normal_distribution<double> noise(0.0, 0.5);
+  for (const CameraSpec& cs : spec.cameras) {
+    const PinholeCamera truth = PinholeCamera::Create(cs.pinhole).value();
+    const PinholeParameters& p = cs.pinhole;
+    CameraIntrinsics in;
+    in.image_size = p.image_size;
+    in.fx_px = p.fx_px;
+    in.fy_px = p.fy_px;
+    in.cx_px = p.cx_px;
+    in.cy_px = p.cy_px;
+    in.distortion = p.distortion;
+    const cv::Mat k = (cv::Mat_<double>(3, 3) << p.fx_px, 0, p.cx_px, 0, p.fy_px, p.cy_px, 0, 0, 1);
+    const cv::Mat dist = (cv::Mat_<double>(1, 5) << p.distortion[0], p.distortion[1], p.distortion[2],
+                          p.distortion[3], p.distortion[4]);
+    double worst_px = 0;
+    for (int draw = 0; draw < 20; ++draw) {
+      std::vector<FloorPoint> pts;
+      std::vector<cv::Point3d> world;
+      std::vector<cv::Point2d> image;
+      for (const Eigen::Vector2d& w : SpreadVisiblePoints(truth, spec.grid)) {
+        FloorPoint fp;
+        fp.floor_m = w;
+        fp.pixel = *truth.Project({w.x(), w.y(), 0}) + Eigen::Vector2d(noise(rng), noise(rng));
+        pts.push_back(fp);
+        world.emplace_back(w.x(), w.y(), 0.0);
+        image.emplace_back(fp.pixel.x(), fp.pixel.y());
+      }
+      FloorCalibrationOptions o;
+      o.image_size = in.image_size;
+      o.intrinsics = in;
+      const auto ours = CalibrateFromFloorPoints(pts, o).value().Model().value();
+      cv::Mat rvec, tvec;
+      ASSERT_TRUE(cv::solvePnP(world, image, k, dist, rvec, tvec, false, cv::SOLVEPNP_ITERATIVE));
+      // The same pose: both put the floor points on the same pixels.
+      std::vector<cv::Point2d> px;
+      cv::projectPoints(world, rvec, tvec, k, dist, px);
+      for (size_t i = 0; i < px.size(); ++i) {
+        const Eigen::Vector2d mine = *ours->Project({world[i].x, world[i].y, 0});
+        worst_px = std::max(worst_px, (mine - Eigen::Vector2d(px[i].x, px[i].y)).norm());
+      }
+    }
+    EXPECT_LE(worst_px, 1e-3) << cs.id;
   }
 }
 
