@@ -98,6 +98,13 @@ test('setup: the lens from board pictures, then the pose from floor points', { t
     assert.ok(Math.abs(k1 - truth.d[0]) < 0.02, `k1 ${k1}, true ${truth.d[0]}`);
     const used = await page.$$eval('[data-testid=board-view-status]', (tds) => tds.filter((td) => td.textContent === 'used').length);
     assert.strictEqual(used, views.good.length);
+    assert.match(await page.textContent('[data-testid=lens-waiting]'), /lens of cam1 is saved\s+with the camera's pose/);
+    // A view shown in the camera's picture, its corners drawn.
+    await page.click('[data-testid=board-view-name-5]');
+    await page.waitForFunction(() => {
+      const img = document.querySelector('[data-testid=camera-map] img.leaflet-image-layer');
+      return /board\/view\.jpg/.test(img.src) && /index=5/.test(img.src) && img.complete && img.naturalWidth === 640;
+    }, null, { timeout: 30000 });
     await h.screenshot(page, 'serve-board.png');
 
     // The floor points give the pose with these intrinsics.
@@ -113,6 +120,7 @@ test('setup: the lens from board pictures, then the pose from floor points', { t
     await page.click('[data-testid=save]');
     await page.waitForSelector('[data-testid=save-message].ok', { timeout: 60000 });
     h.assertSiteValid(s.site);
+    assert.strictEqual(await page.locator('[data-testid=lens-waiting]').count(), 0, 'the lens saved with the pose');
     const saved = b.readIntrinsics(path.join(s.dir, 'calib', 'serve_intr_cam1.xml'));
     assert.ok(Math.abs(saved.fx / truth.fx - 1) < 0.01, `saved fx ${saved.fx}, true ${truth.fx}`);
     assert.ok(Math.abs(saved.d[0] - truth.d[0]) < 0.02, `saved k1 ${saved.d[0]}, true ${truth.d[0]}`);

@@ -50,7 +50,8 @@ function boardJson(b) {
   return out;
 }
 
-export function BoardPanel({ camera, board, update, onNewFrame }) {
+// onShow(url) puts a view (its corners drawn) in the camera's picture; onShow(null) the live frame.
+export function BoardPanel({ camera, board, update, onNewFrame, shown, onShow }) {
   const [busy, setBusy] = useState(null);
   const [error, setError] = useState(null);
   const options = board.options || defaultBoard;
@@ -85,13 +86,15 @@ export function BoardPanel({ camera, board, update, onNewFrame }) {
     }
   });
   const remove = (i) => run('remove', async () => {
+    onShow(null);
     update({ state: await deleteJSON(`/api/board/views?camera=${encodeURIComponent(camera.id)}&index=${i}`) });
   });
   const clear = () => run('remove', async () => {
+    onShow(null);
     update({ state: await deleteJSON(`/api/board/views?camera=${encodeURIComponent(camera.id)}`) });
   });
   const calibrate = () => run('calibrate', async () => {
-    update({ state: await postJSON('/api/board/calibrate', { camera: camera.id, board: boardJson(options) }) });
+    update({ state: await postJSON('/api/board/calibrate', { camera: camera.id, board: boardJson(options) }), lensNew: true });
   });
 
   const accepted = views.filter((v) => v.accepted).length;
@@ -123,7 +126,9 @@ export function BoardPanel({ camera, board, update, onNewFrame }) {
       <tr><th>#</th><th>view</th><th></th><th>corners</th><th>blur px</th><th>tilt °</th><th>RMS px</th><th></th></tr>
       ${views.map((v, i) => html`<tr data-testid=${`board-view-${i}`} class=${v.accepted ? '' : 'rejected'}>
         <td>${i + 1}</td>
-        <td><a href=${url('/api/board/view.jpg', { camera: camera.id, index: i, n: views.length })} target="_blank">${v.name}</a></td>
+        <td><a href="#" class=${shown && shown.includes(`index=${i}&`) ? 'shown' : ''} data-testid=${`board-view-name-${i}`}
+          title="Show this view with the corners found (green: accepted)"
+          onClick=${(e) => { e.preventDefault(); onShow(url('/api/board/view.jpg', { camera: camera.id, index: i, n: views.length })); }}>${v.name}</a></td>
         <td class=${v.accepted ? 'good' : 'bad'} data-testid="board-view-status">${v.used ? 'used' : v.accepted ? 'usable' : v.reason}</td>
         <td class="num">${v.corners || ''}</td><td class="num">${v.corners ? fmt(v.blur_px, 1) : ''}</td>
         <td class="num">${v.corners ? fmt(v.tilt_deg, 0) : ''}</td><td class="num">${v.used ? fmt(v.rms_px, 2) : ''}</td>

@@ -91,6 +91,7 @@ function CameraSetup({ camera, draft, update }) {
   const [showGrid, setShowGrid] = useState(true);
   const [snapshot, setSnapshot] = useState(Date.now());
   const [leafletMap, setLeafletMap] = useState(null);
+  const [boardView, setBoardView] = useState(null);  // the URL of the board view shown
   const points = draft.points || [];
   const result = draft.result;
   const boardLens = draft.board && draft.board.state && draft.board.state.calibration;
@@ -172,15 +173,18 @@ function CameraSetup({ camera, draft, update }) {
     });
   }, [points, result, mode]);
 
-  // The picture: the grid overlay of the pending calibration, or the plain frame.
+  // The picture: a board view with its corners (Lens), the grid overlay of the pending
+  // calibration, or the plain frame.
   useEffect(() => {
     const c = ctx.current;
     if (!c) return;
-    const src = result && showGrid && result.overlay_url
-      ? url(result.overlay_url, { t: snapshot })
-      : url(`/api/cameras/${encodeURIComponent(camera.id)}/frame.jpg`, { overlay: 'none', t: snapshot });
+    const src = mode === 'lens' && boardView
+      ? boardView
+      : result && showGrid && result.overlay_url
+        ? url(result.overlay_url, { t: snapshot })
+        : url(`/api/cameras/${encodeURIComponent(camera.id)}/frame.jpg`, { overlay: 'none', t: snapshot });
     c.im.overlay.setUrl(src);
-  }, [result, showGrid, snapshot, camera.id]);
+  }, [result, showGrid, snapshot, camera.id, mode, boardView]);
 
   const setField = (i, key, value) => update((d) => ({
     points: d.points.map((q, j) => (j === i ? { ...q, [key]: value } : q)), result: null,
@@ -221,12 +225,12 @@ function CameraSetup({ camera, draft, update }) {
         ${mode === 'mask' ? html`<${DrawActions} map=${leafletMap} />` : null}
         <span class="grow"></span>
         ${result ? html`<label><input type="checkbox" checked=${showGrid} onChange=${(e) => setShowGrid(e.target.checked)} />grid</label>` : null}
-        <button onClick=${() => setSnapshot(Date.now())} title="Take the camera's current frame">New frame</button>
+        <button onClick=${() => { setBoardView(null); setSnapshot(Date.now()); }} title="Take the camera's current frame">New frame</button>
       </div>
       <div class="camera-map" ref=${div} data-testid="camera-map"></div>
       ${mode === 'lens' ? html`<${BoardPanel} camera=${camera} board=${draft.board || {}}
         update=${(patch) => update((d) => ({ board: { ...(d.board || {}), ...patch }, result: null }))}
-        onNewFrame=${() => setSnapshot(Date.now())} />` : null}
+        onNewFrame=${() => { setBoardView(null); setSnapshot(Date.now()); }} shown=${boardView} onShow=${setBoardView} />` : null}
       <p class="hint">${mode === 'lens' ? '' : mode === 'points'
         ? 'Click a floor mark you measured (tile corner, tape), then type where it is in metres. 4 points at least, better 8, spread over the floor; drag a number to move it.'
         : 'Draw the polygons of floor this camera should map (the tools on the left); pixels outside every polygon are ignored. No polygon: the whole image.'}</p>
@@ -453,6 +457,8 @@ export function SetupView({ site, onSaved }) {
   const pendingCams = Object.entries(drafts).filter(([, d]) => d.calibrationPending).map(([id]) => id);
   const maskCams = Object.entries(drafts).filter(([, d]) => d.masksDirty).map(([id]) => id);
   const dirty = pendingCams.length > 0 || maskCams.length > 0 || zonesDirty;
+  // A lens from the board is saved with the camera's pose: until then it only waits.
+  const lensCams = Object.entries(drafts).filter(([, d]) => d.board && d.board.lensNew && !d.calibrationPending).map(([id]) => id);
 
   async function save() {
     setSaving(true);
@@ -468,6 +474,7 @@ export function SetupView({ site, onSaved }) {
       // calibration's grid from now on.
       setDrafts((all) => Object.fromEntries(Object.entries(all).map(([id, d]) => [id, {
         ...d, calibrationPending: false, masksDirty: false,
+        board: d.board && d.calibrationPending ? { ...d.board, lensNew: false } : d.board,
         result: d.calibrationPending && d.result ? { ...d.result, overlay_url: d.result.overlay_url.replace('&calibration=pending', '') } : d.result,
       }])));
       setZonesDirty(false);
@@ -487,6 +494,8 @@ export function SetupView({ site, onSaved }) {
           pendingCams.length ? `calibration of ${pendingCams.join(', ')}` : null,
           maskCams.length ? `masks of ${maskCams.join(', ')}` : null,
           zonesDirty ? 'zones and lines' : null].filter(Boolean).join('; ')}` : 'No unsaved changes.'}</span>
+        ${lensCams.length ? html`<span class="hint" data-testid="lens-waiting">the lens of ${lensCams.join(', ')} is saved
+          with the camera's pose: calibrate its floor points</span>` : null}
         <button class="primary" disabled=${!dirty || saving} onClick=${save} data-testid="save">Save to the site file</button>
         ${message ? html`<span class=${message.ok ? 'ok' : 'error'} data-testid="save-message">${message.text}</span>` : null}
       </div>
