@@ -3,12 +3,14 @@
 // (board)", each listed as usable or with its reason (a blurred one, one without a board, the
 // live frame captured from the camera); "Calibrate the lens" gives the RMS and the focal length
 // and distortion, which the floor points then use for the pose; Save writes them. The API's
-// refusals are checked first (Node's fetch).
+// refusals are checked first (Node's fetch). Then the live route: cam1 streams a video of the
+// board turning in front of it (H.264 over UDP) and the page captures its frames.
 'use strict';
 const test = require('node:test');
 const assert = require('node:assert');
 const fs = require('node:fs');
 const path = require('node:path');
+const { spawnSync } = require('node:child_process');
 const h = require('./harness.cjs');
 const b = require('./board_views.cjs');
 
@@ -124,5 +126,50 @@ test('setup: the lens from board pictures, then the pose from floor points', { t
     const saved = b.readIntrinsics(path.join(s.dir, 'calib', 'serve_intr_cam1.xml'));
     assert.ok(Math.abs(saved.fx / truth.fx - 1) < 0.01, `saved fx ${saved.fx}, true ${truth.fx}`);
     assert.ok(Math.abs(saved.d[0] - truth.d[0]) < 0.02, `saved k1 ${saved.d[0]}, true ${truth.d[0]}`);
+  });
+});
+
+// The rendered poses, a second each, as cam1's video (H.264, 10 fps, as the scene's).
+function boardVideo(dir, cam) {
+  const frames = path.join(dir, 'board-frames');
+  fs.mkdirSync(frames);
+  b.poses.forEach((pose, i) => {
+    fs.writeFileSync(path.join(frames, `${String(i).padStart(2, '0')}.png`), b.png(b.renderBoard(cam, board, pose, i + 1)));
+  });
+  const video = path.join(dir, 'board.mp4');
+  const r = spawnSync('ffmpeg', ['-loglevel', 'error', '-y', '-framerate', '1', '-i', path.join(frames, '%02d.png'),
+    '-r', '10', '-c:v', 'libx264', '-pix_fmt', 'yuv420p', '-crf', '12', '-g', '10', video], { encoding: 'utf8' });
+  if (r.status !== 0) throw new Error(`ffmpeg: ${r.stderr}`);
+  return video;
+}
+
+test('setup: the lens from board views captured from a live camera', { timeout: 300000 }, async (t) => {
+  const truth = b.readIntrinsics(path.join(h.sceneDir, 'calib', 'intr_cam1.xml'));
+  const s = await h.start(t, 'board-live', { streams: true, videos: (dir) => [boardVideo(dir, truth)] });
+  const page = await s.open('/#setup');
+  await s.check(async () => {
+    await h.picturesLoaded(page, '[data-testid=camera-map] img.leaflet-image-layer', 90000);
+    await page.click('[data-testid=mode-lens]');
+    await page.fill('[data-testid=board-square]', '0.04');
+    // A capture a second or so, as a person turning the board would: until 5 views are usable.
+    const usable = () => page.$$eval('[data-testid=board-view-status]', (tds) => tds.filter((td) => td.textContent === 'usable').length);
+    for (let i = 0; i < 25 && (await usable()) < 5; i += 1) {
+      const rows = await page.locator('[data-testid=board-views] tr').count();
+      await page.click('[data-testid=board-capture]');
+      await page.waitForFunction((n) => document.querySelectorAll('[data-testid=board-views] tr').length > n, rows, { timeout: 30000 });
+      await new Promise((resolve) => setTimeout(resolve, 900));
+    }
+    const names = await page.$$eval('[data-testid=board-views] tr td:nth-child(2)', (tds) => tds.map((td) => td.textContent));
+    assert.ok(await usable() >= 5, `usable captures: ${await usable()} of ${names.length}`);
+    assert.ok(names.every((n) => /^frame \d+$/.test(n)), `captured frames are named by their frame: ${names}`);
+    await page.click('[data-testid=board-calibrate]');
+    await page.waitForSelector('[data-testid=board-result]', { timeout: 120000 });
+    const rms = Number(await page.textContent('[data-testid=board-rms]'));
+    const fx = Number(await page.textContent('[data-testid=board-fx]'));
+    const k1 = Number(await page.textContent('[data-testid=board-k1]'));
+    console.log(`live board: ${names.length} captures, RMS ${rms} px, fx ${fx} px (true ${truth.fx}), k1 ${k1} (true ${truth.d[0]})`);
+    assert.ok(rms < 0.5, `RMS ${rms} px`);
+    assert.ok(Math.abs(fx / truth.fx - 1) < 0.02, `fx ${fx} px, true ${truth.fx}`);
+    assert.ok(Math.abs(k1 - truth.d[0]) < 0.03, `k1 ${k1}, true ${truth.d[0]}`);
   });
 });

@@ -57,10 +57,11 @@ async function freeUdpPorts(n) {
   return ports;
 }
 
-// Each camera's video, looped, in real time, as MPEG-TS over UDP to its port: a live camera.
-function streamCameras(ports) {
+// Each camera's video (or videos[i] in its place), looped, in real time, as MPEG-TS over UDP to
+// its port: a live camera.
+function streamCameras(ports, videos = []) {
   return ports.map((port, i) => spawn('ffmpeg', ['-loglevel', 'error', '-re', '-stream_loop', '-1',
-    '-i', path.join(sceneDir, 'frames', `cam${i + 1}.mp4`), '-c', 'copy', '-f', 'mpegts',
+    '-i', videos[i] || path.join(sceneDir, 'frames', `cam${i + 1}.mp4`), '-c', 'copy', '-f', 'mpegts',
     `udp://127.0.0.1:${port}?pkt_size=1316`], { stdio: 'ignore' }));
 }
 
@@ -140,18 +141,19 @@ function trueFloorPoints(camera, points, { noisePx = 0, seed = 1 } = {}) {
 }
 
 // One test's world, torn down by node:test's t.after whatever happens: a folder, a copy of the
-// scene's site (its cameras streamed over UDP when `streams`), `occmap serve` on it and a
+// scene's site (its cameras streamed over UDP when `streams`, `videos(dir)[i]` in place of camera
+// i's video), `occmap serve` on it and a
 // browser (`editSite(text)` changes the site file's text first). open(path) gives a page of it;
 // check(body) runs the test's steps, then asserts that
 // no page had a script error, and on a failure keeps a screenshot and the server's log.
 //   const s = await h.start(t, 'zones', { streams: true });
 //   const page = await s.open('/#setup');
 //   await s.check(async () => { ... });
-async function start(t, name, { streams = false, listen, args, editSite } = {}) {
+async function start(t, name, { streams = false, videos, listen, args, editSite } = {}) {
   const dir = tempDir(name);
   const cameras = fs.readdirSync(path.join(sceneDir, 'frames')).filter((f) => /^cam\d+\.mp4$/.test(f)).length;
   const ports = streams ? await freeUdpPorts(cameras) : null;
-  const senders = ports ? streamCameras(ports) : [];
+  const senders = ports ? streamCameras(ports, typeof videos === 'function' ? videos(dir) : videos) : [];
   const world = { dir, site: siteCopy(dir, ports), senders, serve: null, browser: null, pages: [] };
   if (editSite) fs.writeFileSync(world.site, editSite(fs.readFileSync(world.site, 'utf8')));
   world.original = fs.readFileSync(world.site, 'utf8');
