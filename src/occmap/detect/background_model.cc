@@ -9,6 +9,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/video/background_segm.hpp>
 
+#include "occmap/util/simd.h"
+
 namespace occmap {
 namespace {
 
@@ -27,12 +29,12 @@ constexpr int64_t kWarmUpLookLessons = 3;  // lessons without shadows that drop 
 constexpr double kWarmUpLookMinMass = kLookMinMass / 4;  // when they taught fewer pixels than this
 
 // One row of the luma test: cls = out = 1 where |frame - expected| > threshold or the chroma
-// test said so (cc), expected = clamp((gq b + cq) >> 16); returns the count. Cloned for AVX2
-// (32-bit multiplies: the baseline x86-64 has none in SIMD); the same values on any path.
-__attribute__((target_clones("avx2", "default"))) int LumaTestRow(const uint8_t* frame, const uint8_t* background,
-                                                                  const uint8_t* cc, int width, int32_t gq,
-                                                                  int32_t cq, int threshold, uint8_t* cls,
-                                                                  uint8_t* out) {
+// test said so (cc), expected = clamp((gq b + cq) >> 16); returns the count. Compiled again
+// for AVX2 (32-bit multiplies: the baseline x86-64 has none in SIMD), chosen by the kernel set
+// (util/simd.h); the same values on any path.
+[[gnu::always_inline]] inline int LumaTestRowBody(const uint8_t* frame, const uint8_t* background, const uint8_t* cc,
+                                                  int width, int32_t gq, int32_t cq, int threshold, uint8_t* cls,
+                                                  uint8_t* out) {
   int count = 0;
   for (int x = 0; x < width; ++x) {
     int p = (gq * static_cast<int32_t>(background[x]) + cq) >> 16;
@@ -47,11 +49,37 @@ __attribute__((target_clones("avx2", "default"))) int LumaTestRow(const uint8_t*
 }
 
 // 8.8 fixed point to 8 bits, rounded, saturated.
-__attribute__((target_clones("avx2", "default"))) void RoundRow(const uint16_t* src, int width, uint8_t* dst) {
+[[gnu::always_inline]] inline void RoundRowBody(const uint16_t* src, int width, uint8_t* dst) {
   for (int x = 0; x < width; ++x) {
     const int v = (src[x] + 128) >> 8;
     dst[x] = static_cast<uint8_t>(v > 255 ? 255 : v);
   }
+}
+
+#if OCCMAP_X86_KERNELS
+__attribute__((target("avx2"))) int LumaTestRowAvx2(const uint8_t* frame, const uint8_t* background,
+                                                    const uint8_t* cc, int width, int32_t gq, int32_t cq,
+                                                    int threshold, uint8_t* cls, uint8_t* out) {
+  return LumaTestRowBody(frame, background, cc, width, gq, cq, threshold, cls, out);
+}
+__attribute__((target("avx2"))) void RoundRowAvx2(const uint16_t* src, int width, uint8_t* dst) {
+  RoundRowBody(src, width, dst);
+}
+#endif
+
+int LumaTestRow(const uint8_t* frame, const uint8_t* background, const uint8_t* cc, int width, int32_t gq, int32_t cq,
+                int threshold, uint8_t* cls, uint8_t* out) {
+#if OCCMAP_X86_KERNELS
+  if (ActiveKernels() >= KernelSet::kAvx2) return LumaTestRowAvx2(frame, background, cc, width, gq, cq, threshold, cls, out);
+#endif
+  return LumaTestRowBody(frame, background, cc, width, gq, cq, threshold, cls, out);
+}
+
+void RoundRow(const uint16_t* src, int width, uint8_t* dst) {
+#if OCCMAP_X86_KERNELS
+  if (ActiveKernels() >= KernelSet::kAvx2) return RoundRowAvx2(src, width, dst);
+#endif
+  RoundRowBody(src, width, dst);
 }
 
 // The frame/background ratios of R, G and B (from full-range Y'CbCr) less their mean, and that

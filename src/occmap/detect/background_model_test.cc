@@ -5,6 +5,8 @@
 #include <cmath>
 #include <random>
 
+#include "occmap/util/simd_testing.h"
+
 namespace occmap {
 namespace {
 
@@ -381,7 +383,12 @@ TEST(BackgroundModel, PreferLitAlternativesUndoesALearnedInShadow) {
   EXPECT_EQ(model_with(false)->PreferLitAlternatives(), 0);
 }
 
-TEST(BackgroundModel, DetectChangesEqualsItsReference) {
+// Every kernel set this CPU has (util/simd.h): the AVX2 row test and the portable one.
+class BackgroundModelKernels : public KernelSetTest {};
+
+INSTANTIATE_TEST_SUITE_P(KernelSets, BackgroundModelKernels, ::testing::Values("portable", "avx2"));
+
+TEST_P(BackgroundModelKernels, DetectChangesEqualsItsReference) {
   for (bool chroma : {true, false}) {
     for (uint32_t seed = 0; seed < 4; ++seed) {
       const int w = 77, h = 53;  // odd sizes: the last chroma column and row cover one pixel

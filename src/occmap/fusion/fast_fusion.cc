@@ -1,14 +1,17 @@
 #include "occmap/fusion/fast_fusion.h"
 
-#include <immintrin.h>
-
 #include <algorithm>
 #include <bit>
 #include <tuple>
 #include <cstring>
 #include <utility>
 
+#include "occmap/util/simd.h"
 #include "occmap/util/status.h"
+
+#if OCCMAP_X86_KERNELS
+#include <immintrin.h>
+#endif
 
 namespace occmap {
 namespace {
@@ -39,6 +42,7 @@ void ChangesPortable(const uint8_t* c, int width, uint64_t* bits) {
   }
 }
 
+#if OCCMAP_X86_KERNELS
 __attribute__((target("avx2"))) void ImagesAvx2(const uint8_t* f, const uint8_t* b, int width, uint8_t t,
                                                 uint64_t* bits) {
   const __m256i tv = _mm256_set1_epi8(static_cast<char>(t));
@@ -108,7 +112,7 @@ __attribute__((target("avx512f,avx512bw"))) void ChangesAvx512(const uint8_t* c,
     bits[w] = static_cast<uint64_t>(_mm512_mask_testn_epi8_mask(live, v, v));
   }
 }
-
+#endif  // OCCMAP_X86_KERNELS
 
 // ---- Cell-major probes -------------------------------------------------------------------
 // A probe tests one run of `length` (0..64) consecutive pixels of one image row and answers
@@ -121,12 +125,14 @@ constexpr uint64_t LengthMask(unsigned length) {
   return length >= 64 ? ~uint64_t{0} : (uint64_t{1} << length) - 1;
 }
 
+#if OCCMAP_X86_KERNELS
 // BMI1's bit-field extract. Its own function with the target feature: clang checks a builtin's
 // feature in the function that spells it (the probe template has none), and inlines this into
 // the flattened BMI kernel as GCC does.
 __attribute__((target("bmi"))) inline uint64_t Bextr(uint64_t value, uint32_t control) {
   return __builtin_ia32_bextr_u64(value, control);
 }
+#endif
 
 // Where the probes read: per camera the frame's and the background's first pixel and strides
 // (Fuse), or the camera's slice of the change buffer (FuseChanges, b unused).
@@ -171,6 +177,7 @@ inline bool ProbeChangesPortable(const ProbeSource& s, FastFusion::Probe p) {
   return any;
 }
 
+#if OCCMAP_X86_KERNELS
 // AVX2: one 32-byte load per image when the run fits in 32 pixels that stay inside the row.
 __attribute__((target("avx2"))) inline bool ProbeImagesAvx2(const ProbeSource& s, FastFusion::Probe p) {
   if (p.length > 32 || p.column + 32 > s.width[p.camera]) return ProbeImagesPortable(s, p);
@@ -211,6 +218,7 @@ __attribute__((target("avx512f,avx512bw"))) inline bool ProbeChangesAvx512(const
   const __m512i v = _mm512_maskz_loadu_epi8(live, c);
   return _mm512_mask_testn_epi8_mask(live, v, v) != 0;
 }
+#endif  // OCCMAP_X86_KERNELS
 
 // The cells [begin, end): pass 1 probes every cell's primary run (branch-free: the state is
 // written as if the probe decides, failures are appended to job.fails); pass 2 tries each
@@ -316,6 +324,7 @@ int64_t FailsImagesPortable(const FailJob& job, FastFusion::Fail* fails, int64_t
 int64_t FailsChangesPortable(const FailJob& job, FastFusion::Fail* fails, int64_t n) {
   return ResolveFailsImpl<ProbeChangesPortable, false>(job, fails, n);
 }
+#if OCCMAP_X86_KERNELS
 __attribute__((target("avx2,bmi2"), flatten)) int64_t FailsImagesAvx2(const FailJob& job, FastFusion::Fail* fails, int64_t n) {
   return ResolveFailsImpl<ProbeImagesAvx2, true>(job, fails, n);
 }
@@ -330,6 +339,7 @@ __attribute__((target("avx512f,avx512bw,bmi2"), flatten)) int64_t FailsChangesAv
                                                                                    FastFusion::Fail* fails, int64_t n) {
   return ResolveFailsImpl<ProbeChangesAvx512, false>(job, fails, n);
 }
+#endif  // OCCMAP_X86_KERNELS
 
 // Pass 1's bit tests of one row group: probes [begin, end) against the unchanged bits of the
 // row from pixel x0 (bits[0] bit 0), writing each cell's state and appending the failed probes
@@ -376,9 +386,12 @@ inline int64_t ProbeGroupImpl(const FastFusion::PrimaryProbe* primary, const Fas
     uint64_t window;
     std::memcpy(&window, bytes + p.byte, sizeof(window));
     uint64_t run;
+#if OCCMAP_X86_KERNELS
     if constexpr (kBextr) {
       run = Bextr(window, p.extract);
-    } else {
+    } else
+#endif
+    {
       run = (window >> (p.extract & 0xffu)) & LengthMask(p.extract >> 8);
     }
     const bool free = run != 0;
@@ -415,6 +428,7 @@ int64_t ProbeGroupPortable(const FastFusion::PrimaryProbe* primary, const FastFu
                                tested);
 }
 
+#if OCCMAP_X86_KERNELS
 __attribute__((target("bmi,bmi2,popcnt"), flatten)) int64_t ProbeGroupBmi2(
     const FastFusion::PrimaryProbe* primary, const FastFusion::RowGroup& group, const uint16_t* word_probes,
     const uint64_t* starts, const uint64_t* bits, unsigned last_word_bits, uint8_t* out, FastFusion::Fail* fails,
@@ -422,12 +436,7 @@ __attribute__((target("bmi,bmi2,popcnt"), flatten)) int64_t ProbeGroupBmi2(
   return ProbeGroupImpl<true>(primary, group, word_probes, starts, bits, last_word_bits, out, fails, num_fails,
                               tested);
 }
-
-ProbeGroupKernel PickProbeGroup() {
-  return __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2") && __builtin_cpu_supports("popcnt")
-             ? ProbeGroupBmi2
-             : ProbeGroupPortable;
-}
+#endif
 
 struct Kernels {
   ImagesKernel images;
@@ -435,23 +444,27 @@ struct Kernels {
   FailKernel fails_images;
   FailKernel fails_changes;
   const char* name;
-  ProbeGroupKernel probe_group = ProbeGroupPortable;
+  ProbeGroupKernel probe_group;
 };
 
-Kernels PickKernels() {
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512f")) {
-    return {ImagesAvx512, ChangesAvx512, FailsImagesAvx512, FailsChangesAvx512, "avx512bw", PickProbeGroup()};
+// The kernels of the process's kernel set (util/simd.h; the AVX2 and AVX-512 sets include BMI2).
+const Kernels& TheKernels() {
+  static constexpr Kernels kPortable{ImagesPortable, ChangesPortable, FailsImagesPortable, FailsChangesPortable,
+                                     "portable", ProbeGroupPortable};
+#if OCCMAP_X86_KERNELS
+  static constexpr Kernels kAvx2{ImagesAvx2, ChangesAvx2, FailsImagesAvx2, FailsChangesAvx2, "avx2", ProbeGroupBmi2};
+  static constexpr Kernels kAvx512{ImagesAvx512, ChangesAvx512, FailsImagesAvx512, FailsChangesAvx512, "avx512bw",
+                                   ProbeGroupBmi2};
+  switch (ActiveKernels()) {
+    case KernelSet::kAvx512:
+      return kAvx512;
+    case KernelSet::kAvx2:
+      return kAvx2;
+    case KernelSet::kPortable:
+      break;
   }
-  if (__builtin_cpu_supports("avx2")) {
-    return {ImagesAvx2, ChangesAvx2, FailsImagesAvx2, FailsChangesAvx2, "avx2", PickProbeGroup()};
-  }
-  return {ImagesPortable, ChangesPortable, FailsImagesPortable, FailsChangesPortable, "portable", ProbeGroupPortable};
-}
-
-Kernels& TheKernels() {
-  static Kernels kernels = PickKernels();
-  return kernels;
+#endif
+  return kPortable;
 }
 
 static_assert(static_cast<int>(CellState::kUnseen) == 0 && static_cast<int>(CellState::kFree) == 1 &&
@@ -786,22 +799,7 @@ int64_t FastFusion::ProbeBytesPerFrame() const {
 
 const char* FastFusion::KernelName() { return TheKernels().name; }
 
-bool FastFusion::ForceKernelForTesting(std::string_view name) {
-  __builtin_cpu_init();
-  if (name == "portable") {
-    TheKernels() = {ImagesPortable, ChangesPortable, FailsImagesPortable, FailsChangesPortable, "portable",
-                    ProbeGroupPortable};
-  } else if (name == "avx2" && __builtin_cpu_supports("avx2")) {
-    TheKernels() = {ImagesAvx2, ChangesAvx2, FailsImagesAvx2, FailsChangesAvx2, "avx2", PickProbeGroup()};
-  } else if (name == "avx512bw" && __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512f")) {
-    TheKernels() = {ImagesAvx512, ChangesAvx512, FailsImagesAvx512, FailsChangesAvx512, "avx512bw", PickProbeGroup()};
-  } else if (name == "best") {
-    TheKernels() = PickKernels();
-  } else {
-    return false;
-  }
-  return true;
-}
+bool FastFusion::ForceKernelForTesting(std::string_view name) { return ForceKernelsForTesting(name); }
 
 void FastFusion::Fuse(std::span<const ImageView<const uint8_t>> frames,
                       std::span<const ImageView<const uint8_t>> backgrounds, int threshold, Context& ctx,

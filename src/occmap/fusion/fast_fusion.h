@@ -40,8 +40,9 @@
 // AND-reduced into the tri-state map with the per-cell view counts.
 //
 // Kernels: the row kernel (AVX-512BW: two loads, a saturated difference pair and one compare
-// per 64 pixels) and the probe of one run (masked loads), chosen at run time with
-// __builtin_cpu_supports (AVX-512BW, AVX2, portable); ForceKernelForTesting selects one. No
+// per 64 pixels) and the probe of one run (masked loads), from the process's kernel set
+// (util/simd.h: AVX-512BW, AVX2 or portable, OCCMAP_KERNELS forces one); ForceKernelForTesting
+// selects one. No
 // allocation per frame once the buffers are sized for a thread count; the pool's task
 // functors are built once.
 //
@@ -196,9 +197,9 @@ class FastFusion {
   int64_t ProbeBytesPerFrame() const;
   // Which kernel the dispatch picked: "avx512bw", "avx2" or "portable".
   static const char* KernelName();
-  // Tests: selects a kernel ("portable", "avx2", "avx512bw", or "best" = the dispatch's
-  // choice) for every FastFusion of the process; false when this CPU lacks it. Not
-  // thread-safe: call with no fusion running.
+  // Tests: selects a kernel set ("portable", "avx2", "avx512bw", or "best" = the dispatch's
+  // choice) for the process (ForceKernelsForTesting, util/simd.h); false when this CPU or
+  // build lacks it. Not thread-safe: call with no fusion running.
   static bool ForceKernelForTesting(std::string_view name);
   // Tests: the fraction of failed primary probes above which the cell-probe method hands the
   // frame to row streaming (default 0.15; 0 = as soon as one probe fails, > 1 = never), and the

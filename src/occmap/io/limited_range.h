@@ -4,8 +4,9 @@
 //   luma   16..235 -> 0..255: (y - 16) x 298 / 256, rounded (BT.601's fixed-point factor for
 //          255/219; at most 1 level from the exact ratio)
 //   chroma 16..240 -> 0..255: round((c - 16) x 255 / 224), 128 stays 128 (exact)
-// Values outside the range are clamped to it first. Each fast version is vectorised (cloned
-// for AVX2, picked at load time) and equals its plain reference on every input (a test).
+// Values outside the range are clamped to it first. Each fast version is vectorised (and
+// compiled again for AVX2, run when the kernel set allows, util/simd.h) and equals its plain
+// reference on every input, on every kernel set (a test).
 //
 //   ExpandLimitedRangeChroma(frame->data[1] + y * frame->linesize[1], u.row(y), u.width());
 #pragma once

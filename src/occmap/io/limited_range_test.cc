@@ -6,6 +6,8 @@
 #include <random>
 #include <vector>
 
+#include "occmap/util/simd_testing.h"
+
 namespace occmap {
 namespace {
 
@@ -34,13 +36,18 @@ void ExpectFastEqualsReference(Fast fast, Reference reference) {
   }
 }
 
-TEST(ExpandLimitedRangeLuma, FastPathEqualsItsReference) {
+// Every kernel set this CPU has (util/simd.h), the portable one included.
+class ExpandLimitedRange : public KernelSetTest {};
+
+TEST_P(ExpandLimitedRange, LumaFastPathEqualsItsReference) {
   ExpectFastEqualsReference(ExpandLimitedRangeLuma, ExpandLimitedRangeLumaReference);
 }
 
-TEST(ExpandLimitedRangeChroma, FastPathEqualsItsReference) {
+TEST_P(ExpandLimitedRange, ChromaFastPathEqualsItsReference) {
   ExpectFastEqualsReference(ExpandLimitedRangeChroma, ExpandLimitedRangeChromaReference);
 }
+
+INSTANTIATE_TEST_SUITE_P(KernelSets, ExpandLimitedRange, ::testing::Values("portable", "avx2", "avx512"));
 
 TEST(ExpandLimitedRangeLuma, MapsBlackAndWhiteToTheFullRangeWithinOneLevel) {
   EXPECT_EQ(ExpandLimitedRangeLumaReference(16), 0);

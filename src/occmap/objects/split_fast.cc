@@ -1,13 +1,16 @@
 #include "occmap/objects/split_fast.h"
 
-#include <immintrin.h>
-
 #include <algorithm>
 #include <bit>
 #include <cmath>
 
 #include "occmap/objects/split_internal.h"
+#include "occmap/util/simd.h"
 #include "occmap/util/status.h"
+
+#if OCCMAP_X86_KERNELS
+#include <immintrin.h>
+#endif
 
 namespace occmap {
 namespace {
@@ -279,6 +282,7 @@ bool NearestTwoScalar(const PartitionArrays& a, size_t k, const uint32_t* idx, s
   return changed;
 }
 
+#if OCCMAP_X86_KERNELS
 // AVX2, four points at a time, per lane the scalar loop's operations (no FMA, strict <).
 __attribute__((target("avx2"))) bool NearestTwoAvx2(const PartitionArrays& a, size_t k, const uint32_t* idx, size_t m,
                                                     float* gap) {
@@ -314,10 +318,13 @@ __attribute__((target("avx2"))) bool NearestTwoAvx2(const PartitionArrays& a, si
   }
   return NearestTwoScalar(a, k, idx + i, m - i, gap) || changed;
 }
+#endif
 
 bool NearestTwo(const PartitionArrays& a, size_t k, const uint32_t* idx, size_t m, float* gap) {
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  return avx2 ? NearestTwoAvx2(a, k, idx, m, gap) : NearestTwoScalar(a, k, idx, m, gap);
+#if OCCMAP_X86_KERNELS
+  if (ActiveKernels() >= KernelSet::kAvx2) return NearestTwoAvx2(a, k, idx, m, gap);
+#endif
+  return NearestTwoScalar(a, k, idx, m, gap);
 }
 
 // One round's bounds: each point's gap falls by its centre's shift and the largest shift of
@@ -337,6 +344,7 @@ size_t MoveBoundsScalar(SplitScratch& s, size_t begin, size_t n, size_t most, fl
   return m;
 }
 
+#if OCCMAP_X86_KERNELS
 // AVX2, eight points at a time (the same operations per lane).
 __attribute__((target("avx2"))) size_t MoveBoundsAvx2(SplitScratch& s, size_t n, size_t most, float second_most,
                                                       float slack) {
@@ -367,10 +375,13 @@ __attribute__((target("avx2"))) size_t MoveBoundsAvx2(SplitScratch& s, size_t n,
   }
   return MoveBoundsScalar(s, p, n, most, second_most, slack, m);
 }
+#endif
 
 size_t MoveBounds(SplitScratch& s, size_t n, size_t most, float second_most, float slack) {
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  return avx2 ? MoveBoundsAvx2(s, n, most, second_most, slack) : MoveBoundsScalar(s, 0, n, most, second_most, slack, 0);
+#if OCCMAP_X86_KERNELS
+  if (ActiveKernels() >= KernelSet::kAvx2) return MoveBoundsAvx2(s, n, most, second_most, slack);
+#endif
+  return MoveBoundsScalar(s, 0, n, most, second_most, slack, 0);
 }
 
 // KMeansCells on flat arrays: the cells' centres s.xs, s.ys and indices s.ci, s.cj, seeds

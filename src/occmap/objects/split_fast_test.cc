@@ -6,13 +6,19 @@
 #include <random>
 
 #include "occmap/objects/test_floor.h"
+#include "occmap/util/simd_testing.h"
 
 namespace occmap {
 namespace {
 
 using testing::TestGrid;
 
-TEST(SplitBlob, WithReusedScratchEqualsTheReferenceOnRandomGroups) {
+// Every kernel set this CPU has (util/simd.h): the AVX2 k-means steps and the portable ones.
+class SplitBlobKernels : public KernelSetTest {};
+
+INSTANTIATE_TEST_SUITE_P(KernelSets, SplitBlobKernels, ::testing::Values("portable", "avx2"));
+
+TEST_P(SplitBlobKernels, WithReusedScratchEqualsTheReferenceOnRandomGroups) {
   // Random groups of 1-5 people, noisy discs of several radii: SplitBlob with one scratch
   // reused over all blobs (flat k-means, buffers kept) gives the reference's split exactly.
   std::mt19937 rng(29);

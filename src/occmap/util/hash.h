@@ -1,7 +1,8 @@
 // Hasher: a fast, deterministic 64-bit hash for cache keys and payload checksums.
 //
-// Not cryptographic. Deterministic across runs and machines (little-endian x86-64 assumed and
-// checked at compile time), so a key computed today matches the one stored in a file tomorrow.
+// Not cryptographic. Deterministic across runs and machines (little-endian assumed and checked
+// at compile time: x86-64 and aarch64 agree), so a key computed today matches the one stored
+// in a file tomorrow, on another board.
 //
 //   Hasher h;
 //   h.Add(std::string_view("lut-v1"));

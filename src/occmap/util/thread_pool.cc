@@ -1,12 +1,13 @@
 #include "occmap/util/thread_pool.h"
 
 #include <algorithm>
-#include <immintrin.h>
+
+#include "occmap/util/simd.h"
 
 namespace occmap {
 namespace {
 
-// Spins (with pause) while `bursts` > 0, until done() or kSpin has passed; true when done().
+// Spins (with the CPU's spin-wait hint) while `bursts` > 0, until done() or kSpin has passed; true when done().
 template <typename Done>
 bool SpinUntil(const std::atomic<int>& bursts, Done done) {
   if (bursts.load(std::memory_order_relaxed) == 0) return done();
@@ -14,7 +15,7 @@ bool SpinUntil(const std::atomic<int>& bursts, Done done) {
   while (true) {
     for (int i = 0; i < 64; ++i) {
       if (done()) return true;
-      _mm_pause();
+      CpuRelax();
     }
     if (bursts.load(std::memory_order_relaxed) == 0 || std::chrono::steady_clock::now() >= until) return done();
   }
