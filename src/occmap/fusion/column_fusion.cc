@@ -5,6 +5,12 @@
 #include <algorithm>
 #include <cmath>
 
+#include "occmap/util/simd.h"
+
+#if OCCMAP_X86_KERNELS
+#include <emmintrin.h>
+#endif
+
 namespace occmap {
 
 Status ColumnFusionOptions::Validate(double column_height_m, int num_cameras) const {
@@ -22,19 +28,62 @@ Status ColumnFusionOptions::Validate(double column_height_m, int num_cameras) co
   return Status::Ok();
 }
 
+namespace {
+
+// Bit x of the result: in[x] != 0, for 64 bytes.
+uint64_t ChangedBits64(const uint8_t* in) {
+  uint64_t bits = 0;
+  for (int x = 0; x < 64; ++x) bits |= static_cast<uint64_t>(in[x] != 0 ? 1 : 0) << x;
+  return bits;
+}
+
+#if OCCMAP_X86_KERNELS
+// The same with SSE2 (every x86-64 has it): 16 compares to zero per instruction.
+uint64_t ChangedBits64Sse2(const uint8_t* in) {
+  const __m128i zero = _mm_setzero_si128();
+  uint64_t zeros = 0;
+  for (int q = 0; q < 4; ++q) {
+    const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + 16 * q));
+    zeros |= static_cast<uint64_t>(static_cast<uint32_t>(_mm_movemask_epi8(_mm_cmpeq_epi8(v, zero)))) << (16 * q);
+  }
+  return ~zeros;
+}
+#endif
+
+}  // namespace
+
 void ChangeRowSums::Build(ImageView<const uint8_t> changes) {
   OCCMAP_CHECK(changes.width() < 65536, "ChangeRowSums: images up to 65535 pixels wide");
   width_ = changes.width();
   height_ = changes.height();
-  sums_.resize(static_cast<size_t>(width_ + 1) * static_cast<size_t>(height_));
+  row_words_ = width_ / 64 + 1;
+  const size_t n = static_cast<size_t>(row_words_) * static_cast<size_t>(height_);
+  bits_.resize(n);
+  prefix_.resize(n);
+#if OCCMAP_X86_KERNELS
+  const bool sse2 = ActiveKernels() != KernelSet::kPortable;
+#endif
   for (int y = 0; y < height_; ++y) {
     const uint8_t* in = changes.row(y);
-    uint16_t* out = sums_.data() + static_cast<size_t>(y) * static_cast<size_t>(width_ + 1);
-    uint16_t sum = 0;
-    out[0] = 0;
-    for (int x = 0; x < width_; ++x) {
-      sum = static_cast<uint16_t>(sum + (in[x] != 0 ? 1 : 0));
-      out[x + 1] = sum;
+    uint64_t* bits = bits_.data() + static_cast<size_t>(y) * static_cast<size_t>(row_words_);
+    uint16_t* prefix = prefix_.data() + static_cast<size_t>(y) * static_cast<size_t>(row_words_);
+    const int full = width_ / 64;
+#if OCCMAP_X86_KERNELS
+    if (sse2) {
+      for (int w = 0; w < full; ++w) bits[w] = ChangedBits64Sse2(in + 64 * w);
+    } else {
+      for (int w = 0; w < full; ++w) bits[w] = ChangedBits64(in + 64 * w);
+    }
+#else
+    for (int w = 0; w < full; ++w) bits[w] = ChangedBits64(in + 64 * w);
+#endif
+    uint64_t tail = 0;
+    for (int x = 64 * full; x < width_; ++x) tail |= static_cast<uint64_t>(in[x] != 0 ? 1 : 0) << (x - 64 * full);
+    bits[full] = tail;
+    int sum = 0;
+    for (int w = 0; w < row_words_; ++w) {
+      prefix[w] = static_cast<uint16_t>(sum);
+      sum += PopCount(bits[w]);
     }
   }
 }
@@ -75,7 +124,8 @@ CellState Decide(int tested, int free_votes, int k) {
   return free_votes <= k && free_votes < tested ? CellState::kOccupied : CellState::kFree;
 }
 
-// Candidate k's state with the changed-pixel count of a span given by count(camera, y, x0, x1).
+// Candidate k's state with the changed-pixel count of a span given by count(camera, y, x0, x1):
+// the reference (ColumnFusion::Fuse reads the same spans from its plan).
 template <typename CountFn>
 CellState CandidateState(const ColumnLut& columns, int64_t k, const std::vector<bool>& active,
                          const ColumnFusionOptions& o, const CountFn& count) {
@@ -122,16 +172,93 @@ CellState CandidateState(const ColumnLut& columns, int64_t k, const std::vector<
 
 }  // namespace
 
+const ColumnFusion::Plan& ColumnFusion::PlanFor(const ColumnFusionOptions& o) const {
+  std::lock_guard<std::mutex> lock(plan_mutex_);
+  if (plan_ && plan_->band_low_m == o.band_low_m && plan_->band_high_m == o.band_high_m && plan_->radius_m == o.radius_m)
+    return *plan_;
+  auto plan = std::make_shared<Plan>();
+  plan->band_low_m = o.band_low_m;
+  plan->band_high_m = o.band_high_m;
+  plan->radius_m = o.radius_m;
+  const double h = columns_.options().height_m;
+  const int64_t n = columns_.candidates().num_cells();
+  plan->first_entry.reserve(static_cast<size_t>(n) + 1);
+  for (int64_t k = 0; k < n; ++k) {
+    plan->first_entry.push_back(static_cast<uint32_t>(plan->entries.size()));
+    for (int c = 0; c < columns_.num_cameras(); ++c) {
+      const ColumnView& v = columns_.view(c, k);
+      if (!v.seen || v.blocked) continue;
+      const ColumnSpans s = MakeColumnSpans(v, o.radius_m, o.band_low_m / h, o.band_high_m / h, columns_.image_size(c));
+      if (2 * s.visible_rows < s.last_row - s.first_row + 1) continue;  // mostly off the image: abstains
+      Plan::Entry e{static_cast<uint32_t>(plan->spans.size()), 0, static_cast<uint8_t>(c), 0};
+      int pixels = 0;
+      const int coarse = RowStride(s, kCoarseRows);
+      for (int y = s.first_row + coarse / 2; y <= s.last_row; y += coarse) {
+        int x0, x1;
+        if (!s.Span(y, x0, x1)) continue;
+        plan->spans.push_back({static_cast<uint16_t>(y), static_cast<uint16_t>(x0), static_cast<uint16_t>(x1)});
+        pixels += x1 - x0 + 1;
+        ++e.num_spans;
+      }
+      e.pixels = static_cast<uint32_t>(pixels);
+      plan->entries.push_back(e);
+    }
+  }
+  plan->first_entry.push_back(static_cast<uint32_t>(plan->entries.size()));
+  OCCMAP_CHECK(plan->entries.size() < (size_t{1} << 32) && plan->spans.size() < (size_t{1} << 32),
+               "ColumnFusion: plan too large");
+  plan_ = std::move(plan);
+  return *plan_;
+}
+
 void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
                         const ColumnFusionOptions& options, Context& ctx, OccupancyMap& map) const {
   const FloorGrid& grid = columns_.candidates();
   if (!(map.grid() == grid)) map = OccupancyMap(grid);
   std::vector<CellState>& states = map.states();
-  const auto count = [&](int c, int y, int x0, int x1) { return counts[c].Count(y, x0, x1); };
+  const Plan& plan = PlanFor(options);
+  const double h = columns_.options().height_m;
+  const ColumnFusionOptions& o = options;
+  // As CandidateState, the first look's spans read from the plan.
+  const auto state = [&](int64_t k) {
+    int tested = 0, free_votes = 0;
+    for (uint32_t e = plan.first_entry[k]; e < plan.first_entry[k + 1]; ++e) {
+      const Plan::Entry& entry = plan.entries[e];
+      const int c = entry.camera;
+      if (!active[c]) continue;
+      const ChangeRowSums& count = counts[c];
+      if (entry.pixels > 0) {
+        int64_t changed = 0;
+        for (uint32_t q = entry.first_span; q < entry.first_span + entry.num_spans; ++q)
+          changed += count.Count(plan.spans[q].y, plan.spans[q].x0, plan.spans[q].x1);
+        if (2 * static_cast<double>(changed) < o.min_changed * static_cast<double>(entry.pixels)) {
+          ++tested;
+          if (++free_votes > o.max_free_views) return CellState::kFree;
+          continue;
+        }
+      }
+      const ColumnSpans s =
+          MakeColumnSpans(columns_.view(c, k), o.radius_m, o.band_low_m / h, o.band_high_m / h, columns_.image_size(c));
+      const int stride = RowStride(s, o.max_rows);
+      int64_t changed = 0, pixels = 0;
+      for (int y = s.first_row; y <= s.last_row; y += stride) {
+        int x0, x1;
+        if (!s.Span(y, x0, x1)) continue;
+        changed += count.Count(y, x0, x1);
+        pixels += x1 - x0 + 1;
+      }
+      if (pixels == 0) continue;
+      ++tested;
+      if (static_cast<double>(changed) < o.min_changed * static_cast<double>(pixels)) {
+        if (++free_votes > o.max_free_views) return CellState::kFree;
+      }
+    }
+    return Decide(tested, free_votes, o.max_free_views);
+  };
   ParallelFor(
       ctx, 0, grid.num_cells(),
       [&](int64_t begin, int64_t end, int) {
-        for (int64_t k = begin; k < end; ++k) states[k] = CandidateState(columns_, k, active, options, count);
+        for (int64_t k = begin; k < end; ++k) states[k] = state(k);
       },
       1024);
 }

@@ -5,6 +5,7 @@
 #include <random>
 
 #include "occmap/fusion/test_people.h"
+#include "occmap/util/simd.h"
 
 namespace occmap {
 namespace {
@@ -19,6 +20,29 @@ TEST(ChangeRowSumsTest, CountsChangedPixelsOfASpan) {
   EXPECT_EQ(sums.Count(0, 0, 6), 4);
   EXPECT_EQ(sums.Count(0, 2, 4), 2);
   EXPECT_EQ(sums.Count(1, 3, 3), 1);
+}
+
+TEST(ChangeRowSumsTest, EveryCountEqualsThePixelsCountedOneByOne) {
+  std::mt19937 rng(3);
+  for (const char* kernels : {"portable", "best"})
+  for (int width : {1, 63, 64, 65, 127, 128, 200}) {
+    ASSERT_TRUE(ForceKernelsForTesting(kernels));
+    Image<uint8_t> im(width, 3);
+    for (int y = 0; y < 3; ++y)
+      for (int x = 0; x < width; ++x) im(x, y) = rng() % 3 == 0 ? static_cast<uint8_t>(1 + rng() % 255) : 0;
+    ChangeRowSums sums;
+    sums.Build(im.view());
+    for (int y = 0; y < 3; ++y) {
+      for (int x0 = 0; x0 < width; ++x0) {
+        int n = 0;
+        for (int x1 = x0; x1 < width; ++x1) {
+          n += im(x1, y) != 0 ? 1 : 0;
+          ASSERT_EQ(sums.Count(y, x0, x1), n) << kernels << " " << width << " " << y << " " << x0 << " " << x1;
+        }
+      }
+    }
+  }
+  ForceKernelsForTesting("best");
 }
 
 TEST(ColumnFusionTest, APersonsColumnIsOccupiedAndTheFloorAroundIsFree) {

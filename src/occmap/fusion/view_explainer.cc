@@ -133,8 +133,128 @@ double ViewExplainer::Gain(int64_t k, std::span<const ImageView<const uint8_t>> 
   return gain;
 }
 
-void ViewExplainer::Cover(int64_t k, const std::vector<bool>& active, const ExplainOptions& o, int delta) {
+double ViewExplainer::Terms(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
+                            const ExplainOptions& o, Term* terms) const {
+  // As UpperBound, keeping what each camera adds.
+  double gain = 0;
   for (int c = 0; c < columns_.num_cameras(); ++c) {
+    Term& t = terms[c];
+    t = Term{};
+    if (!active[c]) continue;
+    const ColumnSpans s = PersonSpans(columns_, c, k, o);
+    if (s.visible_rows == 0) continue;
+    int64_t changed = 0, pixels = 0;
+    const int step = RowStep(s, o.max_rows);
+    for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); y += step) {
+      int x0, x1;
+      if (!s.Span(y, x0, x1)) continue;
+      changed += counts[c].Count(y, x0, x1);
+      pixels += x1 - x0 + 1;
+      t.body.Add(y, x0, x1);
+    }
+    if (pixels == 0) continue;
+    int64_t ground = 0;
+    const int band_end = GroundBandEnd(s, o);
+    for (int y = s.last_row + 1; y <= band_end; y += step) {
+      int x0, x1;
+      if (!s.Span(y, x0, x1)) continue;
+      ground += counts[c].Count(y, x0, x1);
+      t.ground.Add(y, x0, x1);
+    }
+    t.counts = true;
+    t.gain = PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(pixels - changed) -
+                           o.ground_weight * static_cast<double>(ground),
+                       pixels);
+    gain += t.gain;
+  }
+  return gain;
+}
+
+double ViewExplainer::FastGain(int64_t k, int32_t index, std::span<const ImageView<const uint8_t>> changes,
+                               std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
+                               const ExplainOptions& o, int max_cover) const {
+  const int cams = columns_.num_cameras();
+  const Term* terms = terms_.data() + static_cast<size_t>(index) * static_cast<size_t>(cams);
+  constexpr int kMaxMet = 64;
+  double gain = 0;
+  for (int c = 0; c < cams; ++c) {
+    const Term& t = terms[c];
+    if (!active[c] || !t.counts) continue;
+    // The chosen people whose coverage meets what the gain reads here.
+    const Box* met[kMaxMet];
+    int n_met = 0, body_met = 0;
+    bool ground_met = false, overflow = false;
+    for (int32_t j : covered_) {
+      const Box& b = cover_boxes_[static_cast<size_t>(j) * static_cast<size_t>(cams) + static_cast<size_t>(c)];
+      const bool in_body = b.Meets(t.body), in_ground = b.Meets(t.ground);
+      if (!in_body && !in_ground) continue;
+      body_met += in_body ? 1 : 0;
+      ground_met |= in_ground;
+      if (n_met == kMaxMet) overflow = true;
+      else met[n_met++] = &b;
+    }
+    // Nobody's coverage above max_cover on the body, none on the ground band: the term as it was.
+    if (body_met <= max_cover && !ground_met) {
+      gain += t.gain;
+      continue;
+    }
+    // Row by row: counted from the row sums where at most max_cover of the met boxes reach.
+    const auto reaching = [&](int y, int x0, int x1) {
+      if (overflow) return kMaxMet + 1;
+      int n = 0;
+      for (int m = 0; m < n_met; ++m) n += met[m]->MeetsRow(y, x0, x1) ? 1 : 0;
+      return n;
+    };
+    const ColumnSpans s = PersonSpans(columns_, c, k, o);
+    int64_t changed = 0, unchanged = 0, pixels = 0;
+    const int step = RowStep(s, o.max_rows);
+    const uint8_t limit = static_cast<uint8_t>(max_cover);
+    for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); y += step) {
+      int x0, x1;
+      if (!s.Span(y, x0, x1)) continue;
+      pixels += x1 - x0 + 1;
+      int row_changed = 0, row_free = 0;
+      if (reaching(y, x0, x1) <= max_cover) {
+        row_changed = counts[c].Count(y, x0, x1);
+        row_free = x1 - x0 + 1;
+      } else {
+        const uint8_t* ch = changes[c].row(y);
+        const uint8_t* cov = coverage_[c].row(y);
+        for (int x = x0; x <= x1; ++x) {
+          const int free = cov[x] <= limit ? 1 : 0;
+          row_free += free;
+          row_changed += free & (ch[x] != 0 ? 1 : 0);
+        }
+      }
+      changed += row_changed;
+      unchanged += row_free - row_changed;
+    }
+    int64_t ground = 0;
+    const int band_end = GroundBandEnd(s, o);
+    for (int y = s.last_row + 1; y <= band_end; y += step) {
+      int x0, x1;
+      if (!s.Span(y, x0, x1)) continue;
+      if (reaching(y, x0, x1) == 0) {
+        ground += counts[c].Count(y, x0, x1);
+        continue;
+      }
+      const uint8_t* ch = changes[c].row(y);
+      const uint8_t* cov = coverage_[c].row(y);
+      for (int x = x0; x <= x1; ++x) ground += (ch[x] != 0 && cov[x] == 0) ? 1 : 0;
+    }
+    gain += PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(unchanged) -
+                          o.ground_weight * static_cast<double>(ground),
+                      pixels);
+  }
+  return gain;
+}
+
+void ViewExplainer::Cover(int64_t k, int32_t index, const std::vector<bool>& active, const ExplainOptions& o,
+                          int delta) {
+  const int cams = columns_.num_cameras();
+  for (int c = 0; c < cams; ++c) {
+    Box& box = cover_boxes_[static_cast<size_t>(index) * static_cast<size_t>(cams) + static_cast<size_t>(c)];
+    box = Box{};
     if (!active[c]) continue;
     const ColumnSpans s = PersonSpans(columns_, c, k, o);
     if (s.visible_rows == 0) continue;
@@ -143,13 +263,33 @@ void ViewExplainer::Cover(int64_t k, const std::vector<bool>& active, const Expl
       if (!s.Span(y, x0, x1)) continue;
       uint8_t* cov = coverage_[c].row(y);
       for (int x = x0; x <= x1; ++x) cov[x] = static_cast<uint8_t>(cov[x] + delta);
+      box.Add(y, x0, x1);
     }
+  }
+  if (delta > 0) {
+    covered_.push_back(index);
+  } else {
+    const auto at = std::find(covered_.begin(), covered_.end(), index);
+    if (at != covered_.end()) covered_.erase(at);
   }
 }
 
 void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, std::span<const ChangeRowSums> counts,
                             const std::vector<bool>& active, const OccupancyMap& column_map,
                             const ExplainOptions& o, Context& ctx, std::vector<ExplainedPerson>& people) {
+  Run(changes, counts, active, column_map, o, ctx, people, true);
+}
+
+void ViewExplainer::ExplainReference(std::span<const ImageView<const uint8_t>> changes,
+                                     std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
+                                     const OccupancyMap& column_map, const ExplainOptions& o, Context& ctx,
+                                     std::vector<ExplainedPerson>& people) {
+  Run(changes, counts, active, column_map, o, ctx, people, false);
+}
+
+void ViewExplainer::Run(std::span<const ImageView<const uint8_t>> changes, std::span<const ChangeRowSums> counts,
+                        const std::vector<bool>& active, const OccupancyMap& column_map, const ExplainOptions& o,
+                        Context& ctx, std::vector<ExplainedPerson>& people, bool fast) {
   people.clear();
   const FloorGrid& grid = columns_.candidates();
   if (coverage_.size() != static_cast<size_t>(columns_.num_cameras())) {
@@ -164,13 +304,25 @@ void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, s
   std::vector<int64_t> candidates;
   for (int64_t k = 0; k < grid.num_cells(); ++k)
     if (column_map.state(k) == CellState::kOccupied) candidates.push_back(k);
+  const int cams = columns_.num_cameras();
   std::vector<double> bound(candidates.size());
+  if (fast) terms_.resize(candidates.size() * static_cast<size_t>(cams));
+  cover_boxes_.resize(candidates.size() * static_cast<size_t>(cams));
+  covered_.clear();
   ParallelFor(
       ctx, 0, static_cast<int64_t>(candidates.size()),
       [&](int64_t b, int64_t e, int) {
-        for (int64_t i = b; i < e; ++i) bound[i] = UpperBound(candidates[i], counts, active, o);
+        for (int64_t i = b; i < e; ++i) {
+          bound[i] = fast ? Terms(candidates[i], counts, active, o, terms_.data() + static_cast<size_t>(i) * cams)
+                          : UpperBound(candidates[i], counts, active, o);
+        }
       },
       64);
+  // A gain against the coverage of the people chosen so far (k: the candidate of `index`).
+  const auto gain_of = [&](int64_t k, int max_cover) {
+    const int32_t index = index_of_[k];
+    return fast ? FastGain(k, index, changes, counts, active, o, max_cover) : Gain(k, changes, active, o, max_cover);
+  };
   // 2. Forward, lazily: (gain, candidate index); ties go to the lower index.
   using Entry = std::pair<double, int64_t>;
   const auto less = [](const Entry& a, const Entry& b) {
@@ -202,7 +354,6 @@ void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, s
   }
   // Each candidate's image box per camera: adding a person changes only the gains of the
   // candidates whose image meets its image in some camera.
-  const int cams = columns_.num_cameras();
   boxes_.assign(candidates.size() * static_cast<size_t>(cams), Box{});
   ParallelFor(
       ctx, 0, static_cast<int64_t>(candidates.size()),
@@ -246,7 +397,7 @@ void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, s
       if ((Eigen::Vector2d(p.x_m, p.y_m) - xy).squaredNorm() < min_sep2) too_close = true;
     if (too_close) continue;
     if (!fresh[i]) {
-      const double g = Gain(k, changes, active, o, 0);
+      const double g = gain_of(k, 0);
       fresh[i] = 1;
       if (g >= o.min_gain) queue.push({g, i});
       continue;
@@ -259,7 +410,7 @@ void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, s
     for (int c = 0; c < columns_.num_cameras(); ++c)
       if (active[c] && columns_.view(c, k).projected && !columns_.view(c, k).blocked) ++p.views;
     people.push_back(p);
-    Cover(k, active, o, +1);
+    Cover(k, static_cast<int32_t>(i), active, o, +1);
     for (size_t j = 0; j < candidates.size(); ++j)
       if (fresh[j] && overlaps(static_cast<size_t>(i), j)) fresh[j] = 0;
   }
@@ -268,7 +419,7 @@ void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, s
     size_t worst = 0;
     double worst_gain = 0;
     for (size_t m = 0; m < people.size(); ++m) {
-      const double g = Gain(people[m].candidate, changes, active, o, 1);
+      const double g = gain_of(people[m].candidate, 1);
       people[m].gain = g;
       if (m == 0 || g < worst_gain) {
         worst = m;
@@ -276,7 +427,7 @@ void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, s
       }
     }
     if (worst_gain >= o.min_gain) break;
-    Cover(people[worst].candidate, active, o, -1);
+    Cover(people[worst].candidate, index_of[people[worst].candidate], active, o, -1);
     people.erase(people.begin() + static_cast<ptrdiff_t>(worst));
   }
   // 4. Moves: each member in turn is taken out and put back at the candidate near it that gains most.
@@ -284,10 +435,10 @@ void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, s
   for (int sweep = 0; sweep < o.moves; ++sweep) {
     int moved = 0;
     for (size_t m = 0; m < people.size(); ++m) {
-      Cover(people[m].candidate, active, o, -1);
+      Cover(people[m].candidate, index_of[people[m].candidate], active, o, -1);
       const Eigen::Vector2d at(people[m].x_m, people[m].y_m);
       int64_t best = people[m].candidate;
-      double best_gain = Gain(best, changes, active, o, 0);
+      double best_gain = gain_of(best, 0);
       for (size_t i = 0; i < candidates.size(); ++i) {
         if (bound[i] < o.min_gain) continue;
         const int64_t k = candidates[i];
@@ -297,7 +448,7 @@ void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, s
         for (size_t q = 0; q < people.size(); ++q)
           if (q != m && (Eigen::Vector2d(people[q].x_m, people[q].y_m) - xy).squaredNorm() < min_sep2) close = true;
         if (close) continue;
-        const double g = Gain(k, changes, active, o, 0);
+        const double g = gain_of(k, 0);
         if (g > best_gain + 1e-9) { best_gain = g; best = k; }
       }
       if (best != people[m].candidate) ++moved;
@@ -305,11 +456,11 @@ void ViewExplainer::Explain(std::span<const ImageView<const uint8_t>> changes, s
       const Eigen::Vector2d xy = grid.CellCenter(best);
       people[m].x_m = xy.x();
       people[m].y_m = xy.y();
-      Cover(best, active, o, +1);
+      Cover(best, index_of[best], active, o, +1);
     }
     if (moved == 0) break;
   }
-  for (const ExplainedPerson& p : people) Cover(p.candidate, active, o, -1);  // coverage back to zero
+  for (const ExplainedPerson& p : people) Cover(p.candidate, index_of[p.candidate], active, o, -1);  // coverage back to zero
   for (int64_t k : candidates) index_of[k] = -1;
 }
 

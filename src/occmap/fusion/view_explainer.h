@@ -33,10 +33,17 @@
 // occluder hides (blocked) say nothing about it. Equal results with 1 or 2 threads (the
 // search is sequential; only the bounds are computed in parallel).
 //
+// Fast path (Explain): each candidate's per-camera gain with nobody chosen is computed once, with
+// the bounds (row counts); a later gain reuses it for every camera where no chosen person's image
+// meets the candidate's, and counts from the row sums every row no chosen person's image meets,
+// so pixels are read one by one only where people overlap. ExplainReference reads every gain
+// pixel by pixel (equal results, tested).
+//
 //   ViewExplainer explainer(columns);
 //   explainer.Explain(changes, counts, active, column_map, options, ctx, people);
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -84,6 +91,10 @@ class ViewExplainer {
   void Explain(std::span<const ImageView<const uint8_t>> changes, std::span<const ChangeRowSums> counts,
                const std::vector<bool>& active, const OccupancyMap& column_map, const ExplainOptions& options,
                Context& ctx, std::vector<ExplainedPerson>& people);
+  // The same people, every gain read pixel by pixel.
+  void ExplainReference(std::span<const ImageView<const uint8_t>> changes, std::span<const ChangeRowSums> counts,
+                        const std::vector<bool>& active, const OccupancyMap& column_map, const ExplainOptions& options,
+                        Context& ctx, std::vector<ExplainedPerson>& people);
 
   // The gain of candidate k over the pixels that `coverage` (per camera, the number of chosen
   // people covering each pixel) shows at most `max_cover` on, pixel by pixel: for tests.
@@ -91,19 +102,46 @@ class ViewExplainer {
               const ExplainOptions& options, int max_cover) const;
 
  private:
-  // Adds delta to the coverage of candidate k's pixels.
-  void Cover(int64_t k, const std::vector<bool>& active, const ExplainOptions& options, int delta);
+  struct Box {
+    int x0 = 1 << 30, x1 = -1, y0 = 1 << 30, y1 = -1;  // empty by default
+    bool Meets(const Box& b) const { return x0 <= b.x1 && b.x0 <= x1 && y0 <= b.y1 && b.y0 <= y1; }
+    bool MeetsRow(int y, int a, int b) const { return y0 <= y && y <= y1 && x0 <= b && a <= x1; }
+    void Add(int y, int a, int b) {
+      x0 = std::min(x0, a);
+      x1 = std::max(x1, b);
+      y0 = std::min(y0, y);
+      y1 = std::max(y1, y);
+    }
+  };
+  // One candidate's gain in one camera with nobody chosen, and where it reads.
+  struct Term {
+    double gain = 0;
+    bool counts = false;  // the camera says something about it
+    Box body, ground;     // the pixels the gain reads: the model's rows, the ground band's
+  };
+
+  void Run(std::span<const ImageView<const uint8_t>> changes, std::span<const ChangeRowSums> counts,
+           const std::vector<bool>& active, const OccupancyMap& column_map, const ExplainOptions& options,
+           Context& ctx, std::vector<ExplainedPerson>& people, bool fast);
+  // Adds delta to the coverage of candidate k's pixels (k: this frame's candidate `index`).
+  void Cover(int64_t k, int32_t index, const std::vector<bool>& active, const ExplainOptions& options, int delta);
   double UpperBound(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
                     const ExplainOptions& options) const;
+  // UpperBound, keeping each camera's Term (terms: one per camera).
+  double Terms(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
+               const ExplainOptions& options, Term* terms) const;
+  // Gain(k, ..., max_cover) from the Terms of this frame's candidate `index` and the row sums.
+  double FastGain(int64_t k, int32_t index, std::span<const ImageView<const uint8_t>> changes,
+                  std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
+                  const ExplainOptions& options, int max_cover) const;
 
   const ColumnLut& columns_;
   std::vector<Image<uint8_t>> coverage_;
-  struct Box {
-    int x0 = 1 << 30, x1 = -1, y0 = 1 << 30, y1 = -1;  // empty by default
-  };
   std::vector<Box> boxes_;  // per candidate and camera, this frame
+  std::vector<Term> terms_;  // per candidate and camera, this frame (fast path)
+  std::vector<Box> cover_boxes_;  // per candidate and camera: the pixels its Cover writes
+  std::vector<int32_t> covered_;  // the candidates (indices) covered now, once per Cover(+1)
   std::vector<int32_t> index_of_;  // per candidate cell: its index among this frame's candidates, else -1
-  bool probed_ = false;  // per camera, kept zero between calls
 };
 
 }  // namespace occmap

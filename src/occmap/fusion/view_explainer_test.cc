@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include "occmap/fusion/test_people.h"
 
 namespace occmap {
@@ -73,6 +75,43 @@ TEST(ViewExplainerTest, OneThreadEqualsTwoAndACameraMayBeMissing) {
     EXPECT_EQ(one.people[i].views, 3);
   }
   EXPECT_EQ(one.people.size(), 5u);
+}
+
+TEST(ViewExplainerTest, FastEqualsReferenceInACrowdWithNoise) {
+  for (int seed : {1, 2, 3}) {
+    testing::PeopleRoom scene;
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> ux(0.3, 3.7), uy(0.3, 2.7);
+    for (int p = 0; p < 9; ++p) scene.Paint(ux(rng), uy(rng), 0.15 + 0.05 * (p % 3));
+    std::uniform_int_distribution<int> px(0, 319), py(0, 239);
+    for (auto& im : scene.changes)
+      for (int n = 0; n < 2000; ++n) im(px(rng), py(rng)) ^= 1;
+    std::vector<bool> active(4, true);
+    active[3] = seed != 2;
+    ColumnFusionOptions column;
+    column.band_low_m = 0.8;
+    Context ctx(seed == 3 ? 2 : 1);
+    OccupancyMap column_map;
+    ColumnFusion(scene.columns).Fuse(scene.Sums(), active, column, ctx, column_map);
+    for (double ground_weight : {0.0, 2.0}) {
+      ExplainOptions o;
+      o.ground_weight = ground_weight;
+      o.max_rows = seed == 1 ? 1000 : 48;
+      ViewExplainer explainer(scene.columns);
+      std::vector<ExplainedPerson> fast, reference, again;
+      explainer.Explain(scene.Views(), scene.Sums(), active, column_map, o, ctx, fast);
+      explainer.ExplainReference(scene.Views(), scene.Sums(), active, column_map, o, ctx, reference);
+      explainer.Explain(scene.Views(), scene.Sums(), active, column_map, o, ctx, again);
+      ASSERT_EQ(fast.size(), reference.size()) << seed;
+      EXPECT_GE(fast.size(), 5u) << seed;
+      for (size_t i = 0; i < fast.size(); ++i) {
+        EXPECT_EQ(fast[i].candidate, reference[i].candidate) << seed << " " << i;
+        EXPECT_EQ(fast[i].gain, reference[i].gain) << seed << " " << i;
+        EXPECT_EQ(fast[i].views, reference[i].views);
+        EXPECT_EQ(fast[i].candidate, again[i].candidate);
+      }
+    }
+  }
 }
 
 TEST(ViewExplainerTest, GainCountsOnlyWhatNobodyCoversYet) {
