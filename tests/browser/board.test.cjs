@@ -66,6 +66,11 @@ test('setup: the lens from board pictures, then the pose from floor points', { t
     assert.strictEqual(r.status, 400, 'one view is not enough');
     assert.match(r.body.error, /1 of 1 usable, at least 3 needed/);
     assert.strictEqual(r.body.views.length, 1, 'the views come back with the error');
+    // Another board: the views already there are inspected again with it.
+    r = await call(s.base, 'POST', '/api/board/views', { camera: 'cam2', board: { ...boardJson, cols: 8 }, image, name: 'two.png' });
+    assert.strictEqual(r.status, 200, JSON.stringify(r.body));
+    assert.deepStrictEqual(r.body.views.map((v) => [v.name, v.accepted]), [['one.png', false], ['two.png', false]]);
+    assert.match(r.body.views[0].reason, /no 8x6 checkerboard found/);
     r = await call(s.base, 'GET', '/api/board/view.jpg?camera=cam2&index=0');
     assert.strictEqual(r.type, 'image/jpeg');
     r = await call(s.base, 'DELETE', '/api/board/views?camera=cam2&index=3');

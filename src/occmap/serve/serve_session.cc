@@ -433,9 +433,13 @@ Result<json> ServeSession::AddBoardView(const json& body) {
     for (int y = 0; y < decoded.rows; ++y) std::copy_n(decoded.ptr<uint8_t>(y), decoded.cols, gray->row(y));
     if (body.contains("name") && body["name"].is_string()) name = body["name"].get<std::string>().substr(0, 120);
   }
-  // Inspected outside the lock: corner detection on a large picture takes a while.
+  // Inspected outside mu_ (corner detection on a large picture takes a while); board_mu_ keeps
+  // the board requests one at a time.
   std::lock_guard run_lock(board_mu_);
   int number = 0;
+  bool same_board = true;
+  std::vector<std::string> names;
+  std::vector<std::shared_ptr<const Image<uint8_t>>> images;
   {
     std::lock_guard lock(mu_);
     BoardSet& b = boards_[id];
@@ -449,17 +453,25 @@ Result<json> ServeSession::AddBoardView(const json& body) {
                                       b.images[0]->width(), b.images[0]->height()));
     }
     number = b.next_number++;
+    const BoardOptions &was = b.options.board, &now = options.board;
+    same_board = was.kind == now.kind && was.cols == now.cols && was.rows == now.rows &&
+                 was.square_m == now.square_m && was.marker_m == now.marker_m && was.dictionary == now.dictionary &&
+                 b.options.max_blur_px == options.max_blur_px;
+    names = b.names;
+    images = b.images;
   }
   if (name.empty()) name = fmt::format("view {}", number);
-  BoardView view = InspectBoardView({name, gray->view()}, options);
+  const BoardView view = InspectBoardView({name, gray->view()}, options);
+  // Another board: every view is inspected again with it.
+  std::vector<BoardView> again;
+  if (!same_board) {
+    for (size_t i = 0; i < images.size(); ++i) again.push_back(InspectBoardView({names[i], images[i]->view()}, options));
+  }
   std::lock_guard lock(mu_);
   BoardSet& b = boards_[id];
-  // Another board: every view is inspected again with it.
-  if (b.options.board.kind != options.board.kind || b.options.board.cols != options.board.cols ||
-      b.options.board.rows != options.board.rows || b.options.board.square_m != options.board.square_m ||
-      b.options.board.marker_m != options.board.marker_m || b.options.board.dictionary != options.board.dictionary ||
-      b.options.max_blur_px != options.max_blur_px) {
-    for (size_t i = 0; i < b.images.size(); ++i) b.inspected[i] = InspectBoardView({b.names[i], b.images[i]->view()}, options);
+  if (!same_board) {
+    if (b.images != images) return InvalidInput("board views changed meanwhile: add the view again");
+    b.inspected = std::move(again);
     b.used.assign(b.images.size(), false);
     b.calibration.reset();
     b.options = options;
