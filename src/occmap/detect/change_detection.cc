@@ -110,26 +110,39 @@ void OrRowNeighbours(const uint8_t* src, size_t w, int r, uint8_t* dst) {
 // (cost independent of r).
 constexpr int kSmallDilationRadius = 4;
 
-void DilateChanges(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t> out,
-                   std::vector<uint8_t>& scratch) {
+namespace {
+
+// DilateChanges of in's pixels where floor is non-zero (all of them when floor is empty).
+void DilateWithin(ImageView<const uint8_t> in, ImageView<const uint8_t> floor, int radius_px, ImageView<uint8_t> out,
+                  std::vector<uint8_t>& scratch) {
   OCCMAP_CHECK(SameSize(in, out), "dilation: image sizes differ");
+  OCCMAP_CHECK(floor.empty() || SameSize(in, floor), "dilation: the floor mask's size differs");
   OCCMAP_CHECK(radius_px >= 0 && radius_px <= kMaxDilationRadius, "dilation: radius outside 0..127");
   const int width = in.width(), height = in.height();
   if (width == 0 || height == 0) return;
   const size_t w = static_cast<size_t>(width);
-  // scratch: height rows of the row pass (1 / 0), then one row of per-column window counts.
-  const size_t needed = w * static_cast<size_t>(height) + w;
+  // scratch: height rows of the row pass (1 / 0), one row of per-column window counts, and one
+  // row of in's pixels on the floor.
+  const size_t needed = w * static_cast<size_t>(height) + 2 * w;
   if (scratch.size() < needed) scratch.resize(needed);
   uint8_t* rows = scratch.data();
   uint8_t* counts = scratch.data() + w * static_cast<size_t>(height);
+  uint8_t* on_floor = counts + w;
   const int r = radius_px;
+  auto source_row = [&](int y) -> const uint8_t* {
+    if (floor.empty()) return in.row(y);
+    const uint8_t* a = in.row(y);
+    const uint8_t* f = floor.row(y);
+    for (size_t x = 0; x < w; ++x) on_floor[x] = f[x] != 0 ? a[x] : uint8_t{0};
+    return on_floor;
+  };
 
   if (r <= kSmallDilationRadius) {
     // Small radii: ORs of shifted rows, which the compiler vectorises (64 pixels per
     // instruction with AVX-512) where running counts go pixel by pixel. Row pass: 1 where any
     // pixel of [x - r, x + r], clipped to the row, is set.
     for (int y = 0; y < height; ++y) {
-      const uint8_t* src = in.row(y);
+      const uint8_t* src = source_row(y);
       uint8_t* dst = rows + static_cast<size_t>(y) * w;
       OrRowNeighbours(src, w, r, dst);
       for (size_t x = 0; x < w; ++x) dst[x] = static_cast<uint8_t>(dst[x] != 0);
@@ -150,7 +163,7 @@ void DilateChanges(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t
 
   // Larger radii. Row pass: a running count of the non-zero pixels in [x - r, x + r] clipped to the row.
   for (int y = 0; y < height; ++y) {
-    const uint8_t* src = in.row(y);
+    const uint8_t* src = source_row(y);
     uint8_t* dst = rows + static_cast<size_t>(y) * w;
     int count = 0;
     for (int x = 0; x < std::min(r, width); ++x) count += src[x] != 0;  // [0, r) before x = 0
@@ -178,6 +191,39 @@ void DilateChanges(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t
     if (y - r >= 0) {
       const uint8_t* sub = rows + static_cast<size_t>(y - r) * w;
       for (size_t x = 0; x < w; ++x) counts[x] = static_cast<uint8_t>(counts[x] - sub[x]);
+    }
+  }
+}
+
+}  // namespace
+
+void DilateChanges(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t> out,
+                   std::vector<uint8_t>& scratch) {
+  DilateWithin(in, ImageView<const uint8_t>(), radius_px, out, scratch);
+}
+
+void DilateFloorChanges(ImageView<const uint8_t> in, ImageView<const uint8_t> floor_mask, int radius_px,
+                        ImageView<uint8_t> out, std::vector<uint8_t>& scratch) {
+  if (floor_mask.empty()) {
+    DilateChanges(in, radius_px, out, scratch);
+    return;
+  }
+  OCCMAP_CHECK(SameSize(in, out) && SameSize(in, floor_mask), "dilation: image sizes differ");
+  const size_t w = static_cast<size_t>(in.width()), h = static_cast<size_t>(in.height());
+  if (w == 0 || h == 0) return;
+  // scratch: DilateWithin's (h + 2 rows of w), then the floor's own widening (w x h).
+  const size_t own = w * h + 2 * w;
+  if (scratch.size() < own + w * h) scratch.resize(own + w * h);
+  const ImageView<uint8_t> on_floor(scratch.data() + own, in.width(), in.height(), in.width());
+  DilateWithin(in, floor_mask, radius_px, on_floor, scratch);
+  DilateWithin(in, ImageView<const uint8_t>(), radius_px, out, scratch);
+  for (size_t y = 0; y < h; ++y) {
+    const uint8_t* a = in.row(static_cast<int>(y));
+    const uint8_t* f = floor_mask.row(static_cast<int>(y));
+    const uint8_t* d = on_floor.row(static_cast<int>(y));
+    uint8_t* o = out.row(static_cast<int>(y));
+    for (size_t x = 0; x < w; ++x) {
+      if (f[x] != 0) o[x] = static_cast<uint8_t>(d[x] | (a[x] != 0));
     }
   }
 }
@@ -229,6 +275,23 @@ void DilateChangesReference(ImageView<const uint8_t> in, int radius_px, ImageVie
       for (int v = std::max(0, y - radius_px); v <= std::min(in.height() - 1, y + radius_px); ++v) {
         for (int u = std::max(0, x - radius_px); u <= std::min(in.width() - 1, x + radius_px); ++u) {
           if (in(u, v) != 0) set = 1;
+        }
+      }
+      out(x, y) = set;
+    }
+  }
+}
+
+void DilateFloorChangesReference(ImageView<const uint8_t> in, ImageView<const uint8_t> floor_mask, int radius_px,
+                                 ImageView<uint8_t> out) {
+  OCCMAP_CHECK(SameSize(in, out) && (floor_mask.empty() || SameSize(in, floor_mask)), "dilation: image sizes differ");
+  for (int y = 0; y < in.height(); ++y) {
+    for (int x = 0; x < in.width(); ++x) {
+      const bool on_floor = floor_mask.empty() || floor_mask(x, y) != 0;
+      uint8_t set = in(x, y) != 0;
+      for (int v = std::max(0, y - radius_px); v <= std::min(in.height() - 1, y + radius_px); ++v) {
+        for (int u = std::max(0, x - radius_px); u <= std::min(in.width() - 1, x + radius_px); ++u) {
+          if (in(u, v) != 0 && (!on_floor || floor_mask.empty() || floor_mask(u, v) != 0)) set = 1;
         }
       }
       out(x, y) = set;

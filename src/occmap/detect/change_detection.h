@@ -57,6 +57,12 @@ void DetectChangesRgbReference(ImageView<const Rgb8> frame, ImageView<const Rgb8
 // count of set pixels in the window, so the cost does not depend on r.
 void DilateChanges(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t> out,
                    std::vector<uint8_t>& scratch);
+// DilateChanges, but a floor pixel (floor_mask non-zero; empty: every pixel) is widened from
+// the floor's changes only: a change off the floor (a wall, a shelf, the sky) is not widened
+// into the floor's pixels, whose cells it would otherwise mark (a shadow on a wall by the
+// floor's edge). Pixels off the floor are widened as DilateChanges does (people's columns).
+void DilateFloorChanges(ImageView<const uint8_t> in, ImageView<const uint8_t> floor_mask, int radius_px,
+                        ImageView<uint8_t> out, std::vector<uint8_t>& scratch);
 // DetectChangesGray then DilateChanges by radius_px, in one pass over the rows (the changes
 // of 2r + 1 rows are kept in `scratch`, reused across frames): the same output, without
 // writing and re-reading a whole change image. Costs (2r + 1) row ORs per row: meant for the
@@ -65,6 +71,9 @@ void DetectChangesGrayDilated(ImageView<const uint8_t> frame, ImageView<const ui
                               int radius_px, ImageView<uint8_t> out, std::vector<uint8_t>& scratch);
 // Brute force over the (2r+1)^2 window of every pixel.
 void DilateChangesReference(ImageView<const uint8_t> in, int radius_px, ImageView<uint8_t> out);
+// Brute force of DilateFloorChanges.
+void DilateFloorChangesReference(ImageView<const uint8_t> in, ImageView<const uint8_t> floor_mask, int radius_px,
+                                 ImageView<uint8_t> out);
 
 // Converts a foreground mask from another tool (any 8-bit image, non-zero = foreground) to a
 // change mask (1 / 0), resampling to out's size when they differ: nearest pixel under the

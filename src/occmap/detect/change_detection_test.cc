@@ -243,6 +243,49 @@ TEST(DilateChanges, WindowsLargerThanTheImageAreClampedToIt) {
   }
 }
 
+TEST(DilateFloorChanges, FastMatchesBruteForceForRadiiZeroToNineAndOddSizes) {
+  std::mt19937 rng(4);
+  std::uniform_int_distribution<int> pad(0, 9);
+  std::vector<uint8_t> scratch;
+  const int sizes[][2] = {{1, 1}, {17, 1}, {3, 5}, {37, 23}, {64, 64}, {5, 99}};
+  for (const auto& size : sizes) {
+    for (int r = 0; r <= 9; ++r) {
+      for (double density : {0.003, 0.1, 0.5}) {
+        Padded<uint8_t> in(size[0], size[1], pad(rng)), floor(size[0], size[1], pad(rng));
+        RandomSparseMask(rng, in.view(), density);
+        RandomSparseMask(rng, floor.view(), 0.6);
+        Padded<uint8_t> fast(size[0], size[1], pad(rng), 0xAB), reference(size[0], size[1], pad(rng), 0xCD);
+        DilateFloorChanges(in.cview(), floor.cview(), r, fast.view(), scratch);
+        DilateFloorChangesReference(in.cview(), floor.cview(), r, reference.view());
+        ASSERT_TRUE(SamePixels(fast.cview(), reference.cview()))
+            << size[0] << "x" << size[1] << " r=" << r << " density=" << density;
+        // Without a floor mask it is DilateChanges.
+        DilateFloorChanges(in.cview(), ImageView<const uint8_t>(), r, fast.view(), scratch);
+        DilateChangesReference(in.cview(), r, reference.view());
+        ASSERT_TRUE(SamePixels(fast.cview(), reference.cview())) << size[0] << "x" << size[1] << " r=" << r;
+      }
+    }
+  }
+}
+
+TEST(DilateFloorChanges, AChangeOffTheFloorIsWidenedOffItButNotOntoIt) {
+  std::vector<uint8_t> scratch;
+  Image<uint8_t> in(12, 10, 0), floor(12, 10, 0), out(12, 10);
+  for (int y = 5; y < 10; ++y) {
+    for (int x = 0; x < 12; ++x) floor(x, y) = 255;  // rows 5..9 are floor, rows 0..4 a wall
+  }
+  in(3, 4) = 1;  // on the wall, right above the floor's edge: a shadow on the wall
+  in(8, 7) = 1;  // on the floor
+  DilateFloorChanges(in.view(), floor.view(), 1, out.view(), scratch);
+  for (int y = 0; y < 10; ++y) {
+    for (int x = 0; x < 12; ++x) {
+      const bool widened_floor_change = std::abs(x - 8) <= 1 && std::abs(y - 7) <= 1;
+      const bool widened_on_the_wall = y <= 4 && std::abs(x - 3) <= 1 && y >= 3;
+      EXPECT_EQ(out(x, y), (widened_floor_change || widened_on_the_wall) ? 1 : 0) << x << "," << y;
+    }
+  }
+}
+
 TEST(DilateChanges, OnePixelGrowsIntoASquareCutAtTheBorders) {
   std::vector<uint8_t> scratch;
   Image<uint8_t> in(20, 15, 0), out(20, 15);

@@ -54,7 +54,20 @@ void CameraChanges::Compute(FrameSet& set, size_t n, Image<uint8_t>& raw, std::v
   } else {
     DetectChangesGray(frame.gray.view(), c.background_gray.view(), threshold, target);
   }
-  if (r > 0 && dilate) DilateChanges(raw.view(), r, slice, scratch);
+  if (r > 0 && dilate) Widen(n, raw.view(), slice, scratch);
+}
+
+void CameraChanges::Widen(size_t n, ImageView<const uint8_t> raw, ImageView<uint8_t> slice,
+                          std::vector<uint8_t>& scratch) const {
+  const CameraState& c = cams_[n];
+  const int r = site_.detection.tolerance_px;
+  // The adaptive model keeps its background up from the map's free cells: off the floor no cell
+  // says so, and cast shadows fall on walls too. Those changes are not widened onto the floor.
+  if (c.model && !c.cam->mask.empty()) {
+    DilateFloorChanges(raw, c.cam->mask.view(), r, slice, scratch);
+  } else {
+    DilateChanges(raw, r, slice, scratch);
+  }
 }
 
 }  // namespace occmap

@@ -38,6 +38,9 @@ class CameraChanges {
   // caller (the changes then in `raw` when tolerance_px > 0). raw and scratch: the caller's
   // buffers, kept between frames (one pair per camera when cameras run in parallel).
   void Compute(FrameSet& set, size_t n, Image<uint8_t>& raw, std::vector<uint8_t>& scratch, bool dilate) const;
+  // The tolerance (detection.tolerance_px) of camera n's raw changes into its slice; a camera with
+  // the adaptive model widens only the changes on its floor mask (DilateFloorChanges).
+  void Widen(size_t n, ImageView<const uint8_t> raw, ImageView<uint8_t> slice, std::vector<uint8_t>& scratch) const;
 
  private:
   const Site& site_;

@@ -114,7 +114,7 @@ void FusionStage::DetectChanges(FrameSet& set, Context& ctx) {
     if (r > 0) {
       ParallelFor(ctx, 0, static_cast<int64_t>(n_cams), [&](int64_t b, int64_t e, int) {
         for (int64_t n = b; n < e; ++n) {
-          if (active[n]) DilateChanges(cams_[n].raw_changes.view(), r, changes_.Slice(set, n), cams_[n].dilate_scratch);
+          if (active[n]) changes_.Widen(static_cast<size_t>(n), cams_[n].raw_changes.view(), changes_.Slice(set, n), cams_[n].dilate_scratch);
         }
       });
     }
