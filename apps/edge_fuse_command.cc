@@ -56,6 +56,14 @@ CLI::App* AddFuseCommand(CLI::App& app, FuseCommand& cmd) {
   c->add_option("--out", cmd.options.run.out_dir, "output folder")->capture_default_str();
   c->add_option("--frames", cmd.options.run.max_frames, "fuse at most N frame sets")
       ->check(CLI::Range(int64_t{1}, int64_t{1'000'000'000'000}));
+  c->add_option("--sync", cmd.sync,
+                "align the cameras' frames by index or timestamp (default: timestamp when every camera is a live "
+                "stream, else index)")
+      ->check(CLI::IsMember({"index", "timestamp"}));
+  c->add_option("--sync-tolerance-s", cmd.options.sync_tolerance_s,
+                "--sync timestamp: a camera's frame this close after a frame set's oldest joins it (the edges' "
+                "clocks kept in step, e.g. by NTP; default 0.9 frame intervals)")
+      ->check(CLI::PositiveNumber);
   c->add_option("--latency-budget-s", cmd.options.latency_budget_s,
                 "a frame set waits this long for its cameras; the late ones are left out (their cells unseen)")
       ->capture_default_str();
@@ -91,10 +99,10 @@ Status RunEdgeCommand(EdgeCommand cmd, int threads, const std::string& data_root
   Context ctx(threads);
   OCCMAP_ASSIGN_OR_RETURN(EdgeSummary s, RunEdge(site, cmd.options, ctx));
   std::fputs(fmt::format("{} frame sets, {} messages, {:.1f} kB ({:.0f} bytes per message) in {:.2f} s: {}; "
-                         "{} reconnects\n",
+                         "{} reconnects, {} lost\n",
                          s.frame_sets, s.messages, static_cast<double>(s.bytes) / 1e3,
                          s.messages > 0 ? static_cast<double>(s.bytes) / static_cast<double>(s.messages) : 0.0,
-                         s.seconds, s.stop_reason, s.reconnects)
+                         s.seconds, s.stop_reason, s.reconnects, s.lost)
                  .c_str(),
              stdout);
   return Status::Ok();
@@ -107,6 +115,7 @@ Status RunFuseCommand(FuseCommand cmd, int threads, const std::string& data_root
   RunOptions& o = cmd.options.run;
   o.cache_dir = CacheDir(cmd.common);
   if (cmd.no_video) o.occupancy_video = false;
+  if (!cmd.sync.empty()) cmd.options.sync = cmd.sync == "index" ? FrameSync::kIndex : FrameSync::kTimestamp;
   o.output_mode = cmd.atomic_outputs ? OutputMode::kAtomic : OutputMode::kLive;
   o.wall_clock_times = !cmd.no_wall_clock;
   StopOnSignals signals(o.out_dir);

@@ -31,6 +31,7 @@ struct FuseCommand {
   bool no_video = false;
   bool no_wall_clock = false;
   bool atomic_outputs = false;
+  std::string sync;  // "index", "timestamp", empty: by the sources
 };
 
 CLI::App* AddEdgeCommand(CLI::App& app, EdgeCommand& cmd);

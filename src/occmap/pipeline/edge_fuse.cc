@@ -15,6 +15,7 @@
 #include "occmap/pipeline/camera_changes.h"
 #include "occmap/pipeline/camera_inputs.h"
 #include "occmap/pipeline/detect_track_stage.h"
+#include "occmap/pipeline/edge_align.h"
 #include "occmap/pipeline/edge_message.h"
 #include "occmap/pipeline/frame_reader.h"
 #include "occmap/pipeline/fusion_path.h"
@@ -32,6 +33,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+double UnixNow() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
 
 std::string Prefix(const Site& site, const std::string& given) {
   return given.empty() ? "occmap/" + TopicSlug(site.name) : given;
@@ -97,15 +101,49 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
   std::vector<std::string> topics;
   for (const CameraState& c : cams) topics.push_back(EdgeTopic(prefix, c.cam->id));
   auto stop_requested = [&] { return o.run.stop != nullptr && o.run.stop->load(); };
-  // While the broker is away the edge waits (a live source meanwhile keeps its newest frame).
-  auto wait_for_broker = [&] {
-    while (!link->connected() && !stop_requested()) link->WaitConnected(std::chrono::milliseconds(100));
-  };
+  // A live frame's time on this host's wall clock: its arrival (the fuse aligns live cameras
+  // of many hosts by it).
+  bool any_live = false;
+  std::vector<bool> live(cams.size());
+  for (size_t k = 0; k < cams.size(); ++k) {
+    live[k] = cams[k].cam->source.kind == FrameSourceSpec::Kind::kStream;
+    any_live = any_live || live[k];
+  }
+  const double live_epoch_unix =
+      UnixNow() - std::chrono::duration<double>(Clock::now() - reader.live_epoch()).count();
   EdgeSummary summary;
   int64_t next_frame = o.run.start_frame;
+  bool away = false;
+  Clock::time_point away_since;
+  int64_t lost_while_away = 0;
+  // While the broker is away, files wait for it (nothing is lost); live streams go on and the
+  // frame sets read meanwhile are not sent (counted).
+  auto broker_ready = [&] {
+    if (!link->connected() && !away) {
+      away = true;
+      away_since = Clock::now();
+      lost_while_away = 0;
+      std::fputs(fmt::format("occmap edge: the broker went away at frame {}\n", next_frame).c_str(), stderr);
+    }
+    while (!any_live && !link->connected() && !stop_requested()) link->WaitConnected(std::chrono::milliseconds(100));
+    if (link->connected() && away) {
+      std::fputs(fmt::format("occmap edge: the broker is back after {:.1f} s; {} frame sets not sent\n",
+                             Since(away_since), lost_while_away)
+                     .c_str(),
+                 stderr);
+      away = false;
+    }
+    return link->connected();
+  };
   while (!stop_requested() && reader.Read(set)) {
+    next_frame = set.frame_index + 1;
+    ++summary.frame_sets;
+    if (!broker_ready()) {
+      ++summary.lost;
+      ++lost_while_away;
+      continue;
+    }
     changes.EnsureBuffer(set);
-    wait_for_broker();
     for (size_t k = 0; k < cams.size(); ++k) {
       if (!set.active[k]) continue;
       changes.Compute(set, k, raw[k], scratch[k], /*dilate=*/true);
@@ -115,8 +153,8 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
       m.width = static_cast<uint32_t>(size.width);
       m.height = static_cast<uint32_t>(size.height);
       m.frame = set.frame_index;
-      m.timestamp_s = set.frames[k].timestamp_s;
-      m.t_unix = set.t_unix;
+      m.timestamp_s = live[k] ? live_epoch_unix + set.frames[k].timestamp_s : set.frames[k].timestamp_s;
+      m.t_unix = live[k] ? m.timestamp_s : set.t_unix;
       m.fps = fps[k];
       const uint8_t* first = set.changes.data() + changes.offset(k);
       m.changes.assign(first, first + static_cast<size_t>(size.width) * size.height);
@@ -124,12 +162,10 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
       OCCMAP_RETURN_IF_ERROR(link->Publish(topics[k], bytes));
       ++summary.messages;
     }
-    next_frame = set.frame_index + 1;
-    ++summary.frame_sets;
   }
   // The end of every source (not on a stop request: a restarted edge goes on where it was).
   if (!stop_requested()) {
-    wait_for_broker();
+    while (!link->connected() && !stop_requested()) link->WaitConnected(std::chrono::milliseconds(100));
     for (size_t k = 0; k < cams.size(); ++k) {
       m.kind = EdgeMessageKind::kEnd;
       m.camera = static_cast<uint32_t>(index[k]);
@@ -139,7 +175,7 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
       ++summary.messages;
     }
   }
-  link->WaitPublished(std::chrono::seconds(10));
+  if (!link->WaitPublished(std::chrono::seconds(10))) summary.lost += link->unacked();
   summary.bytes = link->bytes_published();
   summary.reconnects = std::max<int64_t>(0, link->connects() - 1);
   summary.seconds = Since(t_start);
@@ -193,59 +229,49 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   std::map<std::string, size_t> camera_of_topic;
   for (size_t n = 0; n < n_cams; ++n) camera_of_topic[EdgeTopic(prefix, site.cameras[n].id)] = n;
 
-  // The messages, aligned by frame index.
-  struct Pending {
-    std::vector<std::optional<EdgeMessage>> cams;
-    Clock::time_point first;
-  };
-  std::map<int64_t, Pending> pending;
-  std::vector<std::optional<int64_t>> ended_at(n_cams);
-  std::vector<Clock::time_point> last_heard(n_cams, t_start);
-  std::vector<bool> heard(n_cams, false);
+  const bool all_streams = std::all_of(site.cameras.begin(), site.cameras.end(), [](const SiteCamera& c) {
+    return c.source.kind == FrameSourceSpec::Kind::kStream;
+  });
+  AlignOptions align;
+  align.sync = o.sync ? *o.sync : all_streams ? FrameSync::kTimestamp : FrameSync::kIndex;
+  if (o.sync_tolerance_s > 0) align.tolerance_s = o.sync_tolerance_s;
+  align.latency_budget_s = o.latency_budget_s;
+  align.dead_after_s = o.dead_after_s;
+  align.start_wait_s = o.start_wait_s;
+  FrameSetAligner aligner(n_cams, align, t_start);
   std::set<std::string> refused_topics;
-  int64_t last_emitted = std::numeric_limits<int64_t>::min();
-  int64_t late_messages = 0;
   double fps = 0;
+  auto refuse = [&](const std::string& topic, const std::string& why) {
+    if (refused_topics.insert(topic).second) std::fputs(fmt::format("occmap fuse: refused: {}\n", why).c_str(), stderr);
+  };
   auto receive = [&](const MqttReceived& r) {
     auto topic = camera_of_topic.find(r.topic);
     if (topic == camera_of_topic.end()) return;
     auto m = DecodeEdgeMessage(r.payload, expect, r.topic);
-    if (!m.ok() || m->camera != topic->second) {
-      if (refused_topics.insert(r.topic).second) {
-        std::fputs(fmt::format("occmap fuse: refused: {}\n", m.ok() ? fmt::format("{}: camera index {} on camera {}'s topic",
-                                                                                  r.topic, m->camera, topic->second)
-                                                                    : m.status().message())
-                       .c_str(),
-                   stderr);
-      }
-      return;
+    if (!m.ok()) return refuse(r.topic, m.status().message());
+    if (m->camera != topic->second) {
+      return refuse(r.topic, fmt::format("{}: camera index {} on camera {}'s topic", r.topic, m->camera, topic->second));
     }
-    const size_t c = m->camera;
-    last_heard[c] = r.arrival;
-    heard[c] = true;
-    if (m->kind == EdgeMessageKind::kEnd) {
-      ended_at[c] = m->frame;
-      return;
+    if (m->kind == EdgeMessageKind::kEnd) return aligner.End(m->camera, m->frame, r.arrival);
+    if (align.sync == FrameSync::kTimestamp && std::isnan(m->timestamp_s)) {
+      return refuse(r.topic, fmt::format("{}: a frame without a timestamp; align by frame index (--sync index)", r.topic));
     }
-    ended_at[c].reset();  // an edge that sends again (restarted) is back
-    if (fps == 0 && m->fps > 0) fps = m->fps;
-    if (m->frame <= last_emitted) {
-      ++late_messages;
-      return;
+    if (fps == 0 && m->fps > 0) {
+      fps = m->fps;
+      if (o.sync_tolerance_s == 0) aligner.set_tolerance(align.tolerance_s = 0.9 / fps);
     }
-    Pending& p = pending[m->frame];
-    if (p.cams.empty()) {
-      p.cams.resize(n_cams);
-      p.first = r.arrival;
-    }
-    p.cams[c] = std::move(m).value();
+    aligner.Add(std::move(m).value(), r.arrival);
   };
   // The stages need the frame rate (times of frames without timestamps): from the first message.
-  while (pending.empty() && !stop_requested()) {
+  while (aligner.idle() && !aligner.all_ended() && !stop_requested()) {
     if (auto r = link->Pop(std::chrono::milliseconds(50))) receive(*r);
-    if (std::all_of(ended_at.begin(), ended_at.end(), [](const auto& e) { return e.has_value(); })) break;
   }
   if (fps == 0) fps = 10;
+  std::fputs(fmt::format("occmap fuse: frame sets aligned by {}\n",
+                         align.sync == FrameSync::kIndex ? std::string("frame index")
+                                                         : fmt::format("timestamp within {:.3f} s", align.tolerance_s))
+                 .c_str(),
+             stderr);
 
   OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FusionStage> fusion, FusionStage::Create(site, options, plan, lut, cams, fps, ctx));
   OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<DetectTrackStage> post,
@@ -261,8 +287,8 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   auto running_figures = [&](const FrameRecord& r, RunStats& stats) {
     const auto now = Clock::now();
     for (size_t n = 0; n < n_cams; ++n) {
-      stats.cameras[n].active = !ended_at[n].has_value();
-      stats.cameras[n].connected = std::chrono::duration<double>(now - last_heard[n]).count() < o.dead_after_s;
+      stats.cameras[n].active = !aligner.ended(n);
+      stats.cameras[n].connected = aligner.alive(n, now);
       stats.cameras[n].background_age_s = std::numeric_limits<double>::quiet_NaN();
     }
     (void)r;
@@ -279,60 +305,58 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   const CameraChanges& changes = fusion->changes();
   std::optional<Clock::time_point> t_first_set;
   Status failure;
-  auto emit = [&](int64_t frame, Pending& p) -> Status {
+  auto emit = [&](AlignedSet& a) -> Status {
     if (!t_first_set) t_first_set = Clock::now();
-    set.frame_index = frame;
-    set.timestamp_s = std::nan("");
-    set.arrival = p.first;
+    set.frame_index = a.frame;
+    set.timestamp_s = align.sync == FrameSync::kTimestamp ? a.time : std::nan("");
+    // The latency counts from the frames' capture (the earliest of the set, on the edges'
+    // clocks) when the clocks agree; else from the first message's arrival here.
+    double captured_unix = std::numeric_limits<double>::infinity();
     changes.EnsureBuffer(set);
     for (size_t n = 0; n < n_cams; ++n) {
-      set.active[n] = p.cams[n].has_value();
+      set.active[n] = a.cameras[n].has_value();
       if (!set.active[n]) continue;
-      const EdgeMessage& m = *p.cams[n];
-      if (std::isnan(set.timestamp_s)) {
-        set.timestamp_s = m.timestamp_s;
-        set.t_unix = m.t_unix;
-      }
+      const EdgeMessage& m = *a.cameras[n];
+      if (std::isnan(set.timestamp_s)) set.timestamp_s = m.timestamp_s;
+      captured_unix = std::min(captured_unix, m.t_unix);
       std::memcpy(set.changes.data() + changes.offset(n), m.changes.data(), m.changes.size());
     }
+    set.t_unix = captured_unix;
+    const double age_s = UnixNow() - captured_unix;
+    set.arrival = age_s >= 0 && age_s < 3600 ? Clock::now() - std::chrono::duration_cast<Clock::duration>(
+                                                                  std::chrono::duration<double>(age_s))
+                                             : a.first_arrival;
     set.changes_given = true;
     fusion->Process(set, ctx);
     FrameRecord record;
     OCCMAP_RETURN_IF_ERROR(post->Process(set, record));
     OCCMAP_RETURN_IF_ERROR(sink_stage.Consume(record));
     ++summary.frames;
-    last_emitted = frame;
     if (progress) progress({summary.frames, std::nullopt, Since(t_start)});
-    if (options.max_frames > 0 && summary.frames >= options.max_frames) return Status::Ok();
     return Status::Ok();
   };
-  auto all_ended = [&] { return std::all_of(ended_at.begin(), ended_at.end(), [](const auto& e) { return e.has_value(); }); };
-  const auto fuse_started = Clock::now();
-  while (failure.ok() && !stop_requested() && !(options.max_frames > 0 && summary.frames >= options.max_frames)) {
-    if (auto r = link->Pop(std::chrono::milliseconds(10))) receive(*r);
+  auto frame_limit = [&] { return options.max_frames > 0 && summary.frames >= options.max_frames; };
+  std::vector<bool> was_alive(n_cams, true);
+  while (failure.ok() && !stop_requested() && !frame_limit()) {
+    // Everything queued: a set is judged on every message that has arrived.
+    for (auto r = link->Pop(std::chrono::milliseconds(10)); r; r = link->Pop(std::chrono::milliseconds(0))) receive(*r);
     const auto now = Clock::now();
-    const bool ended = all_ended();
-    const bool starting = summary.frames == 0 && !std::all_of(heard.begin(), heard.end(), [](bool h) { return h; }) &&
-                          std::chrono::duration<double>(now - fuse_started).count() < o.start_wait_s;
-    while (!pending.empty() && failure.ok() && (!starting || ended)) {
-      auto it = pending.begin();
-      const int64_t f = it->first;
-      bool complete = true;
-      for (size_t n = 0; n < n_cams && complete; ++n) {
-        if (it->second.cams[n]) continue;
-        if (ended_at[n] && *ended_at[n] <= f) continue;
-        // Dead: silent too long (never heard: since the fuse started).
-        const auto since = std::max(last_heard[n], fuse_started);
-        if (std::chrono::duration<double>(now - since).count() >= o.dead_after_s) continue;
-        complete = false;
-      }
-      const bool expired = std::chrono::duration<double>(now - it->second.first).count() >= o.latency_budget_s;
-      if (!complete && !expired && !ended) break;
-      failure = emit(f, it->second);
-      pending.erase(it);
-      if (options.max_frames > 0 && summary.frames >= options.max_frames) break;
+    // Say when a camera is given up on and when it is back.
+    for (size_t n = 0; n < n_cams; ++n) {
+      const bool alive = aligner.alive(n, now) || aligner.ended(n) || !aligner.heard(n);
+      if (alive == was_alive[n]) continue;
+      was_alive[n] = alive;
+      std::fputs(fmt::format("occmap fuse: camera {} {} at frame set {}\n", site.cameras[n].id,
+                             alive ? "is back" : fmt::format("silent for {} s, left out", o.dead_after_s), summary.frames)
+                     .c_str(),
+                 stderr);
     }
-    if (ended && pending.empty()) break;
+    while (failure.ok() && !frame_limit()) {
+      std::optional<AlignedSet> a = aligner.Next(now);
+      if (!a) break;
+      failure = emit(*a);
+    }
+    if (aligner.all_ended() && aligner.idle()) break;
   }
   const RunStats& stats = sink_stage.stats();
   summary.stop_reason = !failure.ok()                                                      ? failure.message()
@@ -359,11 +383,13 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   summary.frames_per_second = summary.seconds > 0 ? static_cast<double>(summary.frames) / summary.seconds : 0;
   for (size_t n = 0; n < n_cams; ++n) {
     CameraRunInfo info = cams[n].info;
-    if (ended_at[n]) info.ended_at_frame = *ended_at[n];
+    if (aligner.ended(n)) info.ended_at_frame = aligner.ended_at(n);
+    info.left_out = aligner.left_out(n);
+    info.late_messages = aligner.late(n);
     summary.cameras.push_back(info);
   }
-  if (late_messages > 0) {
-    std::fputs(fmt::format("occmap fuse: {} messages came after their frame set was fused (dropped)\n", late_messages).c_str(),
+  if (aligner.late() > 0) {
+    std::fputs(fmt::format("occmap fuse: {} messages came after their frame set was fused (dropped)\n", aligner.late()).c_str(),
                stderr);
   }
   summary.outputs.push_back(summary_file.path().string());

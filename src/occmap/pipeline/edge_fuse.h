@@ -6,17 +6,18 @@
 // `occmap run`'s (a test with a real broker).
 //
 // Topics: <prefix>/edge/<camera id>, prefix occmap/<site slug> by default.
-// Alignment: by frame index (edges of one site file start at the same frame). A frame set is
+// Alignment (edge_align.h): by frame index over files (edges of one site file start at the same
+// frame), by timestamp within a tolerance over live streams (each edge stamps a live frame with
+// its arrival on the edge's wall clock, which NTP keeps in step across hosts). A frame set is
 // fused when every camera whose source has not ended has reported it, or when latency_budget_s
 // has passed since its first message: the cameras missing then are left out (their cells
-// unseen) and their late messages are dropped (counted). A camera that has sent nothing for
-// dead_after_s is dead: frame sets no longer wait for it until it sends again (an edge
-// restarted rejoins without a restart of the fuse). Before the first frame set the fuse waits
-// up to start_wait_s for every camera's first message. Over files, where edges run as fast as
-// they decode, a budget longer than the slowest edge's lag keeps every frame set whole (the
-// outputs then equal `occmap run`'s); over live streams the budget bounds the latency. When every camera has reported the end of
-// its source, the fuse finishes. Adaptive backgrounds (their update needs the fused map) are
-// not supported yet: both commands refuse such a site.
+// unseen) and their late messages are dropped (counted per camera in summary.json). A camera
+// silent for dead_after_s no longer holds frame sets up until it sends again (a restarted edge
+// rejoins without a restart of the fuse). Over files, where edges run as fast as they decode, a
+// budget longer than the slowest edge's lag keeps every frame set whole (the outputs then equal
+// `occmap run`'s); over live streams the budget bounds the latency. When every camera has
+// reported the end of its source, the fuse finishes. Adaptive backgrounds (their update needs
+// the fused map) are not supported yet: both commands refuse such a site.
 //
 //   OCCMAP_ASSIGN_OR_RETURN(EdgeSummary e, RunEdge(site, edge_options, ctx));
 //   OCCMAP_ASSIGN_OR_RETURN(RunSummary s, RunFuse(site, fuse_options, ctx, progress));
@@ -24,6 +25,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,6 +47,9 @@ struct EdgeSummary {
   int64_t messages = 0;
   int64_t bytes = 0;       // message bytes published (headers included)
   int64_t reconnects = 0;  // connections to the broker after the first
+  // Frame sets not sent: read while the broker was away (live streams do not wait for it; files
+  // do and lose nothing), and messages the broker had not acknowledged when the edge stopped.
+  int64_t lost = 0;
   double seconds = 0;
   std::string stop_reason;
 };
@@ -56,6 +61,12 @@ struct FuseOptions {
   MqttBroker broker;
   std::string topic_prefix;       // empty: occmap/<site slug>
   std::string client_id;          // empty: occmap-fuse-<prefix slug> (a persistent session)
+  // How the cameras' messages form frame sets (edge_align.h); empty: by timestamp when every
+  // camera is a live stream (their frame indexes are each edge's own count), else by index.
+  std::optional<FrameSync> sync;
+  // By timestamp: a frame this close after the set's oldest joins it. 0: 0.9 / fps of the first
+  // message that states its source's frame rate (live cameras are not in phase), else 0.09 s.
+  double sync_tolerance_s = 0;
   double latency_budget_s = 1.0;  // the longest a frame set waits for its cameras
   double dead_after_s = 3.0;      // a camera silent this long no longer holds frame sets up
   // Before the first frame set, every camera is waited for this long (edges starting up open

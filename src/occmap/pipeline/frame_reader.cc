@@ -31,6 +31,7 @@ FrameReader::FrameReader(std::vector<CameraState>& cams, const RunOptions& optio
   live_.resize(cams.size());
   last_live_frame_.assign(cams.size(), Clock::now());
   LiveSourceOptions live_options;
+  live_epoch_ = live_options.epoch;
   for (size_t n = 0; n < cams.size(); ++n) {
     CameraState& c = cams[n];
     if (c.cam->source.kind != FrameSourceSpec::Kind::kStream || options.sync != FrameSync::kIndex) continue;

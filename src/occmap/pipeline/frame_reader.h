@@ -50,6 +50,8 @@ class FrameReader {
   double decode_s() const { return decode_s_.load(std::memory_order_relaxed); }
   // A live stream's reader (its counters are atomics: any thread may read them), else null.
   const LiveSource* live(size_t camera) const { return live_[camera].get(); }
+  // A live frame's timestamp_s counts seconds from this instant (LiveSourceOptions::epoch).
+  std::chrono::steady_clock::time_point live_epoch() const { return live_epoch_; }
 
  private:
   std::vector<CameraState>& cams_;
@@ -59,6 +61,7 @@ class FrameReader {
   // reconnected after a drop; the camera stays active throughout.
   std::vector<std::unique_ptr<LiveSource>> live_;
   size_t num_live_ = 0;
+  std::chrono::steady_clock::time_point live_epoch_;
   std::vector<std::chrono::steady_clock::time_point> last_live_frame_;  // per live camera
   bool ReadLive(FrameSet& set);
   std::vector<size_t> to_read_;

@@ -56,6 +56,7 @@ class MqttLink {
   int64_t connects() const { return connects_.load(); }
   int64_t disconnects() const { return disconnects_.load(); }
   int64_t bytes_published() const { return bytes_published_.load(); }
+  int64_t unacked() const { return unacked_.load(); }
 
  private:
   MqttLink() = default;

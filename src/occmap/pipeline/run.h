@@ -117,6 +117,9 @@ struct CameraRunInfo {
   std::string background;  // "given: <path>", "estimated from K frames", "reused: <path>", "none (masks)"
   std::optional<int64_t> ended_at_frame;  // when its stream ended or failed before the run did
   std::string end_reason;
+  // occmap fuse: frame sets fused without this camera (late, lost or silent), and its messages
+  // that came after their frame set was fused (dropped).
+  std::optional<int64_t> left_out, late_messages;
 };
 
 struct RunSummary {

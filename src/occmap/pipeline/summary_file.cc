@@ -143,6 +143,8 @@ Status SummaryFile::WriteFinal(const RunSummary& summary, const RunStats& stats,
     }
     if (c.ended_at_frame) e["ended_at_frame"] = *c.ended_at_frame;
     if (!c.end_reason.empty()) e["end_reason"] = c.end_reason;
+    if (c.left_out) e["left_out"] = *c.left_out;
+    if (c.late_messages) e["late_messages"] = *c.late_messages;
     e["frames"] = stats.cameras[n].frames;
     e["dropped_frames"] = stats.cameras[n].dropped;
     e["reconnects"] = stats.cameras[n].reconnects;
