@@ -58,28 +58,40 @@ double ViewExplainer::UpperBound(int64_t k, std::span<const ChangeRowSums> count
   double gain = 0;
   for (int c = 0; c < columns_.num_cameras(); ++c) {
     if (!active[c]) continue;
-    const ColumnSpans s = PersonSpans(columns_, c, k, o);
-    if (s.visible_rows == 0) continue;
-    int64_t changed = 0, pixels = 0;
-    const int step = RowStep(s, o.max_rows);
-    for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); y += step) {
-      int x0, x1;
-      if (!s.Span(y, x0, x1)) continue;
-      changed += counts[c].Count(y, x0, x1);
-      pixels += x1 - x0 + 1;
-    }
-    if (pixels == 0) continue;
-    int64_t ground = 0;
-    const int band_end = GroundBandEnd(s, o);
-    for (int y = s.last_row + 1; y <= band_end; y += step) {
-      int x0, x1;
-      if (s.Span(y, x0, x1)) ground += counts[c].Count(y, x0, x1);
-    }
-    gain += PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(pixels - changed) -
-                          o.ground_weight * static_cast<double>(ground),
-                      pixels);
+    Term t;
+    CameraTerm(k, c, counts[c], o, t);
+    gain += t.gain;
   }
   return gain;
+}
+
+// The spans read from the row sums and the ground band below them, once for UpperBound and Terms.
+void ViewExplainer::CameraTerm(int64_t k, int c, const ChangeRowSums& counts, const ExplainOptions& o, Term& t) const {
+  t = Term{};
+  const ColumnSpans s = PersonSpans(columns_, c, k, o);
+  if (s.visible_rows == 0) return;
+  int64_t changed = 0, pixels = 0;
+  const int step = RowStep(s, o.max_rows);
+  for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); y += step) {
+    int x0, x1;
+    if (!s.Span(y, x0, x1)) continue;
+    changed += counts.Count(y, x0, x1);
+    pixels += x1 - x0 + 1;
+    t.body.Add(y, x0, x1);
+  }
+  if (pixels == 0) return;
+  int64_t ground = 0;
+  const int band_end = GroundBandEnd(s, o);
+  for (int y = s.last_row + 1; y <= band_end; y += step) {
+    int x0, x1;
+    if (!s.Span(y, x0, x1)) continue;
+    ground += counts.Count(y, x0, x1);
+    t.ground.Add(y, x0, x1);
+  }
+  t.counts = true;
+  t.gain = PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(pixels - changed) -
+                         o.ground_weight * static_cast<double>(ground),
+                     pixels);
 }
 
 double ViewExplainer::Gain(int64_t k, std::span<const ImageView<const uint8_t>> changes,
@@ -135,37 +147,12 @@ double ViewExplainer::Gain(int64_t k, std::span<const ImageView<const uint8_t>> 
 
 double ViewExplainer::Terms(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
                             const ExplainOptions& o, Term* terms) const {
-  // As UpperBound, keeping what each camera adds.
   double gain = 0;
   for (int c = 0; c < columns_.num_cameras(); ++c) {
-    Term& t = terms[c];
-    t = Term{};
+    terms[c] = Term{};
     if (!active[c]) continue;
-    const ColumnSpans s = PersonSpans(columns_, c, k, o);
-    if (s.visible_rows == 0) continue;
-    int64_t changed = 0, pixels = 0;
-    const int step = RowStep(s, o.max_rows);
-    for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); y += step) {
-      int x0, x1;
-      if (!s.Span(y, x0, x1)) continue;
-      changed += counts[c].Count(y, x0, x1);
-      pixels += x1 - x0 + 1;
-      t.body.Add(y, x0, x1);
-    }
-    if (pixels == 0) continue;
-    int64_t ground = 0;
-    const int band_end = GroundBandEnd(s, o);
-    for (int y = s.last_row + 1; y <= band_end; y += step) {
-      int x0, x1;
-      if (!s.Span(y, x0, x1)) continue;
-      ground += counts[c].Count(y, x0, x1);
-      t.ground.Add(y, x0, x1);
-    }
-    t.counts = true;
-    t.gain = PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(pixels - changed) -
-                           o.ground_weight * static_cast<double>(ground),
-                       pixels);
-    gain += t.gain;
+    CameraTerm(k, c, counts[c], o, terms[c]);
+    gain += terms[c].gain;
   }
   return gain;
 }

@@ -127,6 +127,8 @@ class ViewExplainer {
   void Cover(int64_t k, int32_t index, const std::vector<bool>& active, const ExplainOptions& options, int delta);
   double UpperBound(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
                     const ExplainOptions& options) const;
+  // Candidate k's Term in camera c (gain 0, counts false when c says nothing about it).
+  void CameraTerm(int64_t k, int c, const ChangeRowSums& counts, const ExplainOptions& options, Term& term) const;
   // UpperBound, keeping each camera's Term (terms: one per camera).
   double Terms(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
                const ExplainOptions& options, Term* terms) const;
