@@ -20,7 +20,7 @@ Result<TsaiParameters> ReadTsaiYaml(const fs::path& path, const std::string& cam
     if (!found) {
       std::string names;
       for (const auto& kv : root.node()) {
-        if (kv.second.IsMap()) names += (names.empty() ? "" : ", ") + kv.first.as<std::string>();
+        if (kv.first.IsScalar() && kv.second.IsMap()) names += (names.empty() ? "" : ", ") + kv.first.Scalar();
       }
       return root.Error(fmt::format("no camera '{}' (found: {})", camera, names.empty() ? "none" : names));
     }

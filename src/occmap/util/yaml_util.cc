@@ -167,7 +167,12 @@ Status YamlField::CheckKeys(std::initializer_list<std::string_view> allowed) con
 Status YamlField::CheckKeys(const std::vector<std::string>& allowed) const {
   if (!node_.IsMap()) return Error(fmt::format("expected a map, found {}", DescribeFound()));
   for (const auto& kv : node_) {
-    const std::string key = kv.first.as<std::string>();
+    // A key that is empty, a list or a map (`{!tag : 1}`, `? [a]`): yaml-cpp's as<> would throw.
+    if (!kv.first.IsScalar()) {
+      const YamlField where(kv.first, file_, path_);
+      return where.Error(fmt::format("expected a field name, found {}", where.DescribeFound()));
+    }
+    const std::string key = kv.first.Scalar();
     if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
     std::string best;
     int best_distance = 3;

@@ -58,7 +58,11 @@ INSTANTIATE_TEST_SUITE_P(
                 "t.yaml:2: floor: unknown field 'cell_size' (did you mean 'cell_size_m'?)"},
         BadCase{"floor:\n  colour: red\n",
                 "t.yaml:2: floor: unknown field 'colour' (expected one of: cell_size_m, size_m)"},
-        BadCase{"floor: 3\n", "t.yaml:1: floor: expected a map, found '3'"}));
+        BadCase{"floor: 3\n", "t.yaml:1: floor: expected a map, found '3'"},
+        // Keys that are not names (found by the scene_yaml fuzzer: yaml-cpp threw).
+        BadCase{"floor: {!t_m: [1, 2], size_m: 3}\n", "t.yaml:1: floor: expected a field name, found a list of 2"},
+        BadCase{"floor:\n  ?\n  : 1\n", "t.yaml:3: floor: expected a field name, found a map"},
+        BadCase{"floor:\n  ? [a, b]\n  : 1\n", "t.yaml:2: floor: expected a field name, found a list of 2"}));
 
 TEST(YamlField, SyntaxErrorNamesLineAndColumn) {
   const auto r = ParseYaml("a: [1, 2\nb: 3\n", "bad.yaml");
