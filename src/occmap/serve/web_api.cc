@@ -209,7 +209,10 @@ Result<std::string> DecodeBase64(std::string_view text, std::string_view field) 
       continue;
     }
     if (v < 0 || pad > 0) {
-      return InvalidInput(fmt::format("{}: expected base64, found '{}' at character {}", field, c, i + 1));
+      // A byte of a multi-byte character is named by its value: the message must stay UTF-8.
+      const auto u = static_cast<unsigned char>(c);
+      const std::string found = u >= 0x20 && u < 0x7f ? fmt::format("'{}'", c) : fmt::format("byte 0x{:02X}", u);
+      return InvalidInput(fmt::format("{}: expected base64, found {} at character {}", field, found, i + 1));
     }
     acc = (acc << 6) | static_cast<uint32_t>(v);
     bits += 6;

@@ -44,6 +44,12 @@ TEST(WebApi, DecodesBase64AndDataUrls) {
   const auto bad = DecodeBase64("b2Nj*bWFw", "image");
   ASSERT_FALSE(bad.ok());
   EXPECT_EQ(bad.status().message(), "image: expected base64, found '*' at character 5");
+  // A non-ASCII character: named by its first byte's value, the message still valid UTF-8
+  // (it goes back in a JSON reply; found by the serve_api fuzzer).
+  const auto accented = DecodeBase64("b2Nj\u00e9bWFw", "image");
+  ASSERT_FALSE(accented.ok());
+  EXPECT_EQ(accented.status().message(), "image: expected base64, found byte 0xC3 at character 5");
+  EXPECT_NO_THROW((void)json({{"error", accented.status().message()}}).dump());
   EXPECT_FALSE(DecodeBase64("b", "image").ok());                       // cut short
   EXPECT_FALSE(DecodeBase64("b2==Nj", "image").ok());                  // data after the padding
   EXPECT_FALSE(DecodeBase64("data:image/png,b2Nj", "image").ok());     // not a base64 data URL
