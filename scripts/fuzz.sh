@@ -34,8 +34,9 @@ cmake --build --preset fuzz
 
 datasets=${OCCMAP_DATASETS:-../shared/datasets}
 build=build/fuzz
-seeds=$build/seeds
-rm -rf "$seeds"
+# Per process: two runs of this script at once (different targets) do not share it.
+seeds=$build/seeds-$$
+trap 'rm -rf "$seeds"' EXIT
 mkdir -p "$seeds" "$build/artifacts"
 # Seeds from the datasets, made at run time (two-file calibrations joined at a NUL byte).
 if [ -d "$datasets" ]; then
