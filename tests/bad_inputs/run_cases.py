@@ -176,6 +176,7 @@ site("site_not_a_map", "version: 1\n", "- 1\n", [], count=1)
 site("site_version", "version: 1\n", "version: 2\n", ["version", "expected site format version 1, found 2"])
 site("site_version_text", "version: 1\n", "version: one\n", ["version", "expected an integer, found 'one'"])
 site("site_unknown_key", "floor:\n", "flor: 1\nfloor:\n", ["unknown field 'flor'", "did you mean 'floor'"])
+site("site_key_not_a_name", "floor:\n", "? [a, b]\n: 1\nfloor:\n", ["expected a field name, found a list of 2"])
 site("site_missing_floor", "floor:\n  origin_m: [0, 0]\n  cells: [450, 325]\n  cell_size_m: 0.02\n", "",
      ["missing required field 'floor'"])
 site("site_missing_cameras", "cameras:\n", "cameraz:\n", ["unknown field 'cameraz'"])
