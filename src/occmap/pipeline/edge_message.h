@@ -1,16 +1,19 @@
 // EdgeMessage: what an `occmap edge` process publishes per camera and frame for `occmap fuse`
-// (issue 17): the camera's changes after the tolerance, one bit per pixel compressed with
-// zstd, never the image. The fusion needs nothing else for the floor's AND, the vote rule, the
+// (issue 17): the camera's changes after the tolerance, its rows coded as fax machines code
+// theirs (ITU-T T.6) and compressed with zstd, never the image. The fusion needs nothing else for the floor's AND, the vote rule, the
 // elevated check and the people's fusions: they all read the change buffer.
 //
-// Binary, little-endian, version 1:
+// Binary, little-endian, version 2:
 //   "OCME"  u16 schema version  u16 kind (0 changes, 1 end of the camera's source)
 //   u64 table key (GroundLutKey of the site: cameras, masks, grid)
 //   u64 settings key (the detection section: threshold, tolerance, colour, backgrounds)
 //   u32 camera index  u32 width  u32 height  i64 frame index
 //   f64 timestamp_s (NaN: none)  f64 t_unix  f64 fps (the source's, 0: none)
-//   u32 raw bytes (the packed bits: ceil(width * height / 8))  u32 payload bytes
-//   payload: zstd frame of the packed bits (bit k of byte k / 8 = pixel k, row-major)
+//   u32 raw bytes (the coded rows)  u32 payload bytes
+//   payload: zstd frame of the coded rows: u32 number of modes, the modes two to a byte
+//   (first * 9 + second; 0 vertical 0, 1-3 vertical +1..+3, 4-6 vertical -1..-3, 7 pass,
+//   8 horizontal), then the horizontal modes' two run lengths each as LEB128 varints
+//   (docs/formats.md)
 // A fuse process refuses a message of another schema version, or built for other tables or
 // other detection settings, with a message naming what differs.
 //
@@ -29,7 +32,7 @@
 
 namespace occmap {
 
-constexpr uint16_t kEdgeSchemaVersion = 1;
+constexpr uint16_t kEdgeSchemaVersion = 2;
 
 enum class EdgeMessageKind : uint16_t { kChanges = 0, kEnd = 1 };
 
@@ -60,6 +63,9 @@ uint64_t EdgeSettingsKey(const Site& site);
 
 // changes: the camera's slice, row-major without padding (width * height).
 std::string EncodeEdgeMessage(const EdgeMessage& message);
+// Another frame index, timestamp and t_unix in an encoded message (the bench's simulated
+// cameras send recorded messages again).
+void RestampEdgeMessage(std::string& bytes, int64_t frame, double timestamp_s, double t_unix);
 // source names the message in errors (e.g. its topic).
 Result<EdgeMessage> DecodeEdgeMessage(std::string_view bytes, const EdgeExpectation& expect,
                                       std::string_view source);
