@@ -86,8 +86,10 @@ Result<PinholeParameters> ReadGoProCalibration(const fs::path& intrinsic_path, c
     for (int i = 0; i < 5; ++i) p.distortion[i] = d[i];
   }
   OCCMAP_ASSIGN_OR_RETURN(std::vector<double> shape, Matrix(intr, intrinsic_path, "image_shape", 1, 2));
-  if (shape[0] != std::floor(shape[0]) || shape[1] != std::floor(shape[1]) || shape[0] <= 0 || shape[1] <= 0) {
-    return InvalidInput(fmt::format("'{}': image_shape: expected positive integers [height, width], found [{}, {}]",
+  // Bounded as the other readers' sizes (1..65535): an int past that is undefined behaviour.
+  if (shape[0] != std::floor(shape[0]) || shape[1] != std::floor(shape[1]) || shape[0] <= 0 || shape[1] <= 0 ||
+      shape[0] > 65535 || shape[1] > 65535) {
+    return InvalidInput(fmt::format("'{}': image_shape: expected whole numbers 1..65535 [height, width], found [{}, {}]",
                                     intrinsic_path.string(), shape[0], shape[1]));
   }
   p.image_size = {static_cast<int>(shape[1]), static_cast<int>(shape[0])};

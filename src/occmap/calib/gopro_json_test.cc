@@ -79,7 +79,10 @@ INSTANTIATE_TEST_SUITE_P(
         BadJson{"zero_focal", R"({"K": [[0,0,960],[0,900,540],[0,0,1]], "image_shape": [1080, 1920]})", kExtr,
                 "expected positive focal lengths"},
         BadJson{"bad_shape", R"({"K": [[900,0,960],[0,900,540],[0,0,1]], "image_shape": [1080.5, 1920]})",
-                kExtr, "image_shape: expected positive integers [height, width], found [1080.5, 1920]"},
+                kExtr, "image_shape: expected whole numbers 1..65535 [height, width], found [1080.5, 1920]"},
+        // Past an int: undefined behaviour in the conversion (found by the gopro_calibration fuzzer).
+        BadJson{"huge_shape", R"({"K": [[900,0,960],[0,900,540],[0,0,1]], "image_shape": [1080, 1.921e11]})",
+                kExtr, "image_shape: expected whole numbers 1..65535 [height, width], found [1080, 192100000000]"},
         BadJson{"bad_unit", kIntr, R"({"unit": "furlong", "t": [1,2,3], "R": [[1,0,0],[0,1,0],[0,0,1]]})",
                 "unit: expected m, cm or mm, found 'furlong'"},
         BadJson{"no_unit", kIntr, R"({"t": [1,2,3], "R": [[1,0,0],[0,1,0],[0,0,1]]})",
