@@ -57,7 +57,9 @@ if [ -d "$datasets" ]; then
     [ -f "$extr" ] && { cat "$intr"; printf '\0'; cat "$extr"; } >"$seeds/gopro_calibration/$(basename "$intr")"
   done
   cp "$datasets"/tsai-terrace/*.yaml "$seeds/tsai_calibration/" 2>/dev/null || true
-  ls "$datasets"/wildtrack/annotations_positions/*.json 2>/dev/null | head -20 | xargs -r cp -t "$seeds/ground_truth/"
+  # Not `ls | head`: ls killed by SIGPIPE fails the pipe, and set -e ended the script silently.
+  gt=("$datasets"/wildtrack/annotations_positions/*.json)
+  if [ -f "${gt[0]}" ]; then cp -t "$seeds/ground_truth/" "${gt[@]:0:20}"; fi
   cp sites/*.yaml "$seeds/site_yaml/"
 fi
 
