@@ -115,6 +115,9 @@ Result<IntrinsicsOptions> BoardOptionsFromJson(const json& j) {
   }
   IntrinsicsOptions o;
   BoardOptions& b = o.board;
+  if (j.contains("kind") && !j["kind"].is_string()) {
+    return InvalidInput(fmt::format("board.kind: expected \"checkerboard\" or \"charuco\", found {}", j["kind"].dump()));
+  }
   const std::string kind = j.value("kind", std::string("checkerboard"));
   if (kind == "charuco") {
     b.kind = BoardKind::kCharuco;
@@ -400,6 +403,9 @@ Result<json> ServeSession::AddBoardView(const json& body) {
   if (FindCamera(*site, id) == nullptr) return InvalidInput(fmt::format("camera: no camera '{}' in the site", id));
   if (!body.contains("board")) return InvalidInput("board: missing");
   OCCMAP_ASSIGN_OR_RETURN(IntrinsicsOptions options, BoardOptionsFromJson(body["board"]));
+  if (body.contains("capture") && !body["capture"].is_boolean()) {
+    return InvalidInput(fmt::format("capture: expected true or false, found {}", body["capture"].dump()));
+  }
   const bool capture = body.value("capture", false);
   if (capture == body.contains("image")) {
     return InvalidInput("expected either \"capture\": true (the camera's current frame) or \"image\" (base64 PNG or JPEG)");
