@@ -172,14 +172,29 @@ CellState CandidateState(const ColumnLut& columns, int64_t k, const std::vector<
 
 }  // namespace
 
-const ColumnFusion::Plan& ColumnFusion::PlanFor(const ColumnFusionOptions& o) const {
+int64_t CountBand(const ColumnSpans& s, const ChangeRowSums& counts, int max_rows, int64_t& pixels) {
+  const int stride = RowStride(s, max_rows);
+  int64_t changed = 0;
+  pixels = 0;
+  for (int y = s.first_row; y <= s.last_row; y += stride) {
+    int x0, x1;
+    if (!s.Span(y, x0, x1)) continue;
+    changed += counts.Count(y, x0, x1);
+    pixels += x1 - x0 + 1;
+  }
+  return changed;
+}
+
+std::shared_ptr<const ColumnFusion::Plan> ColumnFusion::PlanFor(const ColumnFusionOptions& o) const {
   std::lock_guard<std::mutex> lock(plan_mutex_);
-  if (plan_ && plan_->band_low_m == o.band_low_m && plan_->band_high_m == o.band_high_m && plan_->radius_m == o.radius_m)
-    return *plan_;
+  if (plan_ && plan_->band_low_m == o.band_low_m && plan_->band_high_m == o.band_high_m && plan_->radius_m == o.radius_m &&
+      plan_->revision == columns_.revision())
+    return plan_;
   auto plan = std::make_shared<Plan>();
   plan->band_low_m = o.band_low_m;
   plan->band_high_m = o.band_high_m;
   plan->radius_m = o.radius_m;
+  plan->revision = columns_.revision();
   const double h = columns_.options().height_m;
   const int64_t n = columns_.candidates().num_cells();
   plan->first_entry.reserve(static_cast<size_t>(n) + 1);
@@ -208,7 +223,7 @@ const ColumnFusion::Plan& ColumnFusion::PlanFor(const ColumnFusionOptions& o) co
   OCCMAP_CHECK(plan->entries.size() < (size_t{1} << 32) && plan->spans.size() < (size_t{1} << 32),
                "ColumnFusion: plan too large");
   plan_ = std::move(plan);
-  return *plan_;
+  return plan_;
 }
 
 void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
@@ -216,7 +231,8 @@ void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector
   const FloorGrid& grid = columns_.candidates();
   if (!(map.grid() == grid)) map = OccupancyMap(grid);
   std::vector<CellState>& states = map.states();
-  const Plan& plan = PlanFor(options);
+  const std::shared_ptr<const Plan> held = PlanFor(options);
+  const Plan& plan = *held;
   const double h = columns_.options().height_m;
   const ColumnFusionOptions& o = options;
   // As CandidateState, the first look's spans read from the plan.
@@ -239,14 +255,8 @@ void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector
       }
       const ColumnSpans s =
           MakeColumnSpans(columns_.view(c, k), o.radius_m, o.band_low_m / h, o.band_high_m / h, columns_.image_size(c));
-      const int stride = RowStride(s, o.max_rows);
-      int64_t changed = 0, pixels = 0;
-      for (int y = s.first_row; y <= s.last_row; y += stride) {
-        int x0, x1;
-        if (!s.Span(y, x0, x1)) continue;
-        changed += count.Count(y, x0, x1);
-        pixels += x1 - x0 + 1;
-      }
+      int64_t pixels = 0;
+      const int64_t changed = CountBand(s, count, o.max_rows, pixels);
       if (pixels == 0) continue;
       ++tested;
       if (static_cast<double>(changed) < o.min_changed * static_cast<double>(pixels)) {

@@ -112,6 +112,10 @@ struct ColumnSpans {
 ColumnSpans MakeColumnSpans(const ColumnView& view, double radius_m, double band_low, double band_high,
                             ImageSize image);
 
+// The changed pixels of a band's spans over at most max_rows of its rows (evenly spaced from its
+// first, as the column fusion reads them); pixels: how many pixels those spans hold.
+int64_t CountBand(const ColumnSpans& spans, const ChangeRowSums& counts, int max_rows, int64_t& pixels);
+
 class ColumnFusion {
  public:
   explicit ColumnFusion(const ColumnLut& columns) : columns_(columns) {}
@@ -131,6 +135,7 @@ class ColumnFusion {
   // Per candidate, the cameras whose view of the band the vote reads, with the first look's spans.
   struct Plan {
     double band_low_m = -1, band_high_m = -1, radius_m = -1;
+    uint64_t revision = 0;  // the table's (its learned blocks)
     struct Entry {
       uint32_t first_span;  // into spans
       uint32_t pixels;      // of the first look's spans (0: the first look reads nothing)
@@ -143,7 +148,8 @@ class ColumnFusion {
     std::vector<Entry> entries;
     std::vector<Span> spans;
   };
-  const Plan& PlanFor(const ColumnFusionOptions& options) const;
+  // Shared: a plan replaced (other options, the table's blocks learned) lives while a Fuse reads it.
+  std::shared_ptr<const Plan> PlanFor(const ColumnFusionOptions& options) const;
 
   const ColumnLut& columns_;
   mutable std::mutex plan_mutex_;

@@ -16,12 +16,13 @@ const char* ToString(PeopleDetector d) {
 Status PeopleOptions::Validate(int num_cameras) const {
   OCCMAP_RETURN_IF_ERROR(columns.Validate(FloorGrid{}));
   OCCMAP_RETURN_IF_ERROR(column.Validate(columns.height_m, num_cameras).WithContext("column"));
-  return explain.Validate().WithContext("explain");
+  OCCMAP_RETURN_IF_ERROR(explain.Validate().WithContext("explain"));
+  return occluders.Validate().WithContext("occluders");
 }
 
 Status ParsePeopleOptions(const YamlField& f, int num_cameras, PeopleOptions& o) {
   o.enabled = true;
-  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"detector", "height_m", "step_m", "column", "explain"}));
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"detector", "height_m", "step_m", "column", "explain", "occluders"}));
   OCCMAP_ASSIGN_OR_RETURN(std::string detector, f.GetString("detector", ToString(o.detector)));
   if (detector == "floor") {
     o.detector = PeopleDetector::kFloor;
@@ -71,6 +72,7 @@ Status ParsePeopleOptions(const YamlField& f, int num_cameras, PeopleOptions& o)
     o.explain.max_rows = static_cast<int>(std::clamp<int64_t>(rows, -1, 100000));
     if (Status s = o.explain.Validate(); !s.ok()) return e->Error(s.message());
   }
+  if (auto e = f.Find("occluders")) OCCMAP_RETURN_IF_ERROR(ParseOccluderLearningOptions(*e, o.occluders));
   return Status::Ok();
 }
 

@@ -16,9 +16,12 @@
 //     column: {band_m: [0.8, 1.5], radius_m: 0.1, min_changed: 0.5, max_free_views: 0}
 //     explain: {radius_m: 0.15, unchanged_weight: 0.9, min_gain: 0.7, min_separation_m: 0.35,
 //               moves: 2, move_radius_m: 0.5, ground_band: 0.2, ground_weight: 2}
+//     occluders: {learn: false, max_changed: 0.1, min_others: 2, episode_frames: 20,
+//                 min_episodes: 6, max_contrary: 0.2}   # learned static occluders
 #pragma once
 
 #include "occmap/fusion/column_fusion.h"
+#include "occmap/fusion/occluder_learning.h"
 #include "occmap/fusion/view_explainer.h"
 #include "occmap/lut/column_lut.h"
 #include "occmap/util/status.h"
@@ -37,6 +40,7 @@ struct PeopleOptions {
   // rendered WILDTRACK crowd (docs/perf-log.md).
   ColumnFusionOptions column{.band_low_m = 0.8, .band_high_m = 1.5};
   ExplainOptions explain;
+  OccluderLearningOptions occluders;
   Status Validate(int num_cameras) const;
 };
 

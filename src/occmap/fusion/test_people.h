@@ -28,12 +28,13 @@ struct PeopleRoom {
     for (auto& im : changes)
       for (int y = 0; y < im.height(); ++y) std::fill_n(im.row(y), im.width(), uint8_t{0});
   }
-  // A person of radius_m standing at (x, y): their model's image painted in every camera.
-  void Paint(double x_m, double y_m, double radius_m = 0.2) {
+  // A person of radius_m standing at (x, y): their model's image painted in every camera (but
+  // those whose view `hidden_by`, a table of the same cameras with statics, says a static hides).
+  void Paint(double x_m, double y_m, double radius_m = 0.2, const ColumnLut* hidden_by = nullptr) {
     const int64_t k = columns.candidates().CellAt(x_m, y_m);
     for (int c = 0; c < columns.num_cameras(); ++c) {
       const ColumnView& v = columns.view(c, k);
-      if (!v.projected) continue;
+      if (!v.projected || (hidden_by != nullptr && hidden_by->view(c, k).blocked)) continue;
       const ColumnSpans s = MakeColumnSpans(v, radius_m, 0.0, 1.0, columns.image_size(c));
       for (int y = s.first_row; y <= s.last_row; ++y) {
         int x0, x1;

@@ -66,7 +66,8 @@ struct ColumnView {
   float half_width_top = 0, half_width_bottom = 0;  // pixels per metre of radius, at those rows
   bool seen = false;     // the foot projects onto a monitored pixel, in front
   bool projected = false;  // foot and top project (in front), wherever they land
-  bool blocked = false;  // a static occluder hides at least half of the column
+  bool blocked = false;  // a static occluder hides at least half of the column: the camera abstains
+  bool learned = false;  // blocked by learning (fusion/occluder_learning.h), not by a given static
 };
 
 class ColumnLut {
@@ -86,6 +87,19 @@ class ColumnLut {
   std::span<const uint8_t> view_count() const { return view_count_; }
   int64_t MemoryBytes() const;
 
+  // Learned occluders (fusion/occluder_learning.h): blocks or unblocks a view no given static
+  // blocks (those are left as they are). revision() counts the changes, so that what is worked
+  // out from the blocks (the column fusion's plan) follows them.
+  void SetLearnedBlocked(int camera, int64_t candidate, bool blocked) {
+    ColumnView& v = views_[static_cast<size_t>(camera) * static_cast<size_t>(candidates_.num_cells()) +
+                           static_cast<size_t>(candidate)];
+    if (v.blocked && !v.learned) return;
+    if (v.learned == blocked) return;
+    v.blocked = v.learned = blocked;
+    ++revision_;
+  }
+  uint64_t revision() const { return revision_; }
+
  private:
   friend Result<ColumnLut> BuildColumnLut(const std::vector<LutCameraInput>&, const FloorGrid&, double,
                                           const ColumnLutOptions&, std::span<const Occluder>, Context&);
@@ -95,6 +109,7 @@ class ColumnLut {
   std::vector<ImageSize> image_sizes_;
   std::vector<ColumnView> views_;  // [camera * candidates + candidate]
   std::vector<uint8_t> view_count_;
+  uint64_t revision_ = 0;
 };
 
 // The candidate grid of a floor grid: cells of step_m (rounded to whole cells, at least one)

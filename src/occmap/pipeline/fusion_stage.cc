@@ -1,5 +1,7 @@
 #include "occmap/pipeline/fusion_stage.h"
 
+#include <fmt/core.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -56,6 +58,14 @@ Result<std::unique_ptr<FusionStage>> FusionStage::Create(const Site& site, const
     s->column_lut_ = std::move(columns);
     s->column_fusion_.emplace(*s->column_lut_);
     if (site.people.detector == PeopleDetector::kExplain) s->explainer_.emplace(*s->column_lut_);
+    if (site.people.occluders.learn) {  // from the cache's file for these tables, when there is one
+      s->occluders_.emplace(*s->column_lut_, site.people.column, site.people.occluders);
+      if (!options.cache_dir.empty()) {
+        s->occluders_cache_ = options.cache_dir / "occluders" /
+                              fmt::format("{}-{:016x}.txt", site.name, OccluderLearner::Fingerprint(*s->column_lut_));
+        (void)s->occluders_->Load(s->occluders_cache_);  // missing, stale or corrupt: learned afresh
+      }
+    }
   }
   const BackgroundOptions& bo = site.backgrounds;
   if (plan.adaptive && bo.shadows.enabled && bo.shadows.floor_check) s->shadow_check_.emplace(lut);
@@ -171,7 +181,19 @@ void FusionStage::FindPeople(FrameSet& set, Context& ctx) {
   });
   column_fusion_->Fuse(change_counts_, active, site_.people.column, ctx, set.column_map);
   if (explainer_) explainer_->Explain(change_views_, change_counts_, active, set.column_map, site_.people.explain, ctx, set.people);
+  if (occluders_) occluders_->Observe(change_views_, change_counts_, active, set.people, set.frame_index, ctx);
   people_s_.Add(Since(t0));
+}
+
+Status FusionStage::SaveLearnedOccluders(const std::filesystem::path& out, std::vector<std::string>& written) const {
+  if (!occluders_) return Status::Ok();
+  OCCMAP_RETURN_IF_ERROR(occluders_->Save(out / "occluders.txt"));
+  written.push_back((out / "occluders.txt").string());
+  if (occluders_cache_.empty()) return Status::Ok();
+  std::error_code ec;
+  std::filesystem::create_directories(occluders_cache_.parent_path(), ec);
+  (void)occluders_->Save(occluders_cache_);  // a cache that cannot be written is only not reused
+  return Status::Ok();
 }
 
 // The adaptive backgrounds follow the frame where the map says nothing stands.

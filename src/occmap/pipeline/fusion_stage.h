@@ -17,6 +17,7 @@
 
 #include "occmap/fusion/column_fusion.h"
 #include "occmap/fusion/fast_fusion.h"
+#include "occmap/fusion/occluder_learning.h"
 #include "occmap/fusion/fusion.h"
 #include "occmap/fusion/view_explainer.h"
 #include "occmap/lut/column_lut.h"
@@ -55,6 +56,9 @@ class FusionStage {
   double background_s() const { return background_s_.get(); }
   // Camera n's adaptive background's mean age (NaN before it is first sampled, or no model).
   double background_age_s(size_t n) const { return background_age_s_[n].get(); }
+  // With `people: {occluders: {learn: true}}`: writes the learned occluders to out/occluders.txt
+  // and to the cache (the next run starts from them); the paths written are appended.
+  Status SaveLearnedOccluders(const std::filesystem::path& out, std::vector<std::string>& written) const;
   // The last frame whose backgrounds were updated (options.start_frame before any).
   int64_t last_frame_index() const { return last_frame_index_; }
 
@@ -81,6 +85,8 @@ class FusionStage {
   std::optional<ColumnLut> column_lut_;
   std::optional<ColumnFusion> column_fusion_;
   std::optional<ViewExplainer> explainer_;
+  std::optional<OccluderLearner> occluders_;
+  std::filesystem::path occluders_cache_;  // empty: no cache
   std::vector<ChangeRowSums> change_counts_;
   std::vector<ImageView<const uint8_t>> change_views_;
   // Adaptive backgrounds: protection from the map, shadow teachers and the shadows' floor check.

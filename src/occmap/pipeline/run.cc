@@ -327,6 +327,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       if (output_failure.ok()) summary.outputs.push_back((out / "mosaic.png").string());
     }
   }
+  if (output_failure.ok()) output_failure = fusion->SaveLearnedOccluders(out, summary.outputs);
   if (!output_failure.ok()) summary.stop_reason = output_failure.message();
   summary.seconds = Since(t_start);
   summary.frames_per_second = summary.seconds > 0 ? static_cast<double>(summary.frames) / summary.seconds : 0;
