@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <opencv2/core.hpp>
 #include <sstream>
@@ -18,6 +19,44 @@ namespace occmap {
 namespace fs = std::filesystem;
 namespace {
 
+// OpenCV 4.6's XML parser dereferences a null pointer when an attribute's '=' is followed by
+// anything but a quote (`<?xml version=` at the end of a file: a SEGV found by
+// fuzz/opencv_calibration_fuzzer): such text is refused before it gets there.
+Status CheckXmlAttributes(std::string_view text, const fs::path& path) {
+  const size_t first = text.find_first_not_of(" \t\r\n");
+  if (first == std::string_view::npos || text[first] != '<') return Status::Ok();  // YAML or JSON
+  bool in_tag = false;
+  for (size_t i = first; i < text.size(); ++i) {
+    if (!in_tag) {
+      if (text.substr(i, 4) == "<!--") {
+        const size_t end = text.find("-->", i + 4);
+        if (end == std::string_view::npos) break;
+        i = end + 2;
+      } else if (text[i] == '<') {
+        in_tag = true;
+      }
+      continue;
+    }
+    if (text[i] == '>') {
+      in_tag = false;
+    } else if (text[i] == '"' || text[i] == '\'') {
+      const size_t end = text.find(text[i], i + 1);
+      if (end == std::string_view::npos) break;
+      i = end;
+    } else if (text[i] == '=') {
+      const size_t next = text.find_first_not_of(" \t\r\n", i + 1);
+      if (next == std::string_view::npos || (text[next] != '"' && text[next] != '\'')) {
+        const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(i), '\n');
+        return InvalidInput(fmt::format("'{}':{}: expected a quoted attribute value after '=', found {}",
+                                        path.string(), line,
+                                        next == std::string_view::npos ? std::string("the end of the file")
+                                                                       : fmt::format("'{}'", text[next])));
+      }
+    }
+  }
+  return Status::Ok();
+}
+
 Result<cv::FileStorage> Open(const fs::path& path) {
   OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path, kMaxTextFileBytes));
   if (text.find_first_not_of(" \t\r\n") == std::string::npos) {
@@ -29,6 +68,7 @@ Result<cv::FileStorage> Open(const fs::path& path) {
     return InvalidInput(fmt::format("'{}': expected an OpenCV FileStorage text file, found a NUL byte at offset {}",
                                     path.string(), nul));
   }
+  OCCMAP_RETURN_IF_ERROR(CheckXmlAttributes(text, path));
   try {
     cv::FileStorage storage(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
     if (!storage.isOpened()) {

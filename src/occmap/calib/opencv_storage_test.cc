@@ -148,6 +148,11 @@ INSTANTIATE_TEST_SUITE_P(
                        Extrinsic(kGoodR, kGoodT), "only k1 k2 p1 p2 k3 are supported, found coefficient 6 = 0.5"},
         BadCalibration{"nul_byte", Intrinsic(kGoodK), std::string("<?xml version=\0\0\"1.0\"?>\n<opencv_storage>\n", 41),
                        "e.xml': expected an OpenCV FileStorage text file, found a NUL byte at offset 14"},
+        // OpenCV 4.6 dereferenced a null pointer here (found by the opencv_calibration fuzzer).
+        BadCalibration{"unquoted_attribute_at_the_end", "<?xml version=", Extrinsic(kGoodR, kGoodT),
+                       "i.xml':1: expected a quoted attribute value after '=', found the end of the file"},
+        BadCalibration{"unquoted_attribute", Intrinsic(kGoodK), "<?xml version=\"1.0\"?>\n<opencv_storage>\n<rvec a=\n",
+                       "e.xml':3: expected a quoted attribute value after '=', found the end of the file"},
         BadCalibration{"short_data", Intrinsic("1000 0 320 0 1000 240 0 0"), Extrinsic(kGoodR, kGoodT),
                        "camera_matrix: expected rows x cols = 3 x 3 = 9 numbers in data, found 8"},
         BadCalibration{"lowercase_nan", Intrinsic("1000 0 nan 0 1000 240 0 0 1"), Extrinsic(kGoodR, kGoodT),
