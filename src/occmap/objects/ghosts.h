@@ -26,7 +26,12 @@ struct Viewer {
 };
 
 // points: the detections' floor positions. Returns ghost[i] for each.
+// samples (optional, one list per point, empty lists allowed): floor points of each detection's
+// own cells. The test is then made at each sample, and a detection is a ghost when it holds at
+// most of them: a ghost is a streak along the views that hide it, whose centre may lie beside
+// its cells, where a camera that sees none of them sees the floor lit.
 std::vector<bool> FindGhosts(const std::vector<Eigen::Vector2d>& points_m, const std::vector<Viewer>& viewers,
-                             const GhostOptions& options);
+                             const GhostOptions& options,
+                             const std::vector<std::vector<Eigen::Vector2d>>& samples_m = {});
 
 }  // namespace occmap

@@ -45,6 +45,33 @@ TEST(FindGhosts, TwoDetectionsHidingEachOtherAreBothKept) {
   EXPECT_FALSE(ghost[1]);
 }
 
+// The lab's case: a ghost streak behind two people, seen by cameras A and B through them; a
+// third camera sees only the floor beside the streak, where its centre lies between two bands.
+TEST(FindGhosts, AStreakHiddenAtItsCellsIsAGhostThoughItsCentreIsSeenClear) {
+  const Eigen::Vector2d centre(6, 3);
+  // C sees the floor within 0.1 m of the streak's centre, not the streak's cells.
+  std::vector<Viewer> cams = Cameras({{0, 0, 2.7}, {0, 6, 2.7}});
+  cams.push_back({{9, 0, 2.7}, [centre](const Eigen::Vector2d& p) { return (p - centre).norm() < 0.1; }});
+  const std::vector<Eigen::Vector2d> points = {{3, 1.5}, {3, 4.5}, centre};
+  EXPECT_FALSE(FindGhosts(points, cams, {})[2]);  // the centre alone: C's clear view keeps it
+  std::vector<std::vector<Eigen::Vector2d>> samples(3);
+  for (double dx : {-0.3, -0.15, 0.15, 0.3}) samples[2].push_back(centre + Eigen::Vector2d(dx, 0));
+  const auto ghost = FindGhosts(points, cams, {}, samples);
+  EXPECT_FALSE(ghost[0]);
+  EXPECT_FALSE(ghost[1]);
+  EXPECT_TRUE(ghost[2]);
+}
+
+TEST(FindGhosts, ADetectionWithMostCellsInClearViewIsReal) {
+  // Camera C sees all but one of the detection's cells clear.
+  std::vector<Viewer> cams = Cameras({{0, 0, 2.7}, {0, 6, 2.7}});
+  cams.push_back({{9, 3, 2.7}, [](const Eigen::Vector2d& p) { return p.x() > 5.9; }});
+  const std::vector<Eigen::Vector2d> points = {{3, 1.5}, {3, 4.5}, {6, 3}};
+  std::vector<std::vector<Eigen::Vector2d>> samples(3);
+  for (double dx : {-0.2, 0.0, 0.1, 0.2}) samples[2].push_back(Eigen::Vector2d(6 + dx, 3));
+  EXPECT_FALSE(FindGhosts(points, cams, {}, samples)[2]);
+}
+
 TEST(FindGhosts, UnseenPointsAreNotGhosts) {
   std::vector<Viewer> cams = {{{0, 0, 2.7}, [](const Eigen::Vector2d&) { return false; }}};
   EXPECT_FALSE(FindGhosts({{1, 1}, {2, 2}}, cams, {})[1]);

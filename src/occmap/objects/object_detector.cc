@@ -51,6 +51,33 @@ ObjectDetector::ObjectDetector(const ObjectOptions& options, double plane_height
   }
 }
 
+void ObjectDetector::GhostSamples(const OccupancyMap& map, const std::vector<int>& kept_index,
+                                  const std::vector<Detection>& detections) {
+  ghost_samples_.resize(detections.size());
+  const double radius_m = split_options_.person_radius_m();
+  for (size_t k = 0; k < detections.size(); ++k) {
+    std::vector<Eigen::Vector2d>& samples = ghost_samples_[k];
+    samples.clear();
+    const Detection& d = detections[k];
+    if (d.group < 0) continue;
+    const Eigen::Vector2d centre(d.x_m, d.y_m);
+    // The occupied cells of its group (within a person of it when the group was split).
+    const std::span<const int64_t> cells = groups_.cells(static_cast<size_t>(kept_index[static_cast<size_t>(d.group)]));
+    for (int64_t cell : cells) {
+      if (map.state(cell) != CellState::kOccupied) continue;
+      const Eigen::Vector2d p = map.grid().CellCenter(cell);
+      if (d.parts > 1 && (p - centre).norm() > radius_m) continue;
+      samples.push_back(p);
+    }
+    // Evenly thinned: the test's cost grows with the samples, its answer hardly.
+    if (samples.size() > kGhostSamples) {
+      const size_t n = samples.size();
+      for (size_t i = 0; i < kGhostSamples; ++i) samples[i] = samples[i * n / kGhostSamples];
+      samples.resize(kGhostSamples);
+    }
+  }
+}
+
 void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& active, const ChangeLookup& changed,
                             DetectedObjects& out, std::span<const ChangeBuffer> buffers) {
   OCCMAP_CHECK(buffers.empty() || buffers.size() == cameras_.size(), "ObjectDetector: one change buffer per camera");
@@ -117,7 +144,8 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
     }
     std::vector<Eigen::Vector2d> points;
     for (const Detection& d : detections) points.emplace_back(d.x_m, d.y_m);
-    const std::vector<bool> ghost = FindGhosts(points, active_viewers_, ghost_options_);
+    GhostSamples(map, kept_index, detections);
+    const std::vector<bool> ghost = FindGhosts(points, active_viewers_, ghost_options_, ghost_samples_);
     size_t kept = 0;
     for (size_t k = 0; k < detections.size(); ++k) {
       if (!ghost[k]) detections[kept++] = std::move(detections[k]);

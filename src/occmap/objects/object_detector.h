@@ -84,6 +84,10 @@ class ObjectDetector {
   std::vector<Viewer> active_viewers_;     // viewers_ of the cameras active in active_viewers_for_
   std::vector<bool> active_viewers_for_;
   GhostOptions ghost_options_;
+  // Per detection: floor points of its occupied cells, for the ghost test (at most kGhostSamples).
+  void GhostSamples(const OccupancyMap& map, const std::vector<int>& kept_index, const std::vector<Detection>& detections);
+  static constexpr size_t kGhostSamples = 32;
+  std::vector<std::vector<Eigen::Vector2d>> ghost_samples_;
   BlobFinder groups_;                     // the groups of the grown map, buffers kept
   std::vector<Blob> footprints_;
   std::vector<Eigen::Matrix2d> footprint_spreads_;
