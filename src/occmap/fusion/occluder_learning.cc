@@ -22,6 +22,13 @@ constexpr uint16_t kMaxEpisodes = 65535;
 // The learned blocks are applied every this many frame sets: a change rebuilds the column
 // fusion's plan, and a block needs min_episodes episodes of many frames anyway.
 constexpr int64_t kApplyEvery = 10;
+constexpr int kBlockPx = 4;
+constexpr uint8_t kHiddenEvent = 1, kSeenEvent = 2;
+// A view's depth along its camera's line of sight, in the camera's own unit: the inverse of the
+// foot's image scale (pixels per metre), which grows with the distance.
+float Depth(const ColumnView& v) { return 1.0f / std::max(v.half_width_bottom, 1e-6f); }
+// A block hides what stands this much nearer than the nearest person seen hidden there too.
+constexpr float kDepthSlack = 0.95f;
 // The radius of the image of a person found that explains the changes around it.
 constexpr double kCoverRadiusM = 0.3;
 
@@ -71,12 +78,89 @@ bool OccluderLearner::Blocks(const View& v) const {
   return v.hidden >= options_.min_episodes && static_cast<double>(v.seen) <= options_.max_contrary * episodes;
 }
 
+// Calls fn(block) for every pixel block the band of view (c, k) reads (a block once per row read).
+template <typename Fn>
+void OccluderLearner::ForBandBlocks(int c, int64_t k, Fn&& fn) const {
+  const double h = columns_.options().height_m;
+  const ColumnSpans s = MakeColumnSpans(columns_.view(c, k), column_.radius_m, column_.band_low_m / h,
+                                        column_.band_high_m / h, columns_.image_size(c));
+  const int stride = std::max(1, (s.last_row - s.first_row + 1 + column_.max_rows - 1) / column_.max_rows);
+  const int blocks_x = (s.width + kBlockPx - 1) / kBlockPx;
+  for (int y = s.first_row; y <= s.last_row; y += stride) {
+    int x0, x1;
+    if (!s.Span(y, x0, x1)) continue;
+    for (int bx = x0 / kBlockPx; bx <= x1 / kBlockPx; ++bx) {
+      const int px = std::min(x1, bx * kBlockPx + kBlockPx - 1) - std::max(x0, bx * kBlockPx) + 1;
+      fn(static_cast<size_t>((y / kBlockPx) * blocks_x + bx), px);
+    }
+  }
+}
+
+void OccluderLearner::Pool(int32_t frame) {
+  const int cams = columns_.num_cameras();
+  const int64_t n = columns_.candidates().num_cells();
+  if (blocks_.size() != static_cast<size_t>(cams)) {
+    blocks_.resize(static_cast<size_t>(cams));
+    for (int c = 0; c < cams; ++c) {
+      const ImageSize size = columns_.image_size(c);
+      blocks_[c].assign(static_cast<size_t>((size.width + kBlockPx - 1) / kBlockPx) *
+                            static_cast<size_t>((size.height + kBlockPx - 1) / kBlockPx),
+                        Block{});
+    }
+  }
+  for (int c = 0; c < cams; ++c) {
+    for (int64_t k = 0; k < n; ++k) {
+      const uint8_t event = events_[static_cast<size_t>(c) * static_cast<size_t>(n) + static_cast<size_t>(k)];
+      if (event == 0) continue;
+      const float depth = Depth(columns_.view(c, k));
+      std::vector<Block>& blocks = blocks_[c];
+      ForBandBlocks(c, k, [&](size_t b, int) {
+        Block& block = blocks[b];
+        if (event == kHiddenEvent) {
+          block.near_hidden = std::min(block.near_hidden, depth);
+          if (int64_t{frame} - block.last_hidden >= options_.episode_frames) {
+            block.last_hidden = frame;
+            if (block.hidden < kMaxEpisodes) ++block.hidden;
+          }
+        } else {
+          block.far_seen = std::max(block.far_seen, depth);
+          if (int64_t{frame} - block.last_seen >= options_.episode_frames) {
+            block.last_seen = frame;
+            if (block.seen < kMaxEpisodes) ++block.seen;
+          }
+        }
+      });
+    }
+  }
+}
+
+bool OccluderLearner::BlockHides(const Block& b, float depth) const {
+  if (b.hidden < options_.min_episodes || depth < kDepthSlack * b.near_hidden) return false;
+  // People seen through it as far as this: contrary, unless few.
+  if (b.far_seen < kDepthSlack * depth) return true;
+  return static_cast<double>(b.seen) <= options_.max_contrary * (static_cast<double>(b.hidden) + b.seen);
+}
+
 bool OccluderLearner::Apply() {
   const uint64_t before = columns_.revision();
   const int64_t n = columns_.candidates().num_cells();
-  for (int c = 0; c < columns_.num_cameras(); ++c)
-    for (int64_t k = 0; k < n; ++k)
-      columns_.SetLearnedBlocked(c, k, Blocks(views_[static_cast<size_t>(c) * static_cast<size_t>(n) + k]));
+  for (int c = 0; c < columns_.num_cameras(); ++c) {
+    for (int64_t k = 0; k < n; ++k) {
+      bool block = Blocks(views_[static_cast<size_t>(c) * static_cast<size_t>(n) + k]);
+      const ColumnView& v = columns_.view(c, k);
+      if (!block && v.seen && !(v.blocked && !v.learned) && static_cast<size_t>(c) < blocks_.size()) {
+        // Pooled: at least half of the band's pixels in blocks that hide what stands this far.
+        const float depth = Depth(v);
+        int64_t hidden = 0, pixels = 0;
+        ForBandBlocks(c, k, [&](size_t b, int px) {
+          pixels += px;
+          hidden += BlockHides(blocks_[c][b], depth) ? px : 0;
+        });
+        block = pixels > 0 && 2 * hidden >= pixels;
+      }
+      columns_.SetLearnedBlocked(c, k, block);
+    }
+  }
   return columns_.revision() != before;
 }
 
@@ -101,6 +185,7 @@ bool OccluderLearner::Observe(std::span<const ImageView<const uint8_t>> changes,
   person_at_.assign(static_cast<size_t>(n), 0);
   // Where the explanation puts a person, the candidates next to it too: the explanation may keep a
   // person on a candidate already learned, a step from where they stand.
+  events_.assign(views_.size(), 0);
   const FloorGrid& g = columns_.candidates();
   for (const ExplainedPerson& p : people) {
     if (p.candidate < 0 || p.candidate >= n) continue;
@@ -183,9 +268,11 @@ bool OccluderLearner::Observe(std::span<const ImageView<const uint8_t>> changes,
             const int others_changed = changed_unblocked - (!learned && changed ? 1 : 0);
             const int others_unchanged = unchanged_unblocked - (!learned && !changed ? 1 : 0);
             const int others_unexplained = unexplained_unblocked - (!learned && unexplained[t] ? 1 : 0);
-            View& v = views_[static_cast<size_t>(testing[t]) * static_cast<size_t>(n) + static_cast<size_t>(k)];
+            const size_t at = static_cast<size_t>(testing[t]) * static_cast<size_t>(n) + static_cast<size_t>(k);
+            View& v = views_[at];
             if (changed) {
               if (others_unchanged > 0 || others_changed < options_.min_others) continue;
+              events_[at] = kSeenEvent;
               if (int64_t{frame} - v.last_seen >= options_.episode_frames) {
                 v.last_seen = frame;
                 if (v.seen < kMaxEpisodes) ++v.seen;
@@ -194,6 +281,7 @@ bool OccluderLearner::Observe(std::span<const ImageView<const uint8_t>> changes,
               const bool others_see_someone =
                   others_unchanged == 0 && others_unexplained >= options_.min_others && others_unexplained == others_changed;
               if (!person_here && !others_see_someone) continue;
+              events_[at] = kHiddenEvent;
               if (int64_t{frame} - v.last_hidden >= options_.episode_frames) {
                 v.last_hidden = frame;
                 if (v.hidden < kMaxEpisodes) ++v.hidden;
@@ -203,6 +291,7 @@ bool OccluderLearner::Observe(std::span<const ImageView<const uint8_t>> changes,
         }
       },
       1024);
+  Pool(frame);
   ++frames_;
   if (frames_ % kApplyEvery != 0) return false;
   const bool changed = Apply();
@@ -257,6 +346,17 @@ Status OccluderLearner::Save(const std::filesystem::path& path) const {
       ++lines;
     }
   }
+  std::string pooled;
+  int64_t block_lines = 0;
+  for (size_t c = 0; c < blocks_.size(); ++c) {
+    for (size_t b = 0; b < blocks_[c].size(); ++b) {
+      const Block& x = blocks_[c][b];
+      if (x.hidden == 0 && x.seen == 0) continue;
+      pooled += fmt::format("{} {} {} {} {} {}\n", c, b, x.hidden, x.seen, x.near_hidden, x.far_seen);
+      ++block_lines;
+    }
+  }
+  body += fmt::format("blocks {}\n{}", block_lines, pooled);
   const std::string text = fmt::format(
       "{} {}\nfingerprint {:016x}\ncameras {} candidates {}\nframes {} settled {} most {} blocked {}\nviews {}\n{}",
       kMagic, kVersion, Fingerprint(columns_), columns_.num_cameras(), n, frames_, settled_after_, most_after_frames(),
@@ -332,8 +432,37 @@ Status OccluderLearner::Load(const std::filesystem::path& path, bool* stale) {
     views[at].hidden = static_cast<uint16_t>(v[2]);
     views[at].seen = static_cast<uint16_t>(v[3]);
   }
+  long long num_blocks = 0;
+  if (!next() || std::sscanf(line.c_str(), "blocks %lld", &num_blocks) != 1 || num_blocks < 0) return bad("'blocks N'");
+  std::vector<std::vector<Block>> blocks(static_cast<size_t>(cams));
+  for (int c = 0; c < cams; ++c) {
+    const ImageSize size = columns_.image_size(c);
+    blocks[c].assign(static_cast<size_t>((size.width + kBlockPx - 1) / kBlockPx) *
+                         static_cast<size_t>((size.height + kBlockPx - 1) / kBlockPx),
+                     Block{});
+  }
+  std::vector<std::vector<uint8_t>> block_given(static_cast<size_t>(cams));
+  for (int c = 0; c < cams; ++c) block_given[c].assign(blocks[c].size(), 0);
+  for (long long i = 0; i < num_blocks; ++i) {
+    if (!next()) return bad(fmt::format("{} block lines, the file ends after {}", num_blocks, i));
+    int c = -1;
+    long long b = -1, hidden = -1, seen = -1;
+    float near = 0, far = 0;
+    char extra = 0;
+    if (std::sscanf(line.c_str(), "%d %lld %lld %lld %f %f %c", &c, &b, &hidden, &seen, &near, &far, &extra) != 6 ||
+        c < 0 || c >= cams || b < 0 || b >= static_cast<long long>(blocks[c].size()) || hidden < 0 ||
+        hidden > kMaxEpisodes || seen < 0 || seen > kMaxEpisodes || !(near > 0) || !(far >= 0))
+      return bad("'camera block hidden seen near far' (a block of the camera's image, episodes <= 65535, depths > 0)");
+    if (block_given[c][b]) return bad(fmt::format("each block once (camera {} block {} again)", c, b));
+    block_given[c][b] = 1;
+    blocks[c][b].hidden = static_cast<uint16_t>(hidden);
+    blocks[c][b].seen = static_cast<uint16_t>(seen);
+    blocks[c][b].near_hidden = near;
+    blocks[c][b].far_seen = far;
+  }
   if (next() && !line.empty()) return bad("the end of the file");
   views_ = std::move(views);
+  blocks_ = std::move(blocks);
   frames_ = frames;
   settled_after_ = settled;
   Apply();
