@@ -95,4 +95,28 @@ else
   fail "after the broker's restart the fuse's tracks differ from the run's"
 fi
 
+# 4. With `people: {occluders: {learn: true}}` the fuse saves what it learned, as the run does:
+# the same occluders.txt (learning set to count every frame, so that 30 frame sets learn some).
+cp "$work/lab/site.yaml" "$work/lab/people.yaml"
+printf 'people:\n  occluders: {learn: true, episode_frames: 1, min_episodes: 1}\n' >>"$work/lab/people.yaml"
+"$occmap" run "$work/lab/people.yaml" --out "$work/people-run" --frames 30 --no-video --no-wall-clock "${common[@]}" \
+  >"$work/people-run.log" 2>&1 || fail "occmap run with people: $(tail -2 "$work/people-run.log")"
+"$occmap" fuse "$work/lab/people.yaml" --broker "$broker" --out "$work/people-fuse" --no-video --no-wall-clock \
+  --latency-budget-s 60 --dead-after-s 60 --topic-prefix occmap-test/people "${common[@]}" >"$work/people-fuse.log" 2>&1 &
+people_pid=$!
+tl_track $people_pid
+for _ in $(seq 200); do grep -q "subscribed to" "$work/people-fuse.log" && break; sleep 0.05; done
+"$occmap" edge "$work/lab/people.yaml" --frames 30 --topic-prefix occmap-test/people --broker "$broker" \
+  "${common[@]}" >/dev/null 2>&1 || fail "the people site's edge failed"
+for _ in $(seq 600); do kill -0 $people_pid 2>/dev/null || break; sleep 0.05; done
+if kill -0 $people_pid 2>/dev/null; then
+  fail "the people site's fuse did not finish: $(tail -3 "$work/people-fuse.log")"
+elif [ ! -s "$work/people-run/occluders.txt" ]; then
+  fail "occmap run with learning wrote no occluders.txt"
+elif cmp -s "$work/people-run/occluders.txt" "$work/people-fuse/occluders.txt"; then
+  ok
+else
+  fail "fuse's occluders.txt differs from run's or is missing: $(ls "$work/people-fuse")"
+fi
+
 tl_finish edge_fuse

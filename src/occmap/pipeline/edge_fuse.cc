@@ -367,6 +367,10 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   Status closed = sink_stage.Close(summary.stop_reason);
   if (failure.ok()) failure = closed;
   for (const fs::path& p : files->written()) summary.outputs.push_back(p.string());
+  // What `people: {occluders: {learn: true}}` learned, as `occmap run` saves it: occluders.txt
+  // and the cache the next run (or fuse) starts from.
+  if (failure.ok()) failure = fusion->SaveLearnedOccluders(out, summary.outputs);
+  if (!failure.ok()) summary.stop_reason = failure.message();
   summary.latency = stats.latency;
   summary.detect_s = fusion->detect_s();
   summary.fuse_s = fusion->fuse_s();
