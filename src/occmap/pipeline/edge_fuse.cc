@@ -375,6 +375,7 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   summary.detect_s = fusion->detect_s();
   summary.fuse_s = fusion->fuse_s();
   summary.people_s = fusion->people_s();
+  summary.occluders_s = fusion->occluders_s();
   summary.blobs_s = post->blobs_s();
   summary.track_s = post->track_s();
   summary.output_s = post->output_s() + sink_stage.write_s();

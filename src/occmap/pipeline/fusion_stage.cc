@@ -181,8 +181,12 @@ void FusionStage::FindPeople(FrameSet& set, Context& ctx) {
   });
   column_fusion_->Fuse(change_counts_, active, site_.people.column, ctx, set.column_map);
   if (explainer_) explainer_->Explain(change_views_, change_counts_, active, set.column_map, site_.people.explain, ctx, set.people);
-  if (occluders_) occluders_->Observe(change_views_, change_counts_, active, set.people, set.frame_index, ctx);
   people_s_.Add(Since(t0));
+  if (occluders_) {
+    const auto t1 = Clock::now();
+    occluders_->Observe(change_views_, change_counts_, active, set.people, set.frame_index, ctx);
+    occluders_s_.Add(Since(t1));
+  }
 }
 
 Status FusionStage::SaveLearnedOccluders(const std::filesystem::path& out, std::vector<std::string>& written) const {

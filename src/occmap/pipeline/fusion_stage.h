@@ -53,6 +53,7 @@ class FusionStage {
   double detect_s() const { return detect_s_.get(); }
   double fuse_s() const { return fuse_s_.get(); }
   double people_s() const { return people_s_.get(); }
+  double occluders_s() const { return occluders_s_.get(); }  // learning occluders (not in people_s)
   double background_s() const { return background_s_.get(); }
   // Camera n's adaptive background's mean age (NaN before it is first sampled, or no model).
   double background_age_s(size_t n) const { return background_age_s_[n].get(); }
@@ -101,7 +102,7 @@ class FusionStage {
   std::vector<ImageView<const uint8_t>> teacher_classes_, teacher_ratios_;
   int64_t last_frame_index_ = 0;
   int64_t next_age_frame_ = 0;
-  SharedFigure detect_s_, fuse_s_, people_s_, background_s_;
+  SharedFigure detect_s_, fuse_s_, people_s_, occluders_s_, background_s_;
   std::vector<SharedFigure> background_age_s_;
 };
 

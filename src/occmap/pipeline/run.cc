@@ -289,6 +289,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   summary.detect_s = fusion->detect_s();
   summary.fuse_s = fusion->fuse_s();
   summary.people_s = fusion->people_s();
+  summary.occluders_s = fusion->occluders_s();
   summary.background_s = fusion->background_s();
   summary.blobs_s = post->blobs_s();
   summary.track_s = post->track_s();

@@ -140,6 +140,7 @@ struct RunSummary {
   double decode_s = 0, detect_s = 0, fuse_s = 0, blobs_s = 0, track_s = 0, output_s = 0;
   double background_s = 0;  // the adaptive backgrounds' update (the fusion stage)
   double people_s = 0;      // column fusion and the explanation of the views (the fusion stage)
+  double occluders_s = 0;   // learning static occluders (`people.occluders.learn`; the fusion stage)
   // Learned backgrounds checked across cameras (pipeline/background_maintenance.h).
   int64_t consensus_pixels_checked = 0, consensus_pixels_swapped = 0, consensus_pixels_settled = 0;
   // Frame set arrival (frames decoded) to every sink done (the files written), over the run.

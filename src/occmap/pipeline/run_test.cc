@@ -6,6 +6,7 @@
 #include <fmt/core.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
@@ -178,6 +179,27 @@ TEST_F(RunFixture, FindsTheWalkerInEveryFrame) {
   EXPECT_EQ(summary_json["cameras"].size(), 4u);
   EXPECT_TRUE(fs::exists(dir_ / "out" / "mosaic.png"));
   EXPECT_TRUE(fs::exists(dir_ / "out" / "backgrounds" / "c0.png"));
+}
+
+// Learning occluders is timed apart from the people's detector (summary.json's
+// stage_seconds.occluders, 0 without it) and what it learned is saved.
+TEST_F(RunFixture, LearnedOccludersAreSavedAndTimedApart) {
+  Context ctx(2);
+  ASSERT_TRUE(RunSite(LoadSiteText(SiteText() + "people: {}\n"), Options("people"), ctx).ok());
+  const json plain = json::parse(*ReadFileToString(dir_ / "people" / "summary.json"));
+  EXPECT_EQ(plain["stage_seconds"]["occluders"].get<double>(), 0.0);
+  EXPECT_GT(plain["stage_seconds"]["people"].get<double>(), 0.0);
+  EXPECT_FALSE(fs::exists(dir_ / "people" / "occluders.txt"));
+
+  const Site site = LoadSiteText(SiteText() + "people: {occluders: {learn: true, episode_frames: 1, min_episodes: 1}}\n");
+  auto summary = RunSite(site, Options("learn"), ctx);
+  ASSERT_TRUE(summary.ok()) << summary.status().message();
+  EXPECT_GT(summary->occluders_s, 0.0);
+  const json learned = json::parse(*ReadFileToString(dir_ / "learn" / "summary.json"));
+  EXPECT_EQ(learned["stage_seconds"]["occluders"].get<double>(), summary->occluders_s);
+  EXPECT_TRUE(fs::exists(dir_ / "learn" / "occluders.txt"));
+  EXPECT_NE(std::find(summary->outputs.begin(), summary->outputs.end(), (dir_ / "learn" / "occluders.txt").string()),
+            summary->outputs.end());
 }
 
 TEST_F(RunFixture, MapBasedFusionGivesTheSameDetections) {

@@ -118,7 +118,7 @@ Status SummaryFile::WriteFinal(const RunSummary& summary, const RunStats& stats,
   j["stage_seconds"] = {{"decode", summary.decode_s}, {"detect", summary.detect_s}, {"fuse", summary.fuse_s},
                         {"blobs", summary.blobs_s}, {"track", summary.track_s}, {"output", summary.output_s},
                         {"background", summary.background_s}, {"people", summary.people_s},
-                        {"tables", summary.lut_seconds}};
+                        {"occluders", summary.occluders_s}, {"tables", summary.lut_seconds}};
   if (track_) {
     j["tracking"]["tracks"] = summary.tracks;
     j["tracking"]["zone_events"] = summary.zone_events;
