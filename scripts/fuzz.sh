@@ -3,7 +3,7 @@
 # calibrations, the table cache, run outputs, ground truth; the protocol messages: the MQTT
 # evidence of `occmap edge`, the JSON bodies of `occmap serve`'s API) for SECONDS each
 # (default 60), one after the other.
-# Usage: scripts/fuzz.sh [SECONDS] [TARGET...]
+# Usage: scripts/fuzz.sh [SECONDS] [TARGET...] (all targets when none is named; builds only those run)
 # Installs clang-14 and libclang-rt-14-dev when missing, builds the `fuzz` preset (clang,
 # -fsanitize=fuzzer,address,undefined; build/fuzz, apart from the main build), seeds each
 # target from its committed corpus fuzz/corpus/NAME and, at run time, from the shared datasets
@@ -29,8 +29,15 @@ if [ ${#missing[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
 
-cmake --preset fuzz >/dev/null
-cmake --build --preset fuzz
+# Only the targets to run: a run of one target does not wait for the build of all ten
+# (OCCMAP_FUZZ_JOBS, default 2: the build's parallel jobs). OCCMAP_FUZZ_BUILD=0 skips the build,
+# for runs beside a build of the next targets in build/fuzz (two builds in one tree collide).
+if [ "${OCCMAP_FUZZ_BUILD:-1}" != 0 ]; then
+  cmake --preset fuzz >/dev/null
+  build_targets=()
+  for t in "${targets[@]}"; do build_targets+=("occmap_${t}_fuzzer"); done
+  cmake --build --preset fuzz -j"${OCCMAP_FUZZ_JOBS:-2}" --target "${build_targets[@]}"
+fi
 
 datasets=${OCCMAP_DATASETS:-../shared/datasets}
 build=build/fuzz
