@@ -1,4 +1,4 @@
-# `cmake --install`: the occmap program, its example sites, the libraries with the public headers
+# `cmake --install`: the occmap program with its manual page, its example sites, the libraries with the public headers
 # and an exported CMake package (find_package(occmap), occmap::occmap), the Python module; and
 # `cpack -G DEB`. Layout: GNUInstallDirs (/usr/bin, /usr/lib/<multiarch>, /usr/include/occmap,
 # /usr/share/occmap, /usr/lib/python3/dist-packages).
@@ -39,6 +39,9 @@ install(DIRECTORY ${CMAKE_SOURCE_DIR}/sites/ DESTINATION ${CMAKE_INSTALL_DATADIR
         FILES_MATCHING PATTERN "*.yaml")
 install(FILES ${CMAKE_SOURCE_DIR}/README.md ${CMAKE_SOURCE_DIR}/docs/formats.md
         DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT bin)
+if(TARGET occmap_man)
+  install(FILES ${CMAKE_BINARY_DIR}/occmap.1.gz DESTINATION ${CMAKE_INSTALL_MANDIR}/man1 COMPONENT bin)
+endif()
 
 if(OCCMAP_PYTHON)
   set(OCCMAP_PYTHON_INSTALL_DIR lib/python3/dist-packages CACHE PATH

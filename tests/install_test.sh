@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The installed occmap: `cmake --install` into a scratch prefix (headers closed under #include and
-# free of test hooks, the CMake package, the Python module), a consumer project built against it
+# free of test hooks, the CMake package, the Python module, the manual page), a consumer project built against it
 # with find_package(occmap) (README's "Use from C++"), and `cpack -G DEB` unpacked with dpkg -x
 # into a scratch root whose occmap runs the demo.
 # Usage: install_test.sh BUILD_DIR SOURCE_DIR DATASETS_DIR PYTHON
@@ -26,6 +26,18 @@ done
   || fail "no occmapConfig.cmake"
 [ -x "$tmp/prefix/bin/occmap" ] || fail "occmap program not installed"
 [ -f "$tmp/prefix/share/occmap/sites/gopro4.yaml" ] || fail "sites not installed"
+# The manual page: a section for every command of --help, nothing groff warns about.
+man1="$tmp/prefix/share/man/man1/occmap.1.gz"
+[ -f "$man1" ] || fail "occmap.1.gz not installed"
+commands=$("$tmp/prefix/bin/occmap" --help | sed -n '/^Subcommands:/,$p' | awk '/^  [a-z]/ {print $1}')
+[ -n "$commands" ] || fail "occmap --help lists no commands"
+for c in $commands; do
+  zcat "$man1" | grep -qx "\.SS $c" || fail "the manual page has no section for the command $c"
+done
+if command -v groff >/dev/null; then
+  warnings=$(zcat "$man1" | groff -man -Tutf8 -ww -z 2>&1)
+  [ -z "$warnings" ] || fail "groff on the manual page: $warnings"
+fi
 
 # The consumer project.
 cmake -S "$src/tests/install/consumer" -B "$tmp/consumer" -G Ninja -DCMAKE_PREFIX_PATH="$tmp/prefix" \
@@ -57,6 +69,7 @@ for lib in libopencv libyaml-cpp libavcodec libmosquitto libfmt; do
   grep -q "$lib" <<<"$deps" || fail "Depends lacks $lib"
 done
 dpkg -x "$deb" "$tmp/root"
+[ -f "$tmp/root/usr/share/man/man1/occmap.1.gz" ] || fail "the package has no occmap.1.gz"
 "$tmp/root/usr/bin/occmap" --help | grep -q "demo" || fail "--help"
 (cd "$tmp" && "$tmp/root/usr/bin/occmap" --threads 2 demo --frames 10 --out "$tmp/demo" >"$tmp/demo.log") || fail "occmap demo from the package"
 [ -f "$tmp/demo/summary.json" ] || [ -n "$(ls "$tmp/demo")" ] || fail "demo wrote nothing"
