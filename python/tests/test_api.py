@@ -145,6 +145,15 @@ def test_bad_input_raises_the_documented_types(tmp_path, lab):
         occmap.detection_metrics([[(0.0, 0.0)]], [])
     with pytest.raises(occmap.NotFoundError):
         occmap.read_image(tmp_path / "none.png")
+    png = (SOURCE_DIR / "docs" / "images" / "lab-mosaic.png").read_bytes()
+    (tmp_path / "cut.png").write_bytes(png[:300])
+    with pytest.raises(occmap.DataLossError, match="cut.png.*truncated") as e:
+        occmap.read_image(tmp_path / "cut.png")
+    assert isinstance(e.value, ValueError) and isinstance(e.value, occmap.Error)
+    (tmp_path / "a_file").write_text("not a folder")
+    with pytest.raises(occmap.IoError, match="a_file/data") as e:
+        occmap.Simulator("lab", frames=1).write_dataset(tmp_path / "a_file" / "data")
+    assert isinstance(e.value, OSError) and isinstance(e.value, occmap.Error)
 
 
 def test_metrics_on_lists():

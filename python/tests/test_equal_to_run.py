@@ -56,7 +56,7 @@ def test_lab_maps_detections_and_tracks_equal_the_run(lab):
     assert my_events == events and any(e.get("line") for e in events) and any(e.get("zone") for e in events)
 
 
-def test_gopro4_map_and_detections_equal_the_run(occmap_bin, datasets, tmp_path):
+def test_gopro4_map_detections_and_tracks_equal_the_run(occmap_bin, datasets, tmp_path):
     import subprocess
     from conftest import SOURCE_DIR
     site_path = SOURCE_DIR / "sites" / "gopro4.yaml"
@@ -68,11 +68,14 @@ def test_gopro4_map_and_detections_equal_the_run(occmap_bin, datasets, tmp_path)
     assert len(detections) == 1
     paths = lambda site, f: [datasets / "gopro4" / f"bgsub_{c.id}.png" for c in site.cameras]
     results = list(run_through_module(site_path, paths, [(0, detections[0]["time_s"])], data_root=datasets))
-    _, occupancy, objects, _, _ = results[0]
+    _, occupancy, objects, my_tracks, _ = results[0]
     picture = occmap.read_image(run / "occupancy" / "000000.png")
     assert np.array_equal(occupancy.to_image(), picture)
     assert len(objects) == 4  # the four people the reference POM finds
     assert_detections_equal(objects.detections, detections[0]["blobs"], "gopro4")
+    # One frame set: no track is confirmed yet, in the run as in the module.
+    tracks = read_lines(run / "tracks.jsonl")
+    assert len(tracks) == 1 and [t.id for t in my_tracks] == [t["id"] for t in tracks[0]["tracks"]]
 
 
 def test_lab_fusion_of_frames_equals_the_run(lab, occmap_bin, tmp_path):
