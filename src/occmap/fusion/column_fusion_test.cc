@@ -95,7 +95,9 @@ TEST(ColumnFusionTest, FastEqualsReferenceAndOneThreadEqualsTwo) {
   for (auto& im : scene.changes)
     for (int n = 0; n < 3000; ++n) im(px(rng), py(rng)) ^= 1;
   ColumnFusion fusion(scene.columns);
+  for (const char* kernels : {"portable", "best"})
   for (int max_free_views : {0, 1}) {
+    ASSERT_TRUE(ForceKernelsForTesting(kernels));
     for (bool camera_off : {false, true}) {
       std::vector<bool> active(4, true);
       active[2] = !camera_off;
@@ -106,11 +108,12 @@ TEST(ColumnFusionTest, FastEqualsReferenceAndOneThreadEqualsTwo) {
       fusion.Fuse(scene.Sums(), active, o, one, fast1);
       fusion.Fuse(scene.Sums(), active, o, two, fast2);
       fusion.FuseReference(scene.Views(), active, o, reference);
-      EXPECT_EQ(fast1, reference);
-      EXPECT_EQ(fast1, fast2);
+      EXPECT_EQ(fast1, reference) << kernels;
+      EXPECT_EQ(fast1, fast2) << kernels;
       EXPECT_GT(reference.Count(CellState::kOccupied), 0);
     }
   }
+  ForceKernelsForTesting("best");
 }
 
 TEST(ColumnFusionTest, OptionsAreChecked) {
