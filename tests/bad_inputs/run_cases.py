@@ -384,6 +384,10 @@ bad_file("opencv_intr_text", INTR, intr_xml("87.5 0 abc 0 87.5 59.5 0 0 1"), ["c
 bad_file("opencv_intr_not_camera", INTR, intr_xml("87.5 0 79.5 0 87.5 59.5 0 1 1"), ["camera_matrix", "expected [fx s cx; 0 fy cy; 0 0 1]"])
 bad_file("opencv_intr_zero_focal", INTR, intr_xml("0 0 79.5 0 87.5 59.5 0 0 1"), ["camera_matrix", "positive focal lengths"])
 bad_file("opencv_intr_negative_focal", INTR, intr_xml("87.5 0 79.5 0 -5 59.5 0 0 1"), ["camera_matrix", "fy = -5"])
+bad_file("opencv_intr_rows_not_int", INTR, intr_xml().replace("<rows>3</rows>", "<rows>[3</rows>"),
+         ["camera_matrix", "rows: expected an integer, found '[3'"])
+bad_file("opencv_intr_no_data", INTR, intr_xml().replace("<data>87.5", "<x>87.5").replace("1.</data>", "1.</x>"),
+         ["camera_matrix", "found no data"])
 bad_file("opencv_intr_dist_three", INTR, intr_xml(dist="0 0 0"), ["distortion_coefficients", "found 3"])
 bad_file("opencv_intr_dist_rational", INTR, intr_xml(dist="0 0 0 0 0 0.5 0 0"), ["distortion_coefficients", "coefficient 6 = 0.5"])
 bad_file("opencv_intr_dist_nan", INTR, intr_xml(dist="0 nan 0 0 0"), ["distortion_coefficients", "finite"])

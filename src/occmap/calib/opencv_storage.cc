@@ -88,9 +88,23 @@ Result<std::vector<double>> Numbers(const cv::FileNode& node, const fs::path& pa
   if (node.empty() || node.isNone()) return InvalidInput(fmt::format("{}: missing", where()));
   std::vector<double> values;
   try {
-    if (node.isMap() && node["rows"].isInt() && node["cols"].isInt() && !node["data"].empty()) {
+    if (node.isMap()) {
       // An opencv-matrix read here, not by OpenCV: a wrong count or a 'nan' gets its own message
-      // instead of OpenCV's internal assertion text.
+      // instead of OpenCV's internal assertion text, and rows or cols that are not integers never
+      // reach cv::Mat::create (OpenCV 4.6 took `<rows>[3</rows>` for 2^31 + 2 rows and asked for
+      // 51 GB: found by fuzz/opencv_calibration_fuzzer).
+      for (const char* key : {"rows", "cols", "data"}) {
+        const cv::FileNode field = node[key];
+        if (field.empty() || field.isNone()) {
+          return InvalidInput(fmt::format("{}: expected an opencv-matrix (rows, cols, data), found no {}", where(), key));
+        }
+        if (std::string_view(key) != "data" && !field.isInt()) {
+          return InvalidInput(fmt::format("{}: {}: expected an integer, found {}", where(), key,
+                                          field.isString() ? fmt::format("'{}'", static_cast<std::string>(field))
+                                          : field.isReal() ? fmt::format("{}", static_cast<double>(field))
+                                                           : std::string("a list or a map")));
+        }
+      }
       const int r = static_cast<int>(node["rows"]), c = static_cast<int>(node["cols"]);
       if (r < 0 || c < 0 || r > 10000 || c > 10000) {
         return InvalidInput(fmt::format("{}: expected rows and cols in 0..10000, found {}x{}", where(), r, c));
@@ -123,15 +137,6 @@ Result<std::vector<double>> Numbers(const cv::FileNode& node, const fs::path& pa
       }
       if (rows) *rows = r;
       if (cols) *cols = c;
-    } else if (node.isMap()) {
-      cv::Mat m;
-      node >> m;
-      if (m.empty()) return InvalidInput(fmt::format("{}: expected a matrix, found an empty or unreadable one", where()));
-      m.convertTo(m, CV_64F);
-      if (rows) *rows = m.rows;
-      if (cols) *cols = m.cols;
-      m = m.reshape(1, 1);
-      values.assign(m.ptr<double>(), m.ptr<double>() + m.total());
     } else if (node.isSeq()) {
       for (const auto& e : node) {
         if (e.isString()) {

@@ -162,6 +162,15 @@ INSTANTIATE_TEST_SUITE_P(
         BadCalibration{"short_rvec", Intrinsic(kGoodK), Extrinsic("0.1 0.2", kGoodT), "rvec: expected 3 numbers, found 2"},
         BadCalibration{"text_in_tvec", Intrinsic(kGoodK), Extrinsic(kGoodR, "1 abc 3"),
                        "tvec: expected a finite number, found 'abc'"},
+        // OpenCV 4.6 read these rows as 2^31 + 2 and allocated 51 GB (found by the fuzzer).
+        BadCalibration{"rows_not_an_integer", Intrinsic(kGoodK, "<rows>[3</rows><cols>3</cols>"),
+                       Extrinsic(kGoodR, kGoodT), "camera_matrix: rows: expected an integer, found '[3'"},
+        BadCalibration{"cols_not_an_integer", Intrinsic(kGoodK, "<rows>3</rows><cols>3.5</cols>"),
+                       Extrinsic(kGoodR, kGoodT), "camera_matrix: cols: expected an integer, found 3.5"},
+        BadCalibration{"matrix_without_data", "<?xml version=\"1.0\"?>\n<opencv_storage>\n<camera_matrix "
+                       "type_id=\"opencv-matrix\"><rows>30000</rows><cols>30000</cols><dt>d</dt></camera_matrix>\n"
+                       "</opencv_storage>\n", Extrinsic(kGoodR, kGoodT),
+                       "camera_matrix: expected an opencv-matrix (rows, cols, data), found no data"},
         BadCalibration{"missing_tvec", Intrinsic(kGoodK), "<?xml version=\"1.0\"?>\n<opencv_storage>\n<rvec>0 0 0</rvec>\n</opencv_storage>\n",
                        "tvec: missing"}),
     [](const ::testing::TestParamInfo<BadCalibration>& param_info) { return std::string(param_info.param.name); });
