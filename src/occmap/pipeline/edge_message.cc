@@ -1,11 +1,11 @@
 #include "occmap/pipeline/edge_message.h"
 
 #include <fmt/core.h>
-#include <zstd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -18,8 +18,6 @@ namespace {
 
 constexpr char kMagic[4] = {'O', 'C', 'M', 'E'};
 constexpr size_t kHeaderBytes = 4 + 2 + 2 + 8 + 8 + 4 + 4 + 4 + 8 + 8 + 8 + 8 + 4 + 4;
-// Measured on WILDTRACK's 1080p masks: level 12 saves 5 % for 1.3 ms more per camera-frame.
-constexpr int kZstdLevel = 1;
 
 template <typename T>
 void Put(std::string& out, T v) {
@@ -40,8 +38,12 @@ T Get(std::string_view bytes, size_t& at) {
 // elements (where a pixel differs from its left neighbour) relative to the row above's, as
 // modes: vertical (a change within 3 pixels of the one above), pass (the row above's run ends
 // here), horizontal (two run lengths). A silhouette's edges move by a pixel or so per row, so
-// most modes are "vertical 0"; zstd then codes the modes and the run lengths. On WILDTRACK's
-// 1080p masks: 3.3 kB per camera-frame against 6.8 kB for zstd of the bits (JBIG: 2.9 kB).
+// most modes are "vertical 0"; a range coder then codes the modes and the run lengths in
+// context (below). Per camera-frame, whole messages (76 bytes of header included), measured by
+// scripts/bench-edge-fuse.sh on this machine (2026-12-04): WILDTRACK at 960x540 1370 bytes with
+// zstd (level 1) of the modes as bytes, 1198 range-coded; lab 640x480 488 -> 392. Tried on the
+// WILDTRACK masks: the row's previous mode as a further context 1200 (no gain), slower
+// adaptation (1/32) 1216. On 1080p: zstd of the bits 6.8 kB, T.6 + zstd 3.3 kB, JBIG 2.9 kB.
 enum Mode : uint8_t { kV0 = 0, kVR1, kVR2, kVR3, kVL1, kVL2, kVL3, kPass, kHorizontal, kModes };
 constexpr int kMaxVertical = 3;
 
@@ -80,27 +82,162 @@ int FindB1(const std::vector<int>& ref, size_t& ib, int a0, int colour, int widt
   return ref[ib];
 }
 
-void PutVarint(std::string& out, uint32_t v) {
-  while (v >= 128) {
-    out += static_cast<char>((v & 127) | 128);
-    v >>= 7;
+// An adaptive binary range coder (LZMA's): each decision is coded with a probability learned
+// from the decisions of its context so far (11-bit, adapting by 1/16 of the error).
+constexpr int kProbBits = 11;
+constexpr uint16_t kProbHalf = 1 << (kProbBits - 1);
+constexpr int kAdapt = 4;
+
+class RangeEncoder {
+ public:
+  void Encode(uint16_t& p, int bit) {
+    const uint32_t bound = (range_ >> kProbBits) * p;
+    if (bit == 0) {
+      range_ = bound;
+      p = static_cast<uint16_t>(p + (((1 << kProbBits) - p) >> kAdapt));
+    } else {
+      low_ += bound;
+      range_ -= bound;
+      p = static_cast<uint16_t>(p - (p >> kAdapt));
+    }
+    while (range_ < (1u << 24)) {
+      range_ <<= 8;
+      ShiftLow();
+    }
   }
-  out += static_cast<char>(v);
+  std::string Finish() {
+    for (int k = 0; k < 5; ++k) ShiftLow();
+    return std::move(out_);
+  }
+
+ private:
+  void ShiftLow() {
+    if (static_cast<uint32_t>(low_) < 0xFF000000u || (low_ >> 32) != 0) {
+      const auto carry = static_cast<uint8_t>(low_ >> 32);
+      uint8_t byte = cache_;
+      do {
+        out_ += static_cast<char>(static_cast<uint8_t>(byte + carry));
+        byte = 0xFF;
+      } while (--pending_ != 0);
+      cache_ = static_cast<uint8_t>(low_ >> 24);
+    }
+    ++pending_;
+    low_ = (low_ & 0x00FFFFFFu) << 8;
+  }
+  uint64_t low_ = 0;
+  uint32_t range_ = 0xFFFFFFFFu;
+  uint8_t cache_ = 0;
+  uint64_t pending_ = 1;
+  std::string out_;
+};
+
+class RangeDecoder {
+ public:
+  explicit RangeDecoder(std::string_view in) : in_(in) {
+    for (int k = 0; k < 5; ++k) code_ = (code_ << 8) | Next();
+  }
+  int Decode(uint16_t& p) {
+    const uint32_t bound = (range_ >> kProbBits) * p;
+    int bit;
+    if (code_ < bound) {
+      range_ = bound;
+      p = static_cast<uint16_t>(p + (((1 << kProbBits) - p) >> kAdapt));
+      bit = 0;
+    } else {
+      code_ -= bound;
+      range_ -= bound;
+      p = static_cast<uint16_t>(p - (p >> kAdapt));
+      bit = 1;
+    }
+    while (range_ < (1u << 24)) {
+      range_ <<= 8;
+      code_ = (code_ << 8) | Next();
+    }
+    return bit;
+  }
+  // Bytes read past the end (read as 0): a valid stream reads none.
+  size_t overrun() const { return overrun_; }
+  size_t left() const { return at_ < in_.size() ? in_.size() - at_ : 0; }
+
+ private:
+  uint32_t Next() {
+    if (at_ < in_.size()) return static_cast<uint8_t>(in_[at_++]);
+    ++overrun_;
+    return 0;
+  }
+  std::string_view in_;
+  size_t at_ = 0, overrun_ = 0;
+  uint32_t code_ = 0, range_ = 0xFFFFFFFFu;
+};
+
+// The contexts. A mode is coded as "vertical 0 or not", then, if not, its index among the other
+// eight in three binary decisions; both in the context of the colour and of the mode that made
+// b1 in the row above (an edge that went straight down or slanted one way goes on so: the
+// mode's own "slope" is predicted by the one above). A horizontal mode's run lengths r are
+// coded as r + 1 in Elias gamma: the number of bits after the leading one in unary, then those
+// bits, the first two in context.
+constexpr int kOrigins = kModes + 1;  // b1 made by mode m; kModes: no b1 (the row's end) or the first row
+constexpr int kMaxRunBits = 24;
+struct Contexts {
+  uint16_t v0[2][kOrigins];
+  uint16_t other[2][kOrigins][8];
+  uint16_t run_bits[2][2][kMaxRunBits + 1];
+  uint16_t run_top[2][2][kMaxRunBits][4];
+  uint16_t run_low = kProbHalf;
+  Contexts() {
+    std::fill_n(&v0[0][0], sizeof(v0) / 2, kProbHalf);
+    std::fill_n(&other[0][0][0], sizeof(other) / 2, kProbHalf);
+    std::fill_n(&run_bits[0][0][0], sizeof(run_bits) / 2, kProbHalf);
+    std::fill_n(&run_top[0][0][0][0], sizeof(run_top) / 2, kProbHalf);
+  }
+};
+
+template <typename Coder, typename Bit>
+void CodeMode(Contexts& c, int colour, int origin, int& mode, Coder& coder, Bit bit) {
+  const int is_other = bit(coder, c.v0[colour][origin], mode != kV0);
+  if (!is_other) {
+    mode = kV0;
+    return;
+  }
+  const int m = mode - 1;  // 0..7 for the eight other modes
+  int node = 1;
+  for (int k = 2; k >= 0; --k) node = node * 2 + bit(coder, c.other[colour][origin][node - 1 < 8 ? node - 1 : 0], (m >> k) & 1);
+  mode = node - 8 + 1;
 }
 
-// The coded rows: u32 number of modes, u32 bytes of symbols, the symbols, then the horizontal
-// modes' run lengths as LEB128 varints. A symbol is r vertical-0 modes then another mode m
-// (r * 8 + m - 1, r < 31; vertical 0 is two thirds of the modes), or 248: 31 vertical-0
-// modes; the vertical-0 modes after the last symbol are implied by the number of modes.
-constexpr int kRunSymbols = 31;
-constexpr uint8_t kLongRun = kRunSymbols * 8;
+template <typename Coder, typename Bit>
+void CodeRun(Contexts& c, int which, int colour, uint32_t& run, Coder& coder, Bit bit) {
+  const uint32_t v = run + 1;
+  int n = 0;
+  while (n < kMaxRunBits && (v >> (n + 1)) != 0) ++n;
+  int bits = 0;
+  while (bits < kMaxRunBits && bit(coder, c.run_bits[which][colour][bits], bits < n)) ++bits;
+  uint32_t value = 1;
+  for (int k = bits - 1; k >= 0; --k) {
+    const int top = bits - 1 - k;  // 0 for the bit after the leading one
+    uint16_t& p = top < 2 ? c.run_top[which][colour][bits - 1][top * 2 + (top == 1 ? value & 1 : 0)] : c.run_low;
+    value = value * 2 + static_cast<uint32_t>(bit(coder, p, (v >> k) & 1));
+  }
+  run = value - 1;
+}
 
-std::string CodeRows(const uint8_t* pixels, int width, int height) {
-  std::vector<uint8_t> modes;
-  std::string runs;
+int EncodeBit(RangeEncoder& e, uint16_t& p, int bit) {
+  e.Encode(p, bit);
+  return bit;
+}
+int DecodeBit(RangeDecoder& d, uint16_t& p, int /*bit*/) { return d.Decode(p); }
+
+// The coded rows: the T.6 modes of every row, range-coded; returns the number of modes.
+std::string CodeRows(const uint8_t* pixels, int width, int height, uint32_t& n_modes) {
+  auto contexts = std::make_unique<Contexts>();
+  RangeEncoder coder;
+  n_modes = 0;
   std::vector<int> ref{width, width}, cur;
+  // The mode that made each of the row above's changing elements (kModes: none).
+  std::vector<uint8_t> ref_origin{kModes, kModes}, cur_origin;
   for (int y = 0; y < height; ++y) {
     ChangingElements(pixels + static_cast<size_t>(y) * width, width, cur);
+    cur_origin.assign(cur.size(), kModes);
     int a0 = -1, colour = 0;
     size_t ia = 0, ib = 0;
     while (a0 < width) {
@@ -108,123 +245,94 @@ std::string CodeRows(const uint8_t* pixels, int width, int height) {
       const int a1 = cur[ia];
       const int b1 = FindB1(ref, ib, a0, colour, width);
       const int b2 = b1 < width ? ref[ib + 1] : width;
-      if (b2 < a1) {
-        modes.push_back(kPass);
-        a0 = b2;
-        continue;
-      }
+      const int origin = b1 < width ? static_cast<int>(ref_origin[ib]) : static_cast<int>(kModes);
+      int mode;
       const int d = a1 - b1;
-      if (d >= -kMaxVertical && d <= kMaxVertical) {
-        modes.push_back(static_cast<uint8_t>(d >= 0 ? kV0 + d : kVR3 - d));
+      if (b2 < a1) {
+        mode = kPass;
+      } else if (d >= -kMaxVertical && d <= kMaxVertical) {
+        mode = d >= 0 ? kV0 + d : kVR3 - d;
+      } else {
+        mode = kHorizontal;
+      }
+      CodeMode(*contexts, colour, origin, mode, coder, EncodeBit);
+      ++n_modes;
+      if (mode == kPass) {
+        a0 = b2;
+      } else if (mode == kHorizontal) {
+        const int a2 = a1 < width ? cur[ia + 1] : width;
+        uint32_t r1 = static_cast<uint32_t>(a1 - std::max(a0, 0)), r2 = static_cast<uint32_t>(a2 - a1);
+        CodeRun(*contexts, 0, colour, r1, coder, EncodeBit);
+        CodeRun(*contexts, 1, colour, r2, coder, EncodeBit);
+        if (a1 < width) cur_origin[ia] = kHorizontal;
+        if (a2 < width) cur_origin[ia + 1] = kHorizontal;
+        a0 = a2;
+      } else {
+        if (a1 < width) cur_origin[ia] = static_cast<uint8_t>(mode);
         a0 = a1;
         colour ^= 1;
-        continue;
       }
-      const int a2 = a1 < width ? cur[ia + 1] : width;
-      modes.push_back(kHorizontal);
-      PutVarint(runs, static_cast<uint32_t>(a1 - std::max(a0, 0)));
-      PutVarint(runs, static_cast<uint32_t>(a2 - a1));
-      a0 = a2;
     }
     std::swap(ref, cur);
+    std::swap(ref_origin, cur_origin);
   }
-  std::string symbols;
-  int zeros = 0;
-  for (const uint8_t m : modes) {
-    if (m == kV0) {
-      if (++zeros == kRunSymbols) {
-        symbols += static_cast<char>(kLongRun);
-        zeros = 0;
-      }
-      continue;
-    }
-    symbols += static_cast<char>(zeros * 8 + m - 1);
-    zeros = 0;
-  }
-  std::string out;
-  out.reserve(8 + symbols.size() + runs.size());
-  Put<uint32_t>(out, static_cast<uint32_t>(modes.size()));
-  Put<uint32_t>(out, static_cast<uint32_t>(symbols.size()));
-  out += symbols;
-  out += runs;
-  return out;
+  return coder.Finish();
 }
 
 // The inverse of CodeRows into pixels (width * height, 0 or 1); an error names what is broken.
-Status DecodeRows(std::string_view coded, int width, int height, uint8_t* pixels) {
+Status DecodeRows(std::string_view coded, uint32_t n_modes, int width, int height, uint8_t* pixels) {
   auto broken = [](const std::string& what) { return InvalidInput("coded rows: " + what); };
-  if (coded.size() < 8) return broken(fmt::format("expected counts of modes and symbols, found {} bytes", coded.size()));
-  size_t at = 0;
-  const uint32_t n_modes = Get<uint32_t>(coded, at);
-  const uint32_t n_symbols = Get<uint32_t>(coded, at);
-  if (coded.size() - at < n_symbols) {
-    return broken(fmt::format("expected {} bytes of symbols, found {}", n_symbols, coded.size() - at));
-  }
-  const std::string_view symbols = coded.substr(at, n_symbols);
-  size_t symbol_at = 0, run_at = at + n_symbols;
-  uint32_t next_mode = 0;
-  int zeros = 0, after_zeros = -1;  // of the symbol being read
-  auto mode = [&]() -> int {
-    if (next_mode >= n_modes) return -1;
-    ++next_mode;
-    if (zeros > 0) {
-      --zeros;
-      return kV0;
-    }
-    if (after_zeros >= 0) return std::exchange(after_zeros, -1);
-    if (symbol_at >= symbols.size()) return kV0;  // implied
-    const auto b = static_cast<uint8_t>(symbols[symbol_at++]);
-    if (b == kLongRun) {
-      zeros = kRunSymbols - 1;
-      return kV0;
-    }
-    if (b > kLongRun) return kModes;
-    if (b < 8) return b % 8 + 1;
-    zeros = b / 8 - 1;
-    after_zeros = b % 8 + 1;
-    return kV0;
-  };
-  auto run = [&]() -> int64_t {
-    uint64_t v = 0;
-    for (int shift = 0; shift < 35; shift += 7) {
-      if (run_at >= coded.size()) return -1;
-      const auto b = static_cast<uint8_t>(coded[run_at++]);
-      v |= static_cast<uint64_t>(b & 127) << shift;
-      if ((b & 128) == 0) return static_cast<int64_t>(v);
-    }
-    return -1;
-  };
+  auto contexts = std::make_unique<Contexts>();
+  RangeDecoder coder(coded);
+  uint32_t modes = 0;
   std::vector<int> ref{width, width}, cur;
+  std::vector<uint8_t> ref_origin{kModes, kModes}, cur_origin;
   for (int y = 0; y < height; ++y) {
     cur.clear();
+    cur_origin.clear();
     int a0 = -1, colour = 0;
     size_t ib = 0;
     while (a0 < width) {
-      const int m = mode();
-      if (m < 0) return broken(fmt::format("row {}: expected a mode, found the end of the modes", y));
-      if (m >= kModes) return broken(fmt::format("row {}: expected a symbol up to {}, found another", y, kLongRun));
+      if (modes++ >= n_modes) return broken(fmt::format("row {}: more than the {} modes stated", y, n_modes));
+      if (coder.overrun() > 4) return broken(fmt::format("row {}: expected more bytes, found the end", y));
       const int b1 = FindB1(ref, ib, a0, colour, width);
       const int b2 = b1 < width ? ref[ib + 1] : width;
+      const int origin = b1 < width ? static_cast<int>(ref_origin[ib]) : static_cast<int>(kModes);
+      int m = kV0;
+      CodeMode(*contexts, colour, origin, m, coder, DecodeBit);
       if (m == kPass) {
         if (b2 >= width) return broken(fmt::format("row {}: a pass with nothing to pass", y));
         a0 = b2;
       } else if (m == kHorizontal) {
-        const int64_t r1 = run(), r2 = run();
-        const int64_t a1 = std::max(a0, 0) + r1, a2 = a1 + r2;
-        if (r1 < 0 || r2 < 0 || a1 > width || a2 > width || a1 <= a0 || (a1 < width && a2 <= a1)) {
+        uint32_t r1 = 0, r2 = 0;
+        CodeRun(*contexts, 0, colour, r1, coder, DecodeBit);
+        CodeRun(*contexts, 1, colour, r2, coder, DecodeBit);
+        const int64_t a1 = std::max(a0, 0) + static_cast<int64_t>(r1), a2 = a1 + r2;
+        if (a1 > width || a2 > width || a1 <= a0 || (a1 < width && a2 <= a1)) {
           return broken(fmt::format("row {}: run lengths: expected changes in ({}, {}], found others", y, a0, width));
         }
-        if (a1 < width) cur.push_back(static_cast<int>(a1));
-        if (a2 < width) cur.push_back(static_cast<int>(a2));
+        if (a1 < width) {
+          cur.push_back(static_cast<int>(a1));
+          cur_origin.push_back(kHorizontal);
+        }
+        if (a2 < width) {
+          cur.push_back(static_cast<int>(a2));
+          cur_origin.push_back(kHorizontal);
+        }
         a0 = static_cast<int>(a2);
-      } else {
+      } else if (m < kModes) {
         const int a1 = b1 + (m <= kVR3 ? m - kV0 : kVR3 - m);
         if (a1 <= a0 || a1 > width) {
           return broken(fmt::format("row {}: a change at {}: expected one in ({}, {}]", y, a1, a0, width));
         }
-        if (a1 < width) cur.push_back(a1);
+        if (a1 < width) {
+          cur.push_back(a1);
+          cur_origin.push_back(static_cast<uint8_t>(m));
+        }
         a0 = a1;
         colour ^= 1;
+      } else {
+        return broken(fmt::format("row {}: mode {}: expected 0..{}", y, m, kModes - 1));
       }
     }
     uint8_t* row = pixels + static_cast<size_t>(y) * width;
@@ -238,11 +346,14 @@ Status DecodeRows(std::string_view coded, int width, int height, uint8_t* pixels
     std::memset(row + x, value, static_cast<size_t>(width - x));
     cur.push_back(width);
     cur.push_back(width);
+    cur_origin.push_back(kModes);
+    cur_origin.push_back(kModes);
     std::swap(ref, cur);
+    std::swap(ref_origin, cur_origin);
   }
-  if (next_mode != n_modes || symbol_at != symbols.size() || zeros > 0 || after_zeros >= 0 || run_at != coded.size()) {
-    return broken(fmt::format("{} modes, {} bytes of symbols and {} of run lengths left over", n_modes - next_mode,
-                              symbols.size() - symbol_at, coded.size() - run_at));
+  if (modes != n_modes || coder.overrun() > 4 || coder.left() > 0) {
+    return broken(fmt::format("{} of {} modes decoded, {} bytes left over, {} missing", modes, n_modes, coder.left(),
+                              coder.overrun()));
   }
   return Status::Ok();
 }
@@ -264,20 +375,16 @@ uint64_t EdgeSettingsKey(const Site& site) {
 
 std::string EncodeEdgeMessage(const EdgeMessage& m) {
   const size_t pixels = static_cast<size_t>(m.width) * m.height;
-  std::string packed;
+  std::string payload;
+  uint32_t n_modes = 0;
   if (m.kind == EdgeMessageKind::kChanges && pixels > 0) {
     if (m.changes.size() >= pixels) {
-      packed = CodeRows(m.changes.data(), static_cast<int>(m.width), static_cast<int>(m.height));
+      payload = CodeRows(m.changes.data(), static_cast<int>(m.width), static_cast<int>(m.height), n_modes);
     } else {
       std::vector<uint8_t> whole(m.changes);
       whole.resize(pixels, 0);
-      packed = CodeRows(whole.data(), static_cast<int>(m.width), static_cast<int>(m.height));
+      payload = CodeRows(whole.data(), static_cast<int>(m.width), static_cast<int>(m.height), n_modes);
     }
-  }
-  std::string payload(packed.empty() ? 0 : ZSTD_compressBound(packed.size()), '\0');
-  if (!packed.empty()) {
-    const size_t n = ZSTD_compress(payload.data(), payload.size(), packed.data(), packed.size(), kZstdLevel);
-    payload.resize(ZSTD_isError(n) ? 0 : n);
   }
   std::string out;
   out.reserve(kHeaderBytes + payload.size());
@@ -293,7 +400,7 @@ std::string EncodeEdgeMessage(const EdgeMessage& m) {
   Put<double>(out, m.timestamp_s);
   Put<double>(out, m.t_unix);
   Put<double>(out, m.fps);
-  Put<uint32_t>(out, static_cast<uint32_t>(packed.size()));
+  Put<uint32_t>(out, n_modes);
   Put<uint32_t>(out, static_cast<uint32_t>(payload.size()));
   out += payload;
   return out;
@@ -344,7 +451,7 @@ Result<EdgeMessage> DecodeEdgeMessage(std::string_view bytes, const EdgeExpectat
   m.timestamp_s = Get<double>(bytes, at);
   m.t_unix = Get<double>(bytes, at);
   m.fps = Get<double>(bytes, at);
-  const uint32_t raw_bytes = Get<uint32_t>(bytes, at);
+  const uint32_t n_modes = Get<uint32_t>(bytes, at);
   const uint32_t payload_bytes = Get<uint32_t>(bytes, at);
   if (m.camera >= expect.camera_sizes.size()) {
     return bad(fmt::format("camera: expected 0..{}, found {}", expect.camera_sizes.size() - 1, m.camera));
@@ -357,22 +464,17 @@ Result<EdgeMessage> DecodeEdgeMessage(std::string_view bytes, const EdgeExpectat
   }
   if (m.frame < 0) return bad(fmt::format("frame: expected >= 0, found {}", m.frame));
   const size_t pixels = static_cast<size_t>(m.width) * m.height;
-  // At most two modes and two run lengths per pixel and row end (a loose bound against absurd sizes).
-  const size_t most = 8 + 8 * (pixels + static_cast<size_t>(m.height) * 4);
-  if (raw_bytes < 8 || raw_bytes > most) {
-    return bad(fmt::format("raw bytes: expected 8..{} for {} pixels, found {}", most, pixels, raw_bytes));
+  // A row has at most one mode per pixel and one at its end.
+  const size_t most = pixels + static_cast<size_t>(m.height);
+  if (n_modes < m.height || n_modes > most) {
+    return bad(fmt::format("modes: expected {}..{} for {}x{} pixels, found {}", m.height, most, m.width, m.height, n_modes));
   }
   if (bytes.size() - at != payload_bytes) {
     return bad(fmt::format("payload: expected {} bytes, found {}", payload_bytes, bytes.size() - at));
   }
-  std::string packed(raw_bytes, '\0');
-  const size_t n = ZSTD_decompress(packed.data(), packed.size(), bytes.data() + at, payload_bytes);
-  if (ZSTD_isError(n) || n != raw_bytes) {
-    return bad(fmt::format("payload: expected a zstd frame of {} bytes, found {}", raw_bytes,
-                           ZSTD_isError(n) ? std::string(ZSTD_getErrorName(n)) : fmt::format("{} bytes", n)));
-  }
   m.changes.resize(pixels);
-  const Status rows = DecodeRows(packed, static_cast<int>(m.width), static_cast<int>(m.height), m.changes.data());
+  const Status rows = DecodeRows(bytes.substr(at), n_modes, static_cast<int>(m.width), static_cast<int>(m.height),
+                                 m.changes.data());
   if (!rows.ok()) return bad("payload: " + rows.message());
   return m;
 }

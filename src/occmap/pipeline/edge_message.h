@@ -1,18 +1,19 @@
 // EdgeMessage: what an `occmap edge` process publishes per camera and frame for `occmap fuse`
 // (issue 17): the camera's changes after the tolerance, its rows coded as fax machines code
-// theirs (ITU-T T.6) and compressed with zstd, never the image. The fusion needs nothing else for the floor's AND, the vote rule, the
-// elevated check and the people's fusions: they all read the change buffer.
+// theirs (ITU-T T.6 modes) and those modes range-coded in context, never the image. The fusion
+// needs nothing else for the floor's AND, the vote rule, the elevated check and the people's
+// fusions: they all read the change buffer.
 //
-// Binary, little-endian, version 2:
+// Binary, little-endian, version 3:
 //   "OCME"  u16 schema version  u16 kind (0 changes, 1 end of the camera's source)
 //   u64 table key (GroundLutKey of the site: cameras, masks, grid)
 //   u64 settings key (the detection section: threshold, tolerance, colour, backgrounds)
 //   u32 camera index  u32 width  u32 height  i64 frame index
 //   f64 timestamp_s (NaN: none)  f64 t_unix  f64 fps (the source's, 0: none)
-//   u32 raw bytes (the coded rows)  u32 payload bytes
-//   payload: zstd frame of the coded rows: u32 number of modes, the modes two to a byte
-//   (first * 9 + second; 0 vertical 0, 1-3 vertical +1..+3, 4-6 vertical -1..-3, 7 pass,
-//   8 horizontal), then the horizontal modes' two run lengths each as LEB128 varints
+//   u32 number of modes  u32 payload bytes
+//   payload: the rows' T.6 modes (0 vertical 0, 1-3 vertical +1..+3, 4-6 vertical -1..-3,
+//   7 pass, 8 horizontal) and the horizontal modes' run lengths, coded by an adaptive binary
+//   range coder whose contexts are the colour and the mode that made b1 in the row above
 //   (docs/formats.md)
 // A fuse process refuses a message of another schema version, or built for other tables or
 // other detection settings, with a message naming what differs.
@@ -32,7 +33,7 @@
 
 namespace occmap {
 
-constexpr uint16_t kEdgeSchemaVersion = 2;
+constexpr uint16_t kEdgeSchemaVersion = 3;
 
 enum class EdgeMessageKind : uint16_t { kChanges = 0, kEnd = 1 };
 

@@ -2,8 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <fstream>
 #include <random>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace occmap {
 namespace {
@@ -152,9 +158,9 @@ TEST(EdgeMessage, RefusesOtherTablesSettingsVersionsAndBrokenBytes) {
   std::string corrupt = good;
   corrupt[corrupt.size() - 3] ^= 0x55;
   corrupt[corrupt.size() - 8] ^= 0x55;
-  auto c = DecodeEdgeMessage(corrupt, Expect(), "t");  // zstd's checksum-less frame may decode: never a crash
+  auto c = DecodeEdgeMessage(corrupt, Expect(), "t");  // the range coder has no checksum: may decode; never a crash
   (void)c;
-  // Coded rows that zstd accepts but that are broken: each byte of a valid message's rows
+  // Coded rows that are broken: each byte of a valid message's rows
   // flipped in turn decodes to an error or to some mask, never a crash.
   for (size_t k = 120; k < good.size(); ++k) {
     std::string flipped = good;
@@ -181,6 +187,62 @@ TEST(EdgeMessage, RestampedKeepsEverythingButFrameAndTimes) {
   EXPECT_EQ(d->camera, m.camera);
   EXPECT_EQ(d->fps, m.fps);
   for (size_t k = 0; k < m.changes.size(); ++k) ASSERT_EQ(d->changes[k], m.changes[k] != 0 ? 1 : 0) << k;
+}
+
+// The fuzz target's seeds (fuzz/corpus/edge_message, fuzz/edge_message_fuzzer.cc's records)
+// written again after a change of the schema: OCCMAP_FUZZ_SEEDS=fuzz/corpus/edge_message
+// occmap_pipeline_test --gtest_also_run_disabled_tests --gtest_filter='*WritesFuzzSeeds'.
+TEST(EdgeMessage, DISABLED_WritesFuzzSeeds) {
+  const char* dir = std::getenv("OCCMAP_FUZZ_SEEDS");
+  ASSERT_NE(dir, nullptr) << "set OCCMAP_FUZZ_SEEDS to the corpus folder";
+  auto message = [](uint32_t camera, int64_t frame, double timestamp_s, double t_unix, uint64_t table_key = 0x1234,
+                    uint32_t stated_camera = 99) {
+    EdgeMessage m = Sample(camera);
+    m.table_key = table_key;
+    m.camera = stated_camera == 99 ? camera : stated_camera;
+    m.frame = frame;
+    m.timestamp_s = timestamp_s;
+    m.t_unix = t_unix;
+    m.fps = 10;
+    // A person-like box and a speck, moving with the frame (small seeds).
+    std::fill(m.changes.begin(), m.changes.end(), 0);
+    const int x0 = static_cast<int>(frame % 7) * 2;
+    for (int y = 3; y < static_cast<int>(m.height) - 2; ++y) {
+      for (int x = x0; x < x0 + 6 + y / 4; ++x) m.changes[static_cast<size_t>(y) * m.width + x] = 1;
+    }
+    m.changes[m.changes.size() / 2 + 20] = 1;
+    return m;
+  };
+  auto write = [&](const std::string& name, uint8_t align, const std::vector<std::pair<uint8_t, EdgeMessage>>& records) {
+    std::string bytes(1, static_cast<char>(align));
+    for (const auto& [topic, m] : records) {
+      const std::string payload = EncodeEdgeMessage(m);
+      const auto n = static_cast<uint16_t>(payload.size());
+      bytes += static_cast<char>(topic);
+      bytes.append(reinterpret_cast<const char*>(&n), 2);
+      bytes += payload;
+    }
+    std::ofstream(std::string(dir) + "/" + name, std::ios::binary) << bytes;
+  };
+  EdgeMessage end0, end1;
+  end0.kind = end1.kind = EdgeMessageKind::kEnd;
+  end0.table_key = end1.table_key = 0x1234;
+  end0.settings_key = end1.settings_key = 0x5678;
+  end1.camera = 1;
+  end0.frame = end1.frame = 3;
+  end0.timestamp_s = end1.timestamp_s = std::nan("");
+  end0.t_unix = end1.t_unix = 1.7e9 + 0.3;
+  write("refused", 0, {{0, message(0, 0, 0, 1.7e9, 0x999)}, {1, message(0, 0, 0, 1.7e9, 0x1234, 1)},
+                       {1, message(0, 0, 0, 1.7e9)}});
+  write("two_cameras_by_index", 0,
+        {{0, message(0, 0, 0, 1.7e9)}, {1, message(1, 0, 0, 1.7e9)}, {0, message(0, 1, 0.1, 1.7e9 + 0.1)},
+         {1, message(1, 1, 0.1, 1.7e9 + 0.1)}, {0, message(0, 2, 0.2, 1.7e9 + 0.2)}, {1, message(1, 2, 0.2, 1.7e9 + 0.2)},
+         {0, end0}, {1, end1}});
+  write("two_cameras_by_timestamp", 1,
+        {{0, message(0, 100, 5.0, 1.7e9 + 10)}, {1, message(1, 7, 5.03, 1.7e9 + 0.7)},
+         {0, message(0, 101, 5.1, 1.7e9 + 10.1)}, {1, message(1, 8, 5.13, 1.7e9 + 0.8)},
+         {0, message(0, 102, 5.2, 1.7e9 + 10.2)}, {0, message(0, 103, 5.3, 1.7e9 + 10.3)},
+         {1, message(1, 10, 5.33, 1.7e9 + 1.0)}});
 }
 
 }  // namespace
