@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "occmap/bench/edge_sim.h"
 #include "occmap/site/site.h"
 #include "occmap/util/thread_pool.h"
 #include "run_support.h"
@@ -82,6 +83,81 @@ CLI::App* AddFuseCommand(CLI::App& app, FuseCommand& cmd) {
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   return c;
+}
+
+CLI::App* AddEdgeSimCommand(CLI::App& app, EdgeSimCommand& cmd) {
+  CLI::App* c = app.add_subcommand(
+      "edge-sim", "bench: record the edges' messages of a site, or send them again as the cameras of a larger site");
+  AddCommonOptions(*c, cmd.common);
+  auto* record = c->add_option("--record", cmd.record_dir,
+                               "subscribe and keep every camera's messages in DIR until every camera has ended");
+  auto* replay = c->add_option("--replay", cmd.replay_dir,
+                               "send DIR's messages again: camera n gets recorded camera n mod R's, at --rate-hz");
+  record->excludes(replay);
+  c->add_option("--idle-timeout-s", cmd.idle_timeout_s, "--record: give up when nothing arrived for this long")
+      ->capture_default_str();
+  c->add_option("--first-camera", cmd.first_camera, "--replay: the first camera index this process sends")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  c->add_option("--cameras", cmd.cameras, "--replay: how many cameras this process sends (0: all from the first)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  c->add_option("--rate-hz", cmd.rate_hz, "--replay: frame sets per second")->capture_default_str()->check(CLI::PositiveNumber);
+  c->add_option("--start-unix", cmd.start_unix, "--replay: the first tick at or after this Unix time (0: now)")
+      ->capture_default_str();
+  c->add_option("--seconds", cmd.seconds, "--replay: seconds of ticks")->capture_default_str()->check(CLI::PositiveNumber);
+  return c;
+}
+
+Status RunEdgeSimCommand(const EdgeSimCommand& cmd, const std::string& data_root) {
+  if (cmd.record_dir.empty() == cmd.replay_dir.empty()) return InvalidInput("edge-sim: expected --record DIR or --replay DIR");
+  OCCMAP_ASSIGN_OR_RETURN(Site site, Load(cmd.common, data_root));
+  OCCMAP_ASSIGN_OR_RETURN(MqttBroker broker, ParseMqttUrl(cmd.common.broker, "--broker"));
+  StopOnSignals signals("");
+  if (!cmd.record_dir.empty()) {
+    bench::EdgeRecordOptions o;
+    o.broker = broker;
+    o.topic_prefix = cmd.common.topic_prefix;
+    o.dir = cmd.record_dir;
+    o.idle_timeout_s = cmd.idle_timeout_s;
+    o.stop = signals.stop();
+    o.on_subscribed = [] { std::fputs("occmap edge-sim: subscribed\n", stderr); };
+    OCCMAP_ASSIGN_OR_RETURN(bench::EdgeRecording r, bench::RecordEdgeMessages(site, o));
+    int64_t messages = 0, bytes = 0, payload = 0;
+    for (const bench::EdgeRecording::Camera& c : r.cameras) {
+      std::fputs(fmt::format("camera {} {}x{}: {} messages, {:.1f} bytes per message ({:.1f} payload)\n", c.id, c.width,
+                             c.height, c.messages, c.messages > 0 ? static_cast<double>(c.bytes) / static_cast<double>(c.messages) : 0.0,
+                             c.messages > 0 ? static_cast<double>(c.payload_bytes) / static_cast<double>(c.messages) : 0.0)
+                     .c_str(),
+                 stdout);
+      messages += c.messages;
+      bytes += c.bytes;
+      payload += c.payload_bytes;
+    }
+    std::fputs(fmt::format("all: {} messages, {:.1f} bytes per message ({:.1f} payload); {} refused\n", messages,
+                           messages > 0 ? static_cast<double>(bytes) / static_cast<double>(messages) : 0.0,
+                           messages > 0 ? static_cast<double>(payload) / static_cast<double>(messages) : 0.0, r.refused)
+                   .c_str(),
+               stdout);
+    return Status::Ok();
+  }
+  bench::EdgeReplayOptions o;
+  o.broker = broker;
+  o.topic_prefix = cmd.common.topic_prefix;
+  o.dir = cmd.replay_dir;
+  o.first_camera = cmd.first_camera;
+  o.cameras = cmd.cameras;
+  o.rate_hz = cmd.rate_hz;
+  o.start_unix = cmd.start_unix;
+  o.seconds = cmd.seconds;
+  o.stop = signals.stop();
+  OCCMAP_ASSIGN_OR_RETURN(bench::EdgeReplaySummary s, bench::ReplayEdgeMessages(site, o));
+  std::fputs(fmt::format("{} ticks, {} messages, {:.1f} kB; {} ticks late (up to {:.0f} ms); {} unacknowledged\n",
+                         s.ticks, s.messages, static_cast<double>(s.bytes) / 1e3, s.late_ticks, s.max_behind_s * 1e3,
+                         s.unacked)
+                 .c_str(),
+             stdout);
+  return Status::Ok();
 }
 
 Status RunEdgeCommand(EdgeCommand cmd, int threads, const std::string& data_root) {

@@ -34,7 +34,18 @@ struct FuseCommand {
   std::string sync;  // "index", "timestamp", empty: by the sources
 };
 
+// `occmap edge-sim`: simulated edges for the bench (bench/edge_sim.h): --record DIR or --replay DIR.
+struct EdgeSimCommand {
+  EdgeFuseCommon common;
+  std::string record_dir, replay_dir;
+  double idle_timeout_s = 60;
+  int first_camera = 0, cameras = 0;
+  double rate_hz = 10, start_unix = 0, seconds = 30;
+};
+
 CLI::App* AddEdgeCommand(CLI::App& app, EdgeCommand& cmd);
+CLI::App* AddEdgeSimCommand(CLI::App& app, EdgeSimCommand& cmd);
+Status RunEdgeSimCommand(const EdgeSimCommand& cmd, const std::string& data_root);
 CLI::App* AddFuseCommand(CLI::App& app, FuseCommand& cmd);
 Status RunEdgeCommand(EdgeCommand cmd, int threads, const std::string& data_root);
 Status RunFuseCommand(FuseCommand cmd, int threads, const std::string& data_root);

@@ -651,6 +651,8 @@ int main(int argc, char** argv) {
   CLI::App* edge_cmd = AddEdgeCommand(app, edge);
   FuseCommand fuse;
   CLI::App* fuse_cmd = AddFuseCommand(app, fuse);
+  EdgeSimCommand edge_sim;
+  CLI::App* edge_sim_cmd = AddEdgeSimCommand(app, edge_sim);
 
   try {
     app.parse(argc, argv);
@@ -670,5 +672,6 @@ int main(int argc, char** argv) {
   if (serve_cmd->parsed()) status = RunServe(serve, common.threads, common.data_root);
   if (edge_cmd->parsed()) status = RunEdgeCommand(edge, common.threads, common.data_root);
   if (fuse_cmd->parsed()) status = RunFuseCommand(fuse, common.threads, common.data_root);
+  if (edge_sim_cmd->parsed()) status = RunEdgeSimCommand(edge_sim, common.data_root);
   return status.ok() ? 0 : Fail(status);
 }

@@ -414,6 +414,15 @@ void RestampEdgeMessage(std::string& bytes, int64_t frame, double timestamp_s, d
   std::memcpy(bytes.data() + kFrameAt + 16, &t_unix, 8);
 }
 
+void RekeyEdgeMessage(std::string& bytes, uint64_t table_key, uint64_t settings_key, uint32_t camera, double fps) {
+  constexpr size_t kKeysAt = 4 + 2 + 2, kCameraAt = kKeysAt + 16, kFpsAt = kCameraAt + 12 + 8 + 8 + 8;
+  if (bytes.size() < kHeaderBytes) return;
+  std::memcpy(bytes.data() + kKeysAt, &table_key, 8);
+  std::memcpy(bytes.data() + kKeysAt + 8, &settings_key, 8);
+  std::memcpy(bytes.data() + kCameraAt, &camera, 4);
+  std::memcpy(bytes.data() + kFpsAt, &fps, 8);
+}
+
 Result<EdgeMessage> DecodeEdgeMessage(std::string_view bytes, const EdgeExpectation& expect, std::string_view source) {
   auto bad = [&](const std::string& what) { return InvalidInput(fmt::format("{}: edge message: {}", source, what)); };
   if (bytes.size() < 8 || std::memcmp(bytes.data(), kMagic, 4) != 0) {

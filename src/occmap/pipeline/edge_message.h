@@ -67,6 +67,9 @@ std::string EncodeEdgeMessage(const EdgeMessage& message);
 // Another frame index, timestamp and t_unix in an encoded message (the bench's simulated
 // cameras send recorded messages again).
 void RestampEdgeMessage(std::string& bytes, int64_t frame, double timestamp_s, double t_unix);
+// Another site's keys, camera index and frame rate in an encoded message (the bench's simulated
+// cameras: one camera's recorded messages sent again as another camera of a larger site).
+void RekeyEdgeMessage(std::string& bytes, uint64_t table_key, uint64_t settings_key, uint32_t camera, double fps);
 // source names the message in errors (e.g. its topic).
 Result<EdgeMessage> DecodeEdgeMessage(std::string_view bytes, const EdgeExpectation& expect,
                                       std::string_view source);

@@ -189,6 +189,24 @@ TEST(EdgeMessage, RestampedKeepsEverythingButFrameAndTimes) {
   for (size_t k = 0; k < m.changes.size(); ++k) ASSERT_EQ(d->changes[k], m.changes[k] != 0 ? 1 : 0) << k;
 }
 
+TEST(EdgeMessage, RekeyedIsAnotherCameraOfAnotherSite) {
+  const EdgeMessage m = Sample();
+  std::string bytes = EncodeEdgeMessage(m);
+  EdgeExpectation other = Expect();
+  other.table_key ^= 0x1234;
+  other.settings_key ^= 0x5678;
+  other.camera_sizes.push_back(other.camera_sizes[m.camera]);
+  const uint32_t camera = static_cast<uint32_t>(other.camera_sizes.size() - 1);
+  RekeyEdgeMessage(bytes, other.table_key, other.settings_key, camera, 12.5);
+  auto d = DecodeEdgeMessage(bytes, other, "rekeyed");
+  ASSERT_TRUE(d.ok()) << d.status().message();
+  EXPECT_EQ(d->camera, camera);
+  EXPECT_EQ(d->fps, 12.5);
+  EXPECT_EQ(d->frame, m.frame);
+  EXPECT_EQ(d->t_unix, m.t_unix);
+  for (size_t k = 0; k < m.changes.size(); ++k) ASSERT_EQ(d->changes[k], m.changes[k] != 0 ? 1 : 0) << k;
+}
+
 // The fuzz target's seeds (fuzz/corpus/edge_message, fuzz/edge_message_fuzzer.cc's records)
 // written again after a change of the schema: OCCMAP_FUZZ_SEEDS=fuzz/corpus/edge_message
 // occmap_pipeline_test --gtest_also_run_disabled_tests --gtest_filter='*WritesFuzzSeeds'.
