@@ -56,6 +56,7 @@ void ChangeRowSums::Build(ImageView<const uint8_t> changes) {
   OCCMAP_CHECK(changes.width() < 65536, "ChangeRowSums: images up to 65535 pixels wide");
   width_ = changes.width();
   height_ = changes.height();
+  popcnt_ = OCCMAP_X86_KERNELS && ActiveKernels() != KernelSet::kPortable;
   row_words_ = width_ / 64 + 1;
   const size_t n = static_cast<size_t>(row_words_) * static_cast<size_t>(height_);
   bits_.resize(n);
@@ -119,34 +120,6 @@ int RowStride(const ColumnSpans& s, int max_rows) {
 
 constexpr int kCoarseRows = 4;
 
-// Set bits of v: the POPCNT instruction (every CPU of the AVX2 and AVX-512 kernel sets has it;
-// inline assembly, so no target attribute is needed), or ChangeRowSums' portable count.
-template <bool kPopcnt>
-inline int PopCountAs(uint64_t v) {
-#if OCCMAP_X86_KERNELS && defined(__x86_64__)
-  if constexpr (kPopcnt) {
-    uint64_t n;
-    __asm__("popcnt %1, %0" : "=r"(n) : "r"(v));
-    return static_cast<int>(n);
-  }
-#endif
-  return ChangeRowSums::PopCount(v);
-}
-
-// ChangeRowSums::Count from the row's bits alone: the span's words, masked at both ends (a
-// column's span is one or two words: one load of the bits instead of two bits and two sums).
-template <bool kPopcnt>
-inline int CountSpan(const ChangeRowSums& counts, int y, int x0, int x1) {
-  const uint64_t* bits = counts.row_bits(y);
-  const int w0 = x0 >> 6, w1 = x1 >> 6;
-  const uint64_t first = ~uint64_t{0} << (x0 & 63);
-  const uint64_t last = ~uint64_t{0} >> (63 - (x1 & 63));
-  if (w0 == w1) return PopCountAs<kPopcnt>(bits[w0] & first & last);
-  int n = PopCountAs<kPopcnt>(bits[w0] & first) + PopCountAs<kPopcnt>(bits[w1] & last);
-  for (int w = w0 + 1; w < w1; ++w) n += PopCountAs<kPopcnt>(bits[w]);
-  return n;
-}
-
 CellState Decide(int tested, int free_votes, int k) {
   if (tested == 0) return CellState::kUnseen;
   return free_votes <= k && free_votes < tested ? CellState::kOccupied : CellState::kFree;
@@ -200,27 +173,17 @@ CellState CandidateState(const ColumnLut& columns, int64_t k, const std::vector<
 
 }  // namespace
 
-namespace {
-
-// CountBand with CountSpan.
-template <bool kPopcnt>
-int64_t CountBandAs(const ColumnSpans& s, const ChangeRowSums& counts, int max_rows, int64_t& pixels) {
+int64_t CountBand(const ColumnSpans& s, const ChangeRowSums& counts, int max_rows, int64_t& pixels) {
   const int stride = RowStride(s, max_rows);
   int64_t changed = 0;
   pixels = 0;
   for (int y = s.first_row; y <= s.last_row; y += stride) {
     int x0, x1;
     if (!s.Span(y, x0, x1)) continue;
-    changed += CountSpan<kPopcnt>(counts, y, x0, x1);
+    changed += counts.Count(y, x0, x1);
     pixels += x1 - x0 + 1;
   }
   return changed;
-}
-
-}  // namespace
-
-int64_t CountBand(const ColumnSpans& s, const ChangeRowSums& counts, int max_rows, int64_t& pixels) {
-  return CountBandAs<false>(s, counts, max_rows, pixels);
 }
 
 std::shared_ptr<const ColumnFusion::Plan> ColumnFusion::PlanFor(const ColumnFusionOptions& o) const {
@@ -274,7 +237,7 @@ void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector
   const double h = columns_.options().height_m;
   const ColumnFusionOptions& o = options;
   // As CandidateState, the first look's spans read from the plan.
-  const auto state = [&]<bool kPopcnt>(int64_t k) {
+  const auto state = [&](int64_t k) {
     int tested = 0, free_votes = 0;
     for (uint32_t e = plan.first_entry[k]; e < plan.first_entry[k + 1]; ++e) {
       const Plan::Entry& entry = plan.entries[e];
@@ -284,7 +247,7 @@ void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector
       if (entry.pixels > 0) {
         int64_t changed = 0;
         for (uint32_t q = entry.first_span; q < entry.first_span + entry.num_spans; ++q)
-          changed += CountSpan<kPopcnt>(count, plan.spans[q].y, plan.spans[q].x0, plan.spans[q].x1);
+          changed += count.Count(plan.spans[q].y, plan.spans[q].x0, plan.spans[q].x1);
         if (2 * static_cast<double>(changed) < o.min_changed * static_cast<double>(entry.pixels)) {
           ++tested;
           if (++free_votes > o.max_free_views) return CellState::kFree;
@@ -294,7 +257,7 @@ void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector
       const ColumnSpans s =
           MakeColumnSpans(columns_.view(c, k), o.radius_m, o.band_low_m / h, o.band_high_m / h, columns_.image_size(c));
       int64_t pixels = 0;
-      const int64_t changed = CountBandAs<kPopcnt>(s, count, o.max_rows, pixels);
+      const int64_t changed = CountBand(s, count, o.max_rows, pixels);
       if (pixels == 0) continue;
       ++tested;
       if (static_cast<double>(changed) < o.min_changed * static_cast<double>(pixels)) {
@@ -303,19 +266,10 @@ void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector
     }
     return Decide(tested, free_votes, o.max_free_views);
   };
-  // The same counts either way (ColumnFusionTest.FastEqualsReferenceAndOneThreadEqualsTwo runs
-  // both kernel sets). Word counts with POPCNT instead of the sums' two reads and the portable
-  // count: the bench's (j) on 1 thread 1.75-1.82x -> 2.97-3.02x the paper loop on its rendered
-  // WILDTRACK frames (2-core AMD EPYC, AVX-512, load average 7, 2026-12-04).
-  const bool popcnt = OCCMAP_X86_KERNELS && ActiveKernels() != KernelSet::kPortable;
   ParallelFor(
       ctx, 0, grid.num_cells(),
       [&](int64_t begin, int64_t end, int) {
-        if (popcnt) {
-          for (int64_t k = begin; k < end; ++k) states[k] = state.template operator()<true>(k);
-        } else {
-          for (int64_t k = begin; k < end; ++k) states[k] = state.template operator()<false>(k);
-        }
+        for (int64_t k = begin; k < end; ++k) states[k] = state(k);
       },
       1024);
 }

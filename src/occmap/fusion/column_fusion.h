@@ -34,6 +34,7 @@
 #include "occmap/fusion/occupancy_map.h"
 #include "occmap/lut/column_lut.h"
 #include "occmap/util/image.h"
+#include "occmap/util/simd.h"
 #include "occmap/util/status.h"
 #include "occmap/util/thread_pool.h"
 
@@ -53,18 +54,30 @@ struct ColumnFusionOptions {
 // of changed pixels (non-zero) in row y from column x0 to x1 inclusive, in constant time.
 // Why bits: building them reads the mask once and writes an eighth of it (16-bit sums per pixel
 // wrote twice the mask's bytes), and the tables the counts read stay in the caches.
+// A span within two words (a column's or a person's, mostly) is counted from its words alone,
+// masked at both ends; a longer one from the sums. Bits are counted with the POPCNT instruction
+// when Build ran under the AVX2 or AVX-512 kernel set (every such CPU has it), else portably.
 class ChangeRowSums {
  public:
   // Images up to 65535 pixels wide (checked).
   void Build(ImageView<const uint8_t> changes);
   int width() const { return width_; }
   int height() const { return height_; }
-  int Count(int y, int x0, int x1) const { return Before(y, x1 + 1) - Before(y, x0); }
+  int Count(int y, int x0, int x1) const {
+    if (x1 < x0) return 0;
+    const int w0 = x0 >> 6, w1 = x1 >> 6;
+    if (w1 - w0 > 1) return Before(y, x1 + 1) - Before(y, x0);
+    const uint64_t* bits = row_bits(y);
+    const uint64_t first = ~uint64_t{0} << (x0 & 63);
+    const uint64_t last = ~uint64_t{0} >> (63 - (x1 & 63));
+    if (w0 == w1) return Bits(bits[w0] & first & last);
+    return Bits(bits[w0] & first) + Bits(bits[w1] & last);
+  }
   // Changed pixels of row y left of column x (0 <= x <= width).
   int Before(int y, int x) const {
     const size_t at = static_cast<size_t>(y) * static_cast<size_t>(row_words_) + static_cast<size_t>(x >> 6);
     const uint64_t below = (uint64_t{1} << (x & 63)) - 1;
-    return prefix_[at] + PopCount(bits_[at] & below);
+    return prefix_[at] + Bits(bits_[at] & below);
   }
   // Bit x % 64 of word x / 64 of row y: pixel (x, y) changed; a row has width / 64 + 1 words.
   const uint64_t* row_bits(int y) const { return bits_.data() + static_cast<size_t>(y) * static_cast<size_t>(row_words_); }
@@ -77,6 +90,19 @@ class ChangeRowSums {
   }
 
  private:
+  // Set bits of v: POPCNT (inline assembly, so no target attribute) or PopCount.
+  int Bits(uint64_t v) const {
+#if OCCMAP_X86_KERNELS && defined(__x86_64__)
+    if (popcnt_) {
+      uint64_t n;
+      __asm__("popcnt %1, %0" : "=r"(n) : "r"(v));
+      return static_cast<int>(n);
+    }
+#endif
+    return PopCount(v);
+  }
+
+  bool popcnt_ = false;  // the kernel set at Build has POPCNT
   int width_ = 0, height_ = 0, row_words_ = 1;
   std::vector<uint64_t> bits_;    // per row: row_words_ words, the last one's bits past the width 0
   std::vector<uint16_t> prefix_;  // per row and word: changed pixels in the row's earlier words
