@@ -118,7 +118,7 @@ done
 # --- 2. One fuse, simulated edges: 4, 16, 64 cameras of the WILDTRACK scene.
 wt="$work/wildtrack"
 [ -d "$wt/recorded" ] || { echo "the WILDTRACK scene's recording is missing (SCENES must include wildtrack)" >&2; exit 1; }
-printf '\n%8s %6s %8s %8s %12s %16s %16s %9s %6s\n' cameras edges "sets" "sets/s" "fuse CPU ms" "p50/p99 ms" "all: p50/p99" "left out" "late"
+printf '\n%8s %6s %8s %8s %12s %16s %16s %9s %6s %8s\n' cameras edges "sets" "sets/s" "fuse CPU ms" "p50/p99 ms" "all: p50/p99" "left out" "late" "peak MB"
 for n in $counts; do
   site="$wt/site-$n.yaml"
   python3 - "$wt/site-edge.yaml" "$site" "$n" "$people" <<'PY'
@@ -139,7 +139,7 @@ open(dst, "w").write(text)
 PY
   out="$work/fuse-$n"
   rm -rf "$out"
-  /usr/bin/time -f "%U %S" -o "$work/fuse-$n.time" "$occmap" fuse "$site" --broker "$broker" --out "$out" --no-video \
+  /usr/bin/time -f "%M %U %S" -o "$work/fuse-$n.time" "$occmap" fuse "$site" --broker "$broker" --out "$out" --no-video \
     --sync timestamp --cache-dir "$work/cache" >"$work/fuse-$n.log" 2>&1 &
   time_pid=$!
   fuse_pid=$(child_of $time_pid)
@@ -199,7 +199,8 @@ PY
 import json, sys, glob, re
 work, n, edges, rate, seconds = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4]), float(sys.argv[5])
 s = json.load(open(f"{work}/fuse-{n}/summary.json"))
-user, system = map(float, open(f"{work}/fuse-{n}.time").read().split()[-2:])
+rss_kb, user, system = open(f"{work}/fuse-{n}.time").read().split()[-3:]
+user, system = float(user), float(system)
 sets = s["frames"]
 left_out = sum(c.get("left_out", 0) for c in s["cameras"])
 late = sum(c.get("late_messages", 0) for c in s["cameras"])
@@ -210,7 +211,7 @@ steady_cpu, sets_before = float(head.split()[0]), int(head.split()[1])
 steady = sorted(float(v) for v in body.split())
 pct = lambda q: 1e3 * steady[min(len(steady) - 1, max(0, int(-(-q * len(steady) // 1)) - 1))] if steady else float("nan")
 print(f"{n:>8} {edges:>6} {sets:>8} {sets / seconds:>8.2f} {1e3 * (user + system - steady_cpu) / max(sets - sets_before, 1):>12.1f} "
-      f"{pct(0.5):>7.1f} /{pct(0.99):>7.1f} {lat['p50']:>7.1f} /{lat['p99']:>7.1f} {left_out:>9} {late:>6}"
+      f"{pct(0.5):>7.1f} /{pct(0.99):>7.1f} {lat['p50']:>7.1f} /{lat['p99']:>7.1f} {left_out:>9} {late:>6} {int(rss_kb) / 1024:>8.0f}"
       + (f"  ({late_ticks} replay ticks late)" if late_ticks else ""))
 PY
 done

@@ -49,6 +49,9 @@ struct EdgeMessage {
   double fps = 0;  // the camera source's frame rate (0: none): times of frames without timestamps
   // kChanges: width * height bytes, 1 changed, 0 not (decoded), or any non-zero changed (to encode).
   std::vector<uint8_t> changes;
+  // The fuse's: the message as received, its changes decoded again when its frame set is fused
+  // (a message waiting for its frame set then holds kilobytes, not an image).
+  std::string encoded;
 };
 
 // What a fuse process accepts: its own keys, and each camera's image size.
