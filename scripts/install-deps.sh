@@ -9,7 +9,7 @@ packages=(
   libeigen3-dev libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
   libfmt-dev libspdlog-dev libtbb-dev libhwy-dev
   googletest libgtest-dev libgmock-dev libbenchmark-dev
-  libmosquitto-dev mosquitto mosquitto-clients libzstd-dev
+  libmosquitto-dev mosquitto mosquitto-clients
   libcpp-httplib-dev curl
   ffmpeg
   chromium-headless-shell
