@@ -27,7 +27,15 @@ void ElevatedCheck::Apply(const OccupancyMap& map, std::span<const int32_t> labe
                           const std::vector<int>& kept_index, const std::vector<Blob>& kept_groups,
                           std::vector<Detection>& detections) {
   OCCMAP_CHECK(buffers.empty() || buffers.size() == cameras_.size(), "ElevatedCheck: one change buffer per camera");
+  const bool begun = frame_begun_;
+  frame_begun_ = false;
   if (support_heights_m_.empty() || (!changed && buffers.empty()) || detections.empty()) return;
+  if (!begun) BeginFrame(active);
+  frame_begun_ = false;
+  RemoveUnsupported(map, labels, changed, buffers, kept_index, kept_groups, detections);
+}
+
+void ElevatedCheck::BeginFrame(const std::vector<bool>& active) {
   // A new generation of the memos of SupportAt (all cleared before the counter overflows).
   if (++support_generation_ >= (1 << 28)) {
     support_generation_ = 1;
@@ -39,7 +47,29 @@ void ElevatedCheck::Apply(const OccupancyMap& map, std::span<const int32_t> labe
   for (size_t n = 0; n < cameras_.size() && n < active.size(); ++n) {
     if (active[n]) active_cameras_.push_back(n);
   }
-  RemoveUnsupported(map, labels, changed, buffers, kept_index, kept_groups, detections);
+  frame_begun_ = true;
+}
+
+double ElevatedCheck::TallestArea(const FloorGrid& grid, double x_m, double y_m, double radius_m,
+                                  const ChangeLookup& changed, std::span<const ChangeBuffer> buffers) {
+  if (support_heights_m_.empty() || (!changed && buffers.empty())) return 0;
+  OCCMAP_CHECK(frame_begun_, "ElevatedCheck: TallestArea before BeginFrame");
+  PrepareSupport(grid);
+  const int ci = static_cast<int>(std::floor((x_m - grid.origin_x_m) / grid.cell_size_m));
+  const int cj = static_cast<int>(std::floor((y_m - grid.origin_y_m) / grid.cell_size_m));
+  const int r = static_cast<int>(std::ceil(radius_m / grid.cell_size_m));
+  int best = 0;
+  for (size_t h = 0; h < support_heights_m_.size(); ++h) {
+    int occupied = 0;
+    for (int j = std::max(0, cj - r); j <= std::min(grid.cells_y - 1, cj + r); ++j) {
+      for (int i = std::max(0, ci - r); i <= std::min(grid.cells_x - 1, ci + r); ++i) {
+        if ((i - ci) * (i - ci) + (j - cj) * (j - cj) > r * r) continue;
+        occupied += SupportAt(h, int64_t{j} * grid.cells_x + i, changed, buffers) == 1;
+      }
+    }
+    best = std::max(best, occupied);
+  }
+  return best * grid.cell_size_m * grid.cell_size_m;
 }
 
 void ElevatedCheck::PrepareSupport(const FloorGrid& grid) {

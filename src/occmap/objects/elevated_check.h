@@ -61,6 +61,13 @@ class ElevatedCheck {
              const ChangeLookup& changed, std::span<const ChangeBuffer> buffers, const std::vector<int>& kept_index,
              const std::vector<Blob>& kept_groups, std::vector<Detection>& detections);
 
+  // Starts a frame's tests (Apply starts one itself when this was not called since the last).
+  void BeginFrame(const std::vector<bool>& active);
+  // The largest area (m2) that one plane of support_heights_m shows occupied within radius_m of
+  // (x_m, y_m): what stands above a footprint the floor nearly lost. 0 without planes.
+  double TallestArea(const FloorGrid& grid, double x_m, double y_m, double radius_m, const ChangeLookup& changed,
+                     std::span<const ChangeBuffer> buffers);
+
  private:
   void PrepareSupport(const FloorGrid& grid);
   // The plane-h occupancy of a cell: 1 occupied (every active camera seeing it changed), 0
@@ -104,6 +111,7 @@ class ElevatedCheck {
   std::vector<int64_t> support_tile_start_;  // [height * tiles + tile]: its start in support_pixel_, -1 none yet
   std::vector<int32_t> support_pixel_;       // per tile: [cell in tile * (cameras + 1) + camera or memo]
   int32_t support_generation_ = 0;           // Apply calls that test, the memos' stamp
+  bool frame_begun_ = false;                 // BeginFrame called since the last Apply
   std::vector<size_t> active_cameras_;       // this frame's active cameras, in order
   std::vector<std::vector<std::pair<int, int>>> footprint_;  // per detection, its footprint cells (reused)
 };

@@ -89,8 +89,20 @@ void ObjectDetector::Detect(const OccupancyMap& map, const std::vector<bool>& ac
   const std::vector<Blob>& footprints = footprints_;
   std::vector<Blob> kept_groups, kept_footprints;
   std::vector<int> kept_index;  // the group's index in `groups` (its label)
+  // Footprints under min_area_m2 that the planes show standing (ObjectOptions::standing_radius_m).
+  const bool standing_test = settings_.standing_radius_m > 0 && !settings_.support_heights_m.empty() &&
+                             (changed || !buffers.empty());
+  if (standing_test) elevated_.BeginFrame(active);
   for (size_t k = 0; k < footprints.size(); ++k) {
-    if (footprints[k].cells == 0 || footprints[k].area_m2 < settings_.min_area_m2) continue;
+    const Blob& f = footprints[k];
+    if (f.cells == 0) continue;
+    if (f.area_m2 < settings_.min_area_m2) {
+      if (!standing_test || f.area_m2 < kStandingMinShare * settings_.min_area_m2) continue;
+      if (elevated_.TallestArea(map.grid(), f.x_m, f.y_m, settings_.standing_radius_m, changed, buffers) <
+          settings_.min_area_m2) {
+        continue;
+      }
+    }
     kept_groups.push_back(groups[k]);
     kept_footprints.push_back(footprints[k]);
     kept_index.push_back(static_cast<int>(k));

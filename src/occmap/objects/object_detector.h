@@ -87,6 +87,8 @@ class ObjectDetector {
   // Per detection: floor points of its occupied cells, for the ghost test (at most kGhostSamples).
   void GhostSamples(const OccupancyMap& map, const std::vector<int>& kept_index, const std::vector<Detection>& detections);
   static constexpr size_t kGhostSamples = 32;
+  // The smallest footprint the standing test may keep, as a share of min_area_m2.
+  static constexpr double kStandingMinShare = 0.2;
   std::vector<std::vector<Eigen::Vector2d>> ghost_samples_;
   BlobFinder groups_;                     // the groups of the grown map, buffers kept
   std::vector<Blob> footprints_;

@@ -115,6 +115,36 @@ TEST_F(ObjectDetectorTest, ACameraThatSeesTheFlatDiscFreeIsEnoughToDropIt) {
   EXPECT_NEAR(out.detections[0].x_m, standing_.x(), 0.03);
 }
 
+TEST_F(ObjectDetectorTest, ASmallFootprintIsKeptWhenThePlanesShowItStanding) {
+  // Only the 4 cells (0.01 m2) nearest each object's centre are left on the floor (legs, shoes
+  // lost to the change test): under min_area_m2 (0.02), over a fifth of it. The planes show the
+  // standing cylinder whole.
+  for (int64_t i = 0; i < room_.grid.num_cells(); ++i) {
+    const Eigen::Vector2d c = room_.grid.CellCenter(i);
+    const bool on = (c - standing_).norm() < 0.05 || (c - flat_).norm() < 0.05;
+    map_.states()[static_cast<size_t>(i)] = on ? CellState::kOccupied : CellState::kFree;
+  }
+  ObjectOptions settings = Settings({0.35, 1.0});
+  settings.min_area_m2 = 0.02;
+  settings.split = false;  // the splitter has its own noise floor (min_detection_area_m2)
+  DetectedObjects out;
+  ObjectDetector standing(settings, 0.0, views_);
+  standing.Detect(map_, all_active_, Lookup(), out);
+  ASSERT_EQ(out.detections.size(), 1u) << "the flat speck has nothing above it";
+  EXPECT_NEAR(out.detections[0].x_m, standing_.x(), 0.03);
+  EXPECT_NEAR(out.detections[0].y_m, standing_.y(), 0.03);
+
+  settings.standing_radius_m = 0;  // off: both under min_area_m2
+  ObjectDetector off(settings, 0.0, views_);
+  off.Detect(map_, all_active_, Lookup(), out);
+  EXPECT_TRUE(out.detections.empty());
+  settings.standing_radius_m = 0.2;
+  settings.min_area_m2 = 0.06;  // 0.01 m2 is under a fifth of it: a speck, whatever stands above
+  ObjectDetector tiny(settings, 0.0, views_);
+  tiny.Detect(map_, all_active_, Lookup(), out);
+  EXPECT_TRUE(out.detections.empty());
+}
+
 TEST_F(ObjectDetectorTest, WithoutSplitTheTrackerMeasuresTheDetectionsAsTheyAre) {
   // Two discs touching: one group that the split would cut in two, and two predictions on it.
   OccupancyMap map(room_.grid);

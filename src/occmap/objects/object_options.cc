@@ -33,6 +33,9 @@ std::optional<Problem> CheckBlobs(const ObjectOptions& o) {
     return Problem{"group_radius_m", fmt::format("expected 0..5 m, found {}", o.group_radius_m)};
   }
   if (!(o.min_area_m2 >= 0)) return Problem{"min_area_m2", fmt::format("expected >= 0, found {}", o.min_area_m2)};
+  if (!(o.standing_radius_m >= 0 && o.standing_radius_m <= 2)) {
+    return Problem{"standing_radius_m", fmt::format("expected 0..2 m, found {}", o.standing_radius_m)};
+  }
   return std::nullopt;
 }
 
@@ -81,7 +84,7 @@ Status ObjectOptions::Validate() const {
 Status ParseObjectOptions(const YamlField& f, ObjectOptions& options) {
   if (f.IsNull()) return Status::Ok();
   OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"group_radius_m", "min_area_m2", "split", "remove_ghosts", "occluder_height_m",
-                                      "support_heights_m", "min_support", "support_slack_m"}));
+                                      "support_heights_m", "min_support", "support_slack_m", "standing_radius_m"}));
   ObjectOptions o = options;
   OCCMAP_ASSIGN_OR_RETURN(o.split, f.GetBool("split", o.split));
   OCCMAP_ASSIGN_OR_RETURN(o.remove_ghosts, f.GetBool("remove_ghosts", o.remove_ghosts));
@@ -93,6 +96,7 @@ Status ParseObjectOptions(const YamlField& f, ObjectOptions& options) {
   OCCMAP_ASSIGN_OR_RETURN(o.support_slack_m, f.GetDouble("support_slack_m", o.support_slack_m));
   OCCMAP_ASSIGN_OR_RETURN(o.group_radius_m, f.GetDouble("group_radius_m", o.group_radius_m));
   OCCMAP_ASSIGN_OR_RETURN(o.min_area_m2, f.GetDouble("min_area_m2", o.min_area_m2));
+  OCCMAP_ASSIGN_OR_RETURN(o.standing_radius_m, f.GetDouble("standing_radius_m", o.standing_radius_m));
   if (auto p = CheckBlobs(o)) return f.Find(p->key).value_or(f).Error(p->expected);
   options = std::move(o);
   return Status::Ok();

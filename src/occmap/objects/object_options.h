@@ -47,6 +47,11 @@ struct ObjectOptions {
   std::vector<double> support_heights_m;
   double min_support = 0.2;
   double support_slack_m = 0.05;
+  // With the elevated check: a footprint under min_area_m2 (but at least a fifth of it) is kept
+  // when one of the planes shows min_area_m2 occupied within standing_radius_m of it (0 = off).
+  // Legs leave gaps and dark shoes in front of their own cast shadow can leave little of a person
+  // on the floor, while the body above stands whole; a speck of the floor has nothing above it.
+  double standing_radius_m = 0.2;
 
   // --- Person size and splitting: keys of the `tracking:` section.
   // Expected diameter of one person's footprint in the map (a disc): the unit for splitting,

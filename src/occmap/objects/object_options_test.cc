@@ -53,6 +53,7 @@ blobs:
   support_heights_m: [0.35, 1.0]
   min_support: 0.3
   support_slack_m: 0.04
+  standing_radius_m: 0.25
 tracking:
   algorithm: window
   max_speed_mps: 3
@@ -73,6 +74,7 @@ tracking:
   EXPECT_EQ(options.support_heights_m, (std::vector<double>{0.35, 1.0}));
   EXPECT_EQ(options.min_support, 0.3);
   EXPECT_EQ(options.support_slack_m, 0.04);
+  EXPECT_EQ(options.standing_radius_m, 0.25);
   EXPECT_EQ(options.person_diameter_m, 0.6);
   EXPECT_EQ(options.min_detection_area_m2, 0.05);
   EXPECT_EQ(options.max_people_per_blob, 4);
@@ -100,6 +102,7 @@ TEST(ParseObjectOptions, MalformedInputsGiveLocatedMessagesAndLeaveTheOptionsAlo
       {"blobs:\n  group_radius: 0.2", "site.yaml:2: blobs: unknown field 'group_radius' (did you mean 'group_radius_m'?)"},
       {"blobs:\n  group_radius_m: 6", "site.yaml:2: blobs.group_radius_m: expected 0..5 m, found 6"},
       {"blobs:\n  min_area_m2: -1", "site.yaml:2: blobs.min_area_m2: expected >= 0, found -1"},
+      {"blobs:\n  standing_radius_m: 3", "site.yaml:2: blobs.standing_radius_m: expected 0..2 m, found 3"},
       {"blobs:\n  split: maybe", "site.yaml:2: blobs.split: expected true or false, found 'maybe'"},
       {"blobs:\n  support_heights_m: [0.5, 12]", "site.yaml:2: blobs.support_heights_m: expected heights in (0, 10) m, found 12"},
       {"blobs:\n  min_support: 1.5", "site.yaml:2: blobs.min_support: expected a fraction in [0, 1], found 1.5"},
