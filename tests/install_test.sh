@@ -32,7 +32,8 @@ man1="$tmp/prefix/share/man/man1/occmap.1.gz"
 commands=$("$tmp/prefix/bin/occmap" --help | sed -n '/^Subcommands:/,$p' | awk '/^  [a-z]/ {print $1}')
 [ -n "$commands" ] || fail "occmap --help lists no commands"
 for c in $commands; do
-  zcat "$man1" | grep -qx "\.SS $c" || fail "the manual page has no section for the command $c"
+  # roff escapes a hyphen: edge-sim is written edge\-sim.
+  zcat "$man1" | grep -qxF ".SS ${c//-/\\-}" || fail "the manual page has no section for the command $c"
 done
 if command -v groff >/dev/null; then
   warnings=$(zcat "$man1" | groff -man -Tutf8 -ww -z 2>&1)

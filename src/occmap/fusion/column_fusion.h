@@ -34,7 +34,6 @@
 #include "occmap/fusion/occupancy_map.h"
 #include "occmap/lut/column_lut.h"
 #include "occmap/util/image.h"
-#include "occmap/util/simd.h"
 #include "occmap/util/status.h"
 #include "occmap/util/thread_pool.h"
 
