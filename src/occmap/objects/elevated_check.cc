@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "occmap/fusion/blobs.h"
 #include "occmap/util/status.h"
@@ -27,11 +28,10 @@ void ElevatedCheck::Apply(const OccupancyMap& map, std::span<const int32_t> labe
                           const std::vector<int>& kept_index, const std::vector<Blob>& kept_groups,
                           std::vector<Detection>& detections) {
   OCCMAP_CHECK(buffers.empty() || buffers.size() == cameras_.size(), "ElevatedCheck: one change buffer per camera");
-  const bool begun = frame_begun_;
-  frame_begun_ = false;
+  const bool begun = std::exchange(frame_begun_, false);
   if (support_heights_m_.empty() || (!changed && buffers.empty()) || detections.empty()) return;
   if (!begun) BeginFrame(active);
-  frame_begun_ = false;
+  frame_begun_ = false;  // BeginFrame sets it; the next frame starts afresh
   RemoveUnsupported(map, labels, changed, buffers, kept_index, kept_groups, detections);
 }
 
