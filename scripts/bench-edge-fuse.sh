@@ -50,20 +50,11 @@ wait_for() {  # FILE TEXT SECONDS
   echo "timed out waiting for '$2' in $1:" >&2; tail -5 "$1" >&2; exit 1
 }
 
-port=$(python3 -c "import socket; s = socket.socket(); s.bind(('127.0.0.1', 0)); print(s.getsockname()[1])")
-cat >"$work/mosquitto.conf" <<CONF
-listener $port 127.0.0.1
-allow_anonymous true
-persistence false
-max_queued_messages 100000
-log_dest stderr
-CONF
-/usr/sbin/mosquitto -c "$work/mosquitto.conf" 2>"$work/broker.log" &
-broker_pid=$!
-for _ in $(seq 100); do
-  mosquitto_pub -h 127.0.0.1 -p "$port" -t occmap-bench/probe -m x 2>/dev/null && break
-  sleep 0.05
-done
+source "$(dirname "$0")/lib/mosquitto.sh"
+# Queued messages: 64 simulated cameras outrun the default 1000 while the fuse starts.
+mosquitto_start "$work" "max_queued_messages 100000" || exit 1
+port=$mosquitto_port
+broker_pid=$mosquitto_pid
 broker="mqtt://127.0.0.1:$port"
 echo "mosquitto on $broker ($(/usr/sbin/mosquitto -h 2>/dev/null | head -1))"
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"

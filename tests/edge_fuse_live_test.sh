@@ -61,12 +61,7 @@ back_at=$(sed -n 's/.*camera cam4 is back at frame set \([0-9]*\).*/\1/p' "$work
 wait_frames $((${back_at:-0} + 15)) || fail "the fuse stalled after camera 4 came back"
 
 # 3. The broker restarted under them: everyone reconnects, the fuse goes on.
-kill "$broker_pid"
-wait "$broker_pid" 2>/dev/null
-sleep 1
-/usr/sbin/mosquitto -c "$work/mosquitto.conf" 2>>"$work/broker.log" &
-broker_pid=$!
-tl_track "$broker_pid"
+tl_restart_broker 1
 for cams in cam1,cam2 cam3 cam4; do
   wait_log "$work/edge-$cams.log" "broker is back" 20 && ok || fail "edge $cams did not reconnect: $(tail -3 "$work/edge-$cams.log")"
 done

@@ -75,12 +75,7 @@ kill -INT $other_pid 2>/dev/null
 again_pid=$!
 tl_track $again_pid
 for _ in $(seq 200); do grep -q "subscribed to" "$work/again.log" && break; sleep 0.05; done
-kill "$broker_pid"
-wait "$broker_pid" 2>/dev/null
-/usr/sbin/mosquitto -c "$work/mosquitto.conf" 2>>"$work/broker.log" &
-broker_pid=$!
-tl_track "$broker_pid"
-for _ in $(seq 100); do mosquitto_pub -h 127.0.0.1 -p "$broker_port" -t occmap-test/probe -m x 2>/dev/null && break; sleep 0.05; done
+tl_restart_broker
 sleep 7  # the fuse's reconnect back-off (1 s, then 2, 4) and its subscription
 for cams in cam1,cam2,cam3 cam4; do
   "$occmap" edge "$work/lab/site.yaml" --cameras $cams --topic-prefix occmap-test/again --broker "$broker" \

@@ -30,20 +30,10 @@ for tool in /usr/sbin/mosquitto mosquitto_sub mosquitto_pub; do
 done
 
 # --- A broker of our own.
-port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-cat >"$work/mosquitto.conf" <<CONF
-listener $port 127.0.0.1
-allow_anonymous true
-persistence false
-log_dest stderr
-CONF
-/usr/sbin/mosquitto -c "$work/mosquitto.conf" 2>"$work/broker.log" &
-broker_pid=$!
-for _ in $(seq 100); do
-  mosquitto_pub -h 127.0.0.1 -p "$port" -t occmap-test/probe -m x 2>/dev/null && break
-  sleep 0.05
-done
-mosquitto_pub -h 127.0.0.1 -p "$port" -t occmap-test/probe -m x || { echo "FAIL the broker did not start"; cat "$work/broker.log"; exit 1; }
+source "$(dirname "$0")/../scripts/lib/mosquitto.sh"
+mosquitto_start "$work" || exit 1
+port=$mosquitto_port
+broker_pid=$mosquitto_pid
 
 # --- A rendered lab with a zone over the whole floor and a line across the middle.
 "$occmap" synth --scene lab --frames 60 --scale 0.5 --out "$work/lab" >/dev/null || { echo "FAIL synth"; exit 1; }

@@ -106,26 +106,21 @@ tl_stop_serving() {
   wait "${tl_sender[$1]}" 2>/dev/null
 }
 
-# --- MQTT: tl_broker starts mosquitto on 127.0.0.1 at a free port ($broker_port), with a
-# generated config in $work; it is stopped by its PID at exit. Exits when it does not start.
+# --- MQTT (scripts/lib/mosquitto.sh): tl_broker starts mosquitto on 127.0.0.1 at a free port
+# ($broker_port, $broker_pid), with a generated config in $work; tl_restart_broker [PAUSE_S]
+# stops it and starts it again on that port. Both track it (stopped at exit); both exit when it
+# does not start.
+source "$(dirname "${BASH_SOURCE[0]}")/../scripts/lib/mosquitto.sh"
 tl_broker() {
-  broker_port=$(tl_free_ports tcp 1)
-  cat >"$work/mosquitto.conf" <<CONF
-listener $broker_port 127.0.0.1
-allow_anonymous true
-persistence false
-log_dest stderr
-CONF
-  /usr/sbin/mosquitto -c "$work/mosquitto.conf" 2>"$work/broker.log" &
-  broker_pid=$!
+  mosquitto_start "$work" || exit 1
+  broker_port=$mosquitto_port
+  broker_pid=$mosquitto_pid
   tl_track "$broker_pid"
-  for _ in $(seq 100); do
-    mosquitto_pub -h 127.0.0.1 -p "$broker_port" -t occmap-test/probe -m x 2>/dev/null && return 0
-    sleep 0.05
-  done
-  echo "FAIL the broker did not start"
-  cat "$work/broker.log"
-  exit 1
+}
+tl_restart_broker() {
+  mosquitto_restart "$work" "$@" || exit 1
+  broker_pid=$mosquitto_pid
+  tl_track "$broker_pid"
 }
 
 # summary_field DIR EXPR: a Python expression over summary.json's object `s` (-1 when unreadable).
