@@ -36,7 +36,9 @@ namespace occmap {
 class FusionStage {
  public:
   // Builds what the plan needs: FastFusion's tables for the paper's AND, the people's column
-  // tables, the backgrounds' protection and shadow checks. fps: the run's (backgrounds' ages).
+  // tables, the backgrounds' protection and shadow checks. fps: the run's, for the adaptive
+  // backgrounds' ages (0: none, as the fuse, which refuses them, makes its stage before the
+  // first message tells the rate).
   static Result<std::unique_ptr<FusionStage>> Create(const Site& site, const RunOptions& options,
                                                      const FusionPlan& plan, const GroundLut& lut,
                                                      std::vector<CameraState>& cams, double fps, Context& ctx);
