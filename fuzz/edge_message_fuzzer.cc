@@ -1,5 +1,6 @@
 // Fuzz target: the MQTT evidence messages of `occmap edge` as `occmap fuse` takes them
-// (pipeline/edge_message.h DecodeEdgeMessage, then the fuse's checks and the frame-set aligner
+// (pipeline/edge_message.h DecodeEdgeMessage, and the fuse's halves of it, DecodeEdgeHeader and
+// DecodeEdgeChanges, which must agree with it; then the fuse's checks and the frame-set aligner
 // of pipeline/edge_align.h). The fuse's site is fixed: table key 0x1234, settings key 0x5678,
 // camera 0 64x48, camera 1 33x17 (the edge_message test's).
 //
@@ -11,6 +12,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <string_view>
+#include <vector>
 
 #include <fmt/core.h>
 
@@ -30,6 +33,24 @@ void CheckRoundTrip(const occmap::EdgeMessage& m, const occmap::EdgeExpectation&
       back->changes != m.changes) {
     std::abort();
   }
+}
+
+// The fuse's two halves (DecodeEdgeHeader on arrival, DecodeEdgeChanges into the frame set's
+// buffer) take and refuse what DecodeEdgeMessage does, and give its changes.
+void CheckHalves(std::string_view payload, const occmap::Result<occmap::EdgeMessage>& whole,
+                 const occmap::EdgeExpectation& expect) {
+  auto header = occmap::DecodeEdgeHeader(payload, expect, "halves");
+  if (!header.ok()) {
+    if (whole.ok()) std::abort();
+    return;
+  }
+  if (header->kind == occmap::EdgeMessageKind::kEnd) {
+    if (!whole.ok()) std::abort();
+    return;
+  }
+  std::vector<uint8_t> changes(static_cast<size_t>(header->width) * header->height);
+  const occmap::Status decoded = occmap::DecodeEdgeChanges(payload, changes, "halves");
+  if (decoded.ok() != whole.ok() || (whole.ok() && whole->changes != changes)) std::abort();
 }
 
 }  // namespace
@@ -57,6 +78,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     now += std::chrono::milliseconds(10);
     if (topic >= expect.camera_sizes.size()) continue;  // not a camera's topic: not read
     auto m = occmap::DecodeEdgeMessage(payload, expect, "occmap/edge/cam");
+    CheckHalves(payload, m, expect);
     // The fuse's own checks (pipeline/edge_fuse.cc): the camera of the topic, a timestamp to align by.
     if (std::getenv("OCCMAP_FUZZ_VERBOSE") != nullptr) {
       std::fprintf(stderr, "%s\n", m.ok() ? fmt::format("camera {} frame {}", m->camera, m->frame).c_str()

@@ -10,6 +10,8 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <span>
+#include <string>
 #include <thread>
 
 #include "occmap/pipeline/camera_changes.h"
@@ -253,7 +255,7 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   auto receive = [&](const MqttReceived& r) {
     auto topic = camera_of_topic.find(r.topic);
     if (topic == camera_of_topic.end()) return;
-    auto m = DecodeEdgeMessage(r.payload, expect, r.topic);
+    auto m = DecodeEdgeHeader(r.payload, expect, r.topic);
     if (!m.ok()) return refuse(r.topic, m.status().message());
     if (m->camera != topic->second) {
       return refuse(r.topic, fmt::format("{}: camera index {} on camera {}'s topic", r.topic, m->camera, topic->second));
@@ -266,10 +268,9 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
       fps = m->fps;
       if (o.sync_tolerance_s == 0) aligner.set_tolerance(align.tolerance_s = 0.9 / fps);
     }
-    // Kept coded until its frame set is fused: while the stages are made (at the first message)
-    // and whenever the fuse falls behind, frame sets wait here (64 cameras of 960x540 held 11 GB
+    // Kept coded until its frame set is fused, then decoded once, into the set's change buffer:
+    // whenever the fuse falls behind, frame sets wait here (64 cameras of 960x540 held 11 GB
     // decoded).
-    m->changes = std::vector<uint8_t>();
     m->encoded = r.payload;
     aligner.Add(std::move(m).value(), r.arrival);
   };
@@ -328,11 +329,17 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
       set.active[n] = a.cameras[n].has_value();
       if (!set.active[n]) continue;
       const EdgeMessage& m = *a.cameras[n];
+      const std::string topic = EdgeTopic(prefix, site.cameras[n].id);
+      const Status decoded = DecodeEdgeChanges(
+          m.encoded, std::span<uint8_t>(set.changes.data() + changes.offset(n), changes.offset(n + 1) - changes.offset(n)),
+          topic);
+      if (!decoded.ok()) {  // a broken payload: the camera is left out of this set (its cells unseen)
+        set.active[n] = false;
+        refuse(topic, decoded.message());
+        continue;
+      }
       if (std::isnan(set.timestamp_s)) set.timestamp_s = m.timestamp_s;
       captured_unix = std::min(captured_unix, m.t_unix);
-      // Decoded when received (refused then if broken): it decodes again.
-      OCCMAP_ASSIGN_OR_RETURN(const EdgeMessage decoded, DecodeEdgeMessage(m.encoded, expect, "edge message"));
-      std::memcpy(set.changes.data() + changes.offset(n), decoded.changes.data(), decoded.changes.size());
     }
     set.t_unix = captured_unix;
     const double age_s = UnixNow() - captured_unix;

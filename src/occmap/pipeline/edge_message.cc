@@ -423,7 +423,7 @@ void RekeyEdgeMessage(std::string& bytes, uint64_t table_key, uint64_t settings_
   std::memcpy(bytes.data() + kFpsAt, &fps, 8);
 }
 
-Result<EdgeMessage> DecodeEdgeMessage(std::string_view bytes, const EdgeExpectation& expect, std::string_view source) {
+Result<EdgeMessage> DecodeEdgeHeader(std::string_view bytes, const EdgeExpectation& expect, std::string_view source) {
   auto bad = [&](const std::string& what) { return InvalidInput(fmt::format("{}: edge message: {}", source, what)); };
   if (bytes.size() < 8 || std::memcmp(bytes.data(), kMagic, 4) != 0) {
     return bad(fmt::format("expected an occmap edge message (\"OCME\"), found {} bytes of something else", bytes.size()));
@@ -481,10 +481,32 @@ Result<EdgeMessage> DecodeEdgeMessage(std::string_view bytes, const EdgeExpectat
   if (bytes.size() - at != payload_bytes) {
     return bad(fmt::format("payload: expected {} bytes, found {}", payload_bytes, bytes.size() - at));
   }
-  m.changes.resize(pixels);
-  const Status rows = DecodeRows(bytes.substr(at), n_modes, static_cast<int>(m.width), static_cast<int>(m.height),
-                                 m.changes.data());
-  if (!rows.ok()) return bad("payload: " + rows.message());
+  return m;
+}
+
+Status DecodeEdgeChanges(std::string_view bytes, std::span<uint8_t> out, std::string_view source) {
+  constexpr size_t kSizeAt = 4 + 2 + 2 + 8 + 8 + 4, kModesAt = kHeaderBytes - 8;
+  uint32_t width = 0, height = 0, n_modes = 0;
+  if (bytes.size() >= kHeaderBytes) {
+    std::memcpy(&width, bytes.data() + kSizeAt, 4);
+    std::memcpy(&height, bytes.data() + kSizeAt + 4, 4);
+    std::memcpy(&n_modes, bytes.data() + kModesAt, 4);
+  }
+  if (bytes.size() < kHeaderBytes || static_cast<size_t>(width) * height != out.size()) {
+    return InvalidInput(fmt::format("{}: edge message: expected a message of {} pixels, found {} bytes", source,
+                                    out.size(), bytes.size()));
+  }
+  const Status rows = DecodeRows(bytes.substr(kHeaderBytes), n_modes, static_cast<int>(width), static_cast<int>(height),
+                                 out.data());
+  if (!rows.ok()) return InvalidInput(fmt::format("{}: edge message: payload: {}", source, rows.message()));
+  return Status::Ok();
+}
+
+Result<EdgeMessage> DecodeEdgeMessage(std::string_view bytes, const EdgeExpectation& expect, std::string_view source) {
+  OCCMAP_ASSIGN_OR_RETURN(EdgeMessage m, DecodeEdgeHeader(bytes, expect, source));
+  if (m.kind == EdgeMessageKind::kEnd) return m;
+  m.changes.resize(static_cast<size_t>(m.width) * m.height);
+  OCCMAP_RETURN_IF_ERROR(DecodeEdgeChanges(bytes, m.changes, source));
   return m;
 }
 

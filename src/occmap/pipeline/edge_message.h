@@ -19,10 +19,11 @@
 // other detection settings, with a message naming what differs.
 //
 //   std::string bytes = EncodeEdgeMessage(msg);                  // edge
-//   OCCMAP_ASSIGN_OR_RETURN(EdgeMessage m, DecodeEdgeMessage(bytes, expect));   // fuse
+//   OCCMAP_ASSIGN_OR_RETURN(EdgeMessage m, DecodeEdgeMessage(bytes, expect, topic));   // fuse
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -76,5 +77,13 @@ void RekeyEdgeMessage(std::string& bytes, uint64_t table_key, uint64_t settings_
 // source names the message in errors (e.g. its topic).
 Result<EdgeMessage> DecodeEdgeMessage(std::string_view bytes, const EdgeExpectation& expect,
                                       std::string_view source);
+// The fuse's two halves of DecodeEdgeMessage: the header, checked as it checks it (`changes`
+// left empty), when a message arrives; its changes, decoded straight into the frame set's change
+// buffer, when its frame set is fused (a message is decoded once, into no image of its own: at
+// 64 cameras a decode on arrival and another into a fresh image were most of the fuse's CPU).
+Result<EdgeMessage> DecodeEdgeHeader(std::string_view bytes, const EdgeExpectation& expect, std::string_view source);
+// bytes: a message of changes that DecodeEdgeHeader accepted; out: its width * height pixels,
+// row-major (1 changed, 0 not). On an error out holds no meaning.
+Status DecodeEdgeChanges(std::string_view bytes, std::span<uint8_t> out, std::string_view source);
 
 }  // namespace occmap

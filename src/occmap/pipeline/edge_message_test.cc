@@ -1,12 +1,15 @@
 #include "occmap/pipeline/edge_message.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <random>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -173,6 +176,64 @@ TEST(EdgeMessage, RefusesOtherTablesSettingsVersionsAndBrokenBytes) {
   one = Expect();
   one.camera_sizes[1] = {32, 17};
   refused(good, one, "expected a 32x17 image, found 33x17");
+}
+
+TEST(EdgeMessage, TheFusesHalvesDecodeTheHeaderThenTheChangesIntoItsSlice) {
+  const EdgeMessage m = Sample();
+  const std::string bytes = EncodeEdgeMessage(m);
+  auto header = DecodeEdgeHeader(bytes, Expect(), "t");
+  ASSERT_TRUE(header.ok()) << header.status().message();
+  EXPECT_TRUE(header->changes.empty());
+  EXPECT_EQ(header->camera, 1u);
+  EXPECT_EQ(header->frame, 41);
+  EXPECT_EQ(header->t_unix, m.t_unix);
+  // Into a slice of a larger buffer, as the fuse decodes into its change buffer: every pixel of
+  // the slice written (junk before), nothing around it.
+  const size_t pixels = m.changes.size();
+  std::vector<uint8_t> buffer(pixels + 20, 7);
+  const Status decoded = DecodeEdgeChanges(bytes, std::span<uint8_t>(buffer.data() + 10, pixels), "t");
+  ASSERT_TRUE(decoded.ok()) << decoded.message();
+  for (size_t k = 0; k < pixels; ++k) ASSERT_EQ(buffer[10 + k], m.changes[k] != 0 ? 1 : 0) << k;
+  for (size_t k = 0; k < 10; ++k) ASSERT_EQ(buffer[k], 7);
+  for (size_t k = 10 + pixels; k < buffer.size(); ++k) ASSERT_EQ(buffer[k], 7);
+}
+
+TEST(EdgeMessage, TheChangesRefuseBrokenRowsThatTheHeaderLetThrough) {
+  const std::string good = EncodeEdgeMessage(Sample());
+  constexpr size_t kModesAt = 68, kPayloadAt = 72, kHeaderBytes = 76;
+  auto with = [&](uint32_t n_modes, std::string_view payload) {
+    std::string b = good.substr(0, kHeaderBytes);
+    std::memcpy(b.data() + kModesAt, &n_modes, 4);
+    const auto n = static_cast<uint32_t>(payload.size());
+    std::memcpy(b.data() + kPayloadAt, &n, 4);
+    return b + std::string(payload);
+  };
+  std::vector<uint8_t> out(33 * 17);
+  struct Case {
+    std::string bytes;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {with(17, ""), "src: edge message: payload: coded rows: row 0: expected more bytes, found the end"},
+      {with(17, good.substr(kHeaderBytes)), "more than the 17 modes stated"},
+      {with(33 * 17, good.substr(kHeaderBytes)), "modes decoded"},
+  };
+  for (const Case& c : cases) {
+    ASSERT_TRUE(DecodeEdgeHeader(c.bytes, Expect(), "src").ok()) << c.message;
+    const Status s = DecodeEdgeChanges(c.bytes, out, "src");
+    ASSERT_FALSE(s.ok()) << c.message;
+    EXPECT_EQ(s.code(), StatusCode::kInvalidInput);
+    EXPECT_NE(s.message().find(c.message), std::string::npos) << s.message();
+    // DecodeEdgeMessage refuses it with the same words.
+    auto whole = DecodeEdgeMessage(c.bytes, Expect(), "src");
+    ASSERT_FALSE(whole.ok());
+    EXPECT_EQ(whole.status().message(), s.message());
+  }
+  std::vector<uint8_t> small(32 * 17);
+  const Status s = DecodeEdgeChanges(good, small, "src");
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.message(), fmt::format("src: edge message: expected a message of 544 pixels, found {} bytes", good.size()));
+  EXPECT_FALSE(DecodeEdgeChanges("OCME", out, "src").ok());
 }
 
 TEST(EdgeMessage, RestampedKeepsEverythingButFrameAndTimes) {
