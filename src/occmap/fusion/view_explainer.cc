@@ -66,10 +66,12 @@ double ViewExplainer::UpperBound(int64_t k, std::span<const ChangeRowSums> count
 }
 
 // The spans read from the row sums and the ground band below them, once for UpperBound and Terms.
-void ViewExplainer::CameraTerm(int64_t k, int c, const ChangeRowSums& counts, const ExplainOptions& o, Term& t) const {
+void ViewExplainer::CameraTerm(int64_t k, int c, const ChangeRowSums& counts, const ExplainOptions& o, Term& t,
+                               std::vector<RowSpan>* spans) const {
   t = Term{};
   const ColumnSpans s = PersonSpans(columns_, c, k, o);
   if (s.visible_rows == 0) return;
+  const size_t first = spans != nullptr ? spans->size() : 0;
   int64_t changed = 0, pixels = 0;
   const int step = RowStep(s, o.max_rows);
   for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); y += step) {
@@ -78,8 +80,13 @@ void ViewExplainer::CameraTerm(int64_t k, int c, const ChangeRowSums& counts, co
     changed += counts.Count(y, x0, x1);
     pixels += x1 - x0 + 1;
     t.body.Add(y, x0, x1);
+    if (spans != nullptr) spans->push_back({static_cast<uint16_t>(y), static_cast<uint16_t>(x0), static_cast<uint16_t>(x1)});
   }
-  if (pixels == 0) return;
+  if (pixels == 0) {
+    if (spans != nullptr) spans->resize(first);
+    return;
+  }
+  const size_t body_end = spans != nullptr ? spans->size() : 0;
   int64_t ground = 0;
   const int band_end = GroundBandEnd(s, o);
   for (int y = s.last_row + 1; y <= band_end; y += step) {
@@ -87,6 +94,12 @@ void ViewExplainer::CameraTerm(int64_t k, int c, const ChangeRowSums& counts, co
     if (!s.Span(y, x0, x1)) continue;
     ground += counts.Count(y, x0, x1);
     t.ground.Add(y, x0, x1);
+    if (spans != nullptr) spans->push_back({static_cast<uint16_t>(y), static_cast<uint16_t>(x0), static_cast<uint16_t>(x1)});
+  }
+  if (spans != nullptr) {
+    t.first_span = static_cast<uint32_t>(first);
+    t.body_rows = static_cast<uint32_t>(body_end - first);
+    t.ground_rows = static_cast<uint32_t>(spans->size() - body_end);
   }
   t.counts = true;
   t.gain = PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(pixels - changed) -
@@ -146,18 +159,19 @@ double ViewExplainer::Gain(int64_t k, std::span<const ImageView<const uint8_t>> 
 }
 
 double ViewExplainer::Terms(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
-                            const ExplainOptions& o, Term* terms) const {
+                            const ExplainOptions& o, Term* terms, int arena) {
   double gain = 0;
   for (int c = 0; c < columns_.num_cameras(); ++c) {
     terms[c] = Term{};
     if (!active[c]) continue;
-    CameraTerm(k, c, counts[c], o, terms[c]);
+    CameraTerm(k, c, counts[c], o, terms[c], &term_spans_[static_cast<size_t>(arena)]);
+    terms[c].arena = static_cast<uint8_t>(arena);
     gain += terms[c].gain;
   }
   return gain;
 }
 
-double ViewExplainer::FastGain(int64_t k, int32_t index, std::span<const ImageView<const uint8_t>> changes,
+double ViewExplainer::FastGain(int32_t index, std::span<const ImageView<const uint8_t>> changes,
                                std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
                                const ExplainOptions& o, int max_cover) const {
   const int cams = columns_.num_cameras();
@@ -192,13 +206,12 @@ double ViewExplainer::FastGain(int64_t k, int32_t index, std::span<const ImageVi
       for (int m = 0; m < n_met; ++m) n += met[m]->MeetsRow(y, x0, x1) ? 1 : 0;
       return n;
     };
-    const ColumnSpans s = PersonSpans(columns_, c, k, o);
+    // The rows CameraTerm read (those whose span meets the image), body then ground band.
+    const RowSpan* rows = term_spans_[t.arena].data() + t.first_span;
     int64_t changed = 0, unchanged = 0, pixels = 0;
-    const int step = RowStep(s, o.max_rows);
     const uint8_t limit = static_cast<uint8_t>(max_cover);
-    for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); y += step) {
-      int x0, x1;
-      if (!s.Span(y, x0, x1)) continue;
+    for (const RowSpan* r = rows; r != rows + t.body_rows; ++r) {
+      const int y = r->y, x0 = r->x0, x1 = r->x1;
       pixels += x1 - x0 + 1;
       int row_changed = 0, row_free = 0;
       if (reaching(y, x0, x1) <= max_cover) {
@@ -217,10 +230,8 @@ double ViewExplainer::FastGain(int64_t k, int32_t index, std::span<const ImageVi
       unchanged += row_free - row_changed;
     }
     int64_t ground = 0;
-    const int band_end = GroundBandEnd(s, o);
-    for (int y = s.last_row + 1; y <= band_end; y += step) {
-      int x0, x1;
-      if (!s.Span(y, x0, x1)) continue;
+    for (const RowSpan* r = rows + t.body_rows; r != rows + t.body_rows + t.ground_rows; ++r) {
+      const int y = r->y, x0 = r->x0, x1 = r->x1;
       if (reaching(y, x0, x1) == 0) {
         ground += counts[c].Count(y, x0, x1);
         continue;
@@ -243,6 +254,28 @@ void ViewExplainer::Cover(int64_t k, int32_t index, const std::vector<bool>& act
     Box& box = cover_boxes_[static_cast<size_t>(index) * static_cast<size_t>(cams) + static_cast<size_t>(c)];
     box = Box{};
     if (!active[c]) continue;
+    if (fast_cover_) {  // the rows worked out at the candidate's first Cover this frame
+      CoverRows& rows = cover_rows_[static_cast<size_t>(index) * static_cast<size_t>(cams) + static_cast<size_t>(c)];
+      if (!rows.known) {
+        rows.known = true;
+        rows.first = static_cast<uint32_t>(cover_spans_.size());
+        const ColumnSpans s = PersonSpans(columns_, c, k, o);
+        if (s.visible_rows > 0) {
+          for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); ++y) {
+            int x0, x1;
+            if (!s.Span(y, x0, x1)) continue;
+            cover_spans_.push_back({static_cast<uint16_t>(y), static_cast<uint16_t>(x0), static_cast<uint16_t>(x1)});
+          }
+        }
+        rows.rows = static_cast<uint32_t>(cover_spans_.size()) - rows.first;
+      }
+      for (const RowSpan* r = cover_spans_.data() + rows.first; r != cover_spans_.data() + rows.first + rows.rows; ++r) {
+        uint8_t* cov = coverage_[c].row(r->y);
+        for (int x = r->x0; x <= r->x1; ++x) cov[x] = static_cast<uint8_t>(cov[x] + delta);
+        box.Add(r->y, r->x0, r->x1);
+      }
+      continue;
+    }
     const ColumnSpans s = PersonSpans(columns_, c, k, o);
     if (s.visible_rows == 0) continue;
     for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); ++y) {
@@ -293,14 +326,26 @@ void ViewExplainer::Run(std::span<const ImageView<const uint8_t>> changes, std::
     if (column_map.state(k) == CellState::kOccupied) candidates.push_back(k);
   const int cams = columns_.num_cameras();
   std::vector<double> bound(candidates.size());
-  if (fast) terms_.resize(candidates.size() * static_cast<size_t>(cams));
+  if (fast) {
+    // Rows are kept as 16-bit coordinates.
+    for (int c = 0; c < cams; ++c)
+      OCCMAP_CHECK(columns_.image_size(c).width <= 65536 && columns_.image_size(c).height <= 65536,
+                   "ViewExplainer: images up to 65536 pixels a side");
+    terms_.resize(candidates.size() * static_cast<size_t>(cams));
+    term_spans_.resize(static_cast<size_t>(std::max(1, ctx.num_threads())));
+    OCCMAP_CHECK(term_spans_.size() <= 256, "ViewExplainer: at most 256 threads");
+    for (auto& arena : term_spans_) arena.clear();
+    cover_rows_.assign(candidates.size() * static_cast<size_t>(cams), CoverRows{});
+    cover_spans_.clear();
+  }
+  fast_cover_ = fast;
   cover_boxes_.resize(candidates.size() * static_cast<size_t>(cams));
   covered_.clear();
   ParallelFor(
       ctx, 0, static_cast<int64_t>(candidates.size()),
-      [&](int64_t b, int64_t e, int) {
+      [&](int64_t b, int64_t e, int worker) {
         for (int64_t i = b; i < e; ++i) {
-          bound[i] = fast ? Terms(candidates[i], counts, active, o, terms_.data() + static_cast<size_t>(i) * cams)
+          bound[i] = fast ? Terms(candidates[i], counts, active, o, terms_.data() + static_cast<size_t>(i) * cams, worker)
                           : UpperBound(candidates[i], counts, active, o);
         }
       },
@@ -308,7 +353,7 @@ void ViewExplainer::Run(std::span<const ImageView<const uint8_t>> changes, std::
   // A gain against the coverage of the people chosen so far (k: the candidate of `index`).
   const auto gain_of = [&](int64_t k, int max_cover) {
     const int32_t index = index_of_[k];
-    return fast ? FastGain(k, index, changes, counts, active, o, max_cover) : Gain(k, changes, active, o, max_cover);
+    return fast ? FastGain(index, changes, counts, active, o, max_cover) : Gain(k, changes, active, o, max_cover);
   };
   // 2. Forward, lazily: (gain, candidate index); ties go to the lower index.
   using Entry = std::pair<double, int64_t>;

@@ -113,11 +113,20 @@ class ViewExplainer {
       y1 = std::max(y1, y);
     }
   };
+  // A row's span of a model's image: RowSpan{y, x0, x1} as ColumnSpans::Span gives it.
+  struct RowSpan {
+    uint16_t y, x0, x1;
+  };
   // One candidate's gain in one camera with nobody chosen, and where it reads.
   struct Term {
     double gain = 0;
     bool counts = false;  // the camera says something about it
     Box body, ground;     // the pixels the gain reads: the model's rows, the ground band's
+    // Fast path: the rows the gain reads (those whose span meets the image), body rows then
+    // ground rows, in term_spans_[arena] from first_span.
+    uint32_t first_span = 0;
+    uint32_t body_rows = 0, ground_rows = 0;
+    uint8_t arena = 0;
   };
 
   void Run(std::span<const ImageView<const uint8_t>> changes, std::span<const ChangeRowSums> counts,
@@ -127,13 +136,16 @@ class ViewExplainer {
   void Cover(int64_t k, int32_t index, const std::vector<bool>& active, const ExplainOptions& options, int delta);
   double UpperBound(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
                     const ExplainOptions& options) const;
-  // Candidate k's Term in camera c (gain 0, counts false when c says nothing about it).
-  void CameraTerm(int64_t k, int c, const ChangeRowSums& counts, const ExplainOptions& options, Term& term) const;
-  // UpperBound, keeping each camera's Term (terms: one per camera).
+  // Candidate k's Term in camera c (gain 0, counts false when c says nothing about it); with
+  // `spans`, the rows it read are appended there (Term::first_span, body_rows, ground_rows).
+  void CameraTerm(int64_t k, int c, const ChangeRowSums& counts, const ExplainOptions& options, Term& term,
+                  std::vector<RowSpan>* spans = nullptr) const;
+  // UpperBound, keeping each camera's Term (terms: one per camera) and its rows in term_spans_[arena].
   double Terms(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
-               const ExplainOptions& options, Term* terms) const;
-  // Gain(k, ..., max_cover) from the Terms of this frame's candidate `index` and the row sums.
-  double FastGain(int64_t k, int32_t index, std::span<const ImageView<const uint8_t>> changes,
+               const ExplainOptions& options, Term* terms, int arena);
+  // Gain(k, ..., max_cover) for this frame's candidate `index`, from its Terms (their gains and
+  // rows) and the row sums.
+  double FastGain(int32_t index, std::span<const ImageView<const uint8_t>> changes,
                   std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
                   const ExplainOptions& options, int max_cover) const;
 
@@ -144,6 +156,16 @@ class ViewExplainer {
   std::vector<Box> cover_boxes_;  // per candidate and camera: the pixels its Cover writes
   std::vector<int32_t> covered_;  // the candidates (indices) covered now, once per Cover(+1)
   std::vector<int32_t> index_of_;  // per candidate cell: its index among this frame's candidates, else -1
+  // Fast path, this frame: the rows of the Terms, one arena per worker; every row of a model's
+  // image that Cover writes, per candidate (index) and camera, worked out at its first Cover.
+  std::vector<std::vector<RowSpan>> term_spans_;
+  struct CoverRows {
+    uint32_t first = 0, rows = 0;
+    bool known = false;
+  };
+  std::vector<CoverRows> cover_rows_;  // per candidate (index) and camera
+  std::vector<RowSpan> cover_spans_;
+  bool fast_cover_ = false;  // Cover keeps its rows (the fast path); the reference works them out each time
 };
 
 }  // namespace occmap
