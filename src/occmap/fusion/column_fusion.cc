@@ -89,6 +89,57 @@ void ChangeRowSums::Build(ImageView<const uint8_t> changes) {
   }
 }
 
+int ColumnSpans::Rows(int y_first, int y_last, int step, RowSpan* out) const {
+  OCCMAP_DCHECK(y_first >= 0 && y_last < height && height <= 65536 && width <= 65536 && step >= 1,
+                "ColumnSpans::Rows: rows outside the image");
+  int n = 0;
+  int y = y_first;
+  const auto one = [&](int row) {
+    int x0, x1;
+    if (Span(row, x0, x1)) out[n++] = {static_cast<uint16_t>(row), static_cast<uint16_t>(x0), static_cast<uint16_t>(x1)};
+  };
+#if OCCMAP_X86_KERNELS
+  // As Span, four rows at a time: the same float operations lane by lane (no FMA: the build
+  // has -ffp-contract=off), ceil and floor from the truncation (exact below 2^31 in magnitude,
+  // where the casts of Span are defined), the clamps by compare and select.
+  const __m128 bottom = _mm_set1_ps(bottom_row), axis0 = _mm_set1_ps(axis_bottom), axis_k = _mm_set1_ps(axis_slope);
+  const __m128 half0 = _mm_set1_ps(half_bottom), half_k = _mm_set1_ps(half_slope), zero = _mm_setzero_ps();
+  const __m128i zero_i = _mm_setzero_si128(), last_x = _mm_set1_epi32(width - 1);
+  const __m128i lanes = _mm_setr_epi32(0, step, 2 * step, 3 * step);
+  for (; y + 3 * step <= y_last; y += 4 * step) {
+    const __m128 dy = _mm_sub_ps(_mm_cvtepi32_ps(_mm_add_epi32(_mm_set1_epi32(y), lanes)), bottom);
+    const __m128 axis = _mm_add_ps(axis0, _mm_mul_ps(axis_k, dy));
+    const __m128 half = _mm_max_ps(_mm_add_ps(half0, _mm_mul_ps(half_k, dy)), zero);  // max(0, h) as std::max
+    const __m128 lo = _mm_sub_ps(axis, half), hi = _mm_add_ps(axis, half);
+    __m128i a = _mm_cvttps_epi32(lo), b = _mm_cvttps_epi32(hi);
+    a = _mm_sub_epi32(a, _mm_castps_si128(_mm_cmplt_ps(_mm_cvtepi32_ps(a), lo)));  // ceil: +1 where t < lo
+    b = _mm_add_epi32(b, _mm_castps_si128(_mm_cmpgt_ps(_mm_cvtepi32_ps(b), hi)));  // floor: -1 where t > hi
+    const __m128i narrow = _mm_cmpgt_epi32(a, b);  // Span's lround row
+    a = _mm_andnot_si128(_mm_cmplt_epi32(a, zero_i), a);
+    const __m128i right = _mm_cmpgt_epi32(b, last_x);
+    b = _mm_or_si128(_mm_and_si128(right, last_x), _mm_andnot_si128(right, b));
+    const __m128i off = _mm_cmpgt_epi32(a, b);
+    // Lanes that are NaN or too large for the casts go to Span too (cvttps gives INT_MIN there).
+    const __m128 big = _mm_set1_ps(2147483520.0f);  // the largest float below 2^31
+    const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+    const __m128 huge = _mm_or_ps(_mm_cmpnle_ps(_mm_and_ps(lo, abs_mask), big), _mm_cmpnle_ps(_mm_and_ps(hi, abs_mask), big));
+    const int unusual = _mm_movemask_ps(_mm_or_ps(_mm_castsi128_ps(_mm_or_si128(narrow, off)), huge));
+    if (unusual == 0) {
+      alignas(16) int32_t av[4], bv[4];
+      _mm_store_si128(reinterpret_cast<__m128i*>(av), a);
+      _mm_store_si128(reinterpret_cast<__m128i*>(bv), b);
+      for (int q = 0; q < 4; ++q)
+        out[n + q] = {static_cast<uint16_t>(y + q * step), static_cast<uint16_t>(av[q]), static_cast<uint16_t>(bv[q])};
+      n += 4;
+      continue;
+    }
+    for (int q = 0; q < 4; ++q) one(y + q * step);
+  }
+#endif
+  for (; y <= y_last; y += step) one(y);
+  return n;
+}
+
 ColumnSpans MakeColumnSpans(const ColumnView& view, double radius_m, double band_low, double band_high,
                             ImageSize image) {
   ColumnSpans s;
@@ -177,12 +228,14 @@ int64_t CountBand(const ColumnSpans& s, const ChangeRowSums& counts, int max_row
   const int stride = RowStride(s, max_rows);
   int64_t changed = 0;
   pixels = 0;
-  for (int y = s.first_row; y <= s.last_row; y += stride) {
-    int x0, x1;
-    if (!s.Span(y, x0, x1)) continue;
+  // The rows from first_row by stride that lie in the image (Span misses the others).
+  const int y_first = s.first_row >= 0 ? s.first_row : s.first_row + (-s.first_row + stride - 1) / stride * stride;
+  int64_t n = 0;
+  s.ForEachRow(y_first, std::min(s.last_row, s.height - 1), stride, [&](int y, int x0, int x1) {
     changed += counts.Count(y, x0, x1);
-    pixels += x1 - x0 + 1;
-  }
+    n += x1 - x0 + 1;
+  });
+  pixels = n;
   return changed;
 }
 

@@ -107,6 +107,11 @@ class ChangeRowSums {
   std::vector<uint16_t> prefix_;  // per row and word: changed pixels in the row's earlier words
 };
 
+// One row's span of a ColumnSpans: pixels x0 to x1 (inclusive) of row y.
+struct RowSpan {
+  uint16_t y, x0, x1;
+};
+
 // The rows and spans of a ColumnView for a radius and a band: row y covers the pixels whose
 // centres lie within radius of the axis (at least the axis's own pixel), clipped to the image.
 struct ColumnSpans {
@@ -127,6 +132,26 @@ struct ColumnSpans {
     x0 = a;
     x1 = b;
     return true;
+  }
+
+  // The rows y_first, y_first + step, ... up to y_last whose Span meets the image, with their
+  // spans, into out (room for (y_last - y_first) / step + 1); returns how many. Needs
+  // 0 <= y_first, y_last < height <= 65536, width <= 65536, step >= 1. Equal to Span row by row
+  // (tested); four rows at a time with SSE2 on x86-64, the lanes of an unusual row (a span
+  // narrower than a pixel, or off the image) by Span itself.
+  int Rows(int y_first, int y_last, int step, RowSpan* out) const;
+  // fn(y, x0, x1) for each row Rows gives, in order (64 rows at a time on the stack).
+  template <typename Fn>
+  void ForEachRow(int y_first, int y_last, int step, const Fn& fn) const {
+    constexpr int kChunk = 64;
+    RowSpan rows[kChunk];
+    for (int y = y_first; y <= y_last;) {
+      const int chunk_last = static_cast<int>(std::min<int64_t>(y_last, y + int64_t{kChunk - 1} * step));
+      const int n = Rows(y, chunk_last, step, rows);
+      for (int i = 0; i < n; ++i) fn(static_cast<int>(rows[i].y), static_cast<int>(rows[i].x0), static_cast<int>(rows[i].x1));
+      y = chunk_last + step;
+      if (chunk_last == y_last) break;
+    }
   }
 
   float bottom_row = 0, row_range = 1;

@@ -45,6 +45,59 @@ TEST(ChangeRowSumsTest, EveryCountEqualsThePixelsCountedOneByOne) {
   ForceKernelsForTesting("best");
 }
 
+TEST(ColumnSpansTest, RowsEqualSpanRowByRow) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  int64_t rows_checked = 0, narrow = 0, clipped = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    ColumnSpans s;
+    s.width = 1 + static_cast<int>(rng() % 2000);
+    s.height = 1 + static_cast<int>(rng() % 1200);
+    s.bottom_row = -300.0f + 1800.0f * u(rng);
+    s.axis_bottom = -400.0f + 2800.0f * u(rng);
+    s.axis_slope = trial % 7 == 0 ? 0.0f : -3.0f + 6.0f * u(rng);
+    // Wide spans, spans under a pixel (Span's rounded axis), widths that go below zero.
+    s.half_bottom = trial % 3 == 0 ? 0.6f * u(rng) : 80.0f * u(rng);
+    s.half_slope = -0.3f + 0.6f * u(rng);
+    if (trial % 11 == 0) s.axis_bottom = (u(rng) < 0.5f ? -1.0f : 1.0f) * 1e6f * u(rng);  // far off the image
+    const int step = 1 + static_cast<int>(rng() % 9);
+    const int y_first = static_cast<int>(rng() % static_cast<uint32_t>(s.height));
+    const int y_last = y_first + static_cast<int>(rng() % static_cast<uint32_t>(s.height - y_first));
+    std::vector<RowSpan> rows(static_cast<size_t>((y_last - y_first) / step + 1));
+    const int n = s.Rows(y_first, y_last, step, rows.data());
+    int i = 0;
+    for (int y = y_first; y <= y_last; y += step) {
+      int x0, x1;
+      if (!s.Span(y, x0, x1)) {
+        ++clipped;
+        continue;
+      }
+      ASSERT_LT(i, n) << trial;
+      ASSERT_EQ(rows[i].y, y) << trial;
+      ASSERT_EQ(rows[i].x0, x0) << trial << " y " << y;
+      ASSERT_EQ(rows[i].x1, x1) << trial << " y " << y;
+      narrow += x0 == x1 ? 1 : 0;
+      ++i;
+      ++rows_checked;
+    }
+    ASSERT_EQ(i, n) << trial;
+    // ForEachRow gives the same rows, through its chunks.
+    int j = 0;
+    s.ForEachRow(y_first, y_last, step, [&](int y, int x0, int x1) {
+      ASSERT_LT(j, n);
+      EXPECT_EQ(y, rows[j].y);
+      EXPECT_EQ(x0, rows[j].x0);
+      EXPECT_EQ(x1, rows[j].x1);
+      ++j;
+    });
+    ASSERT_EQ(j, n) << trial;
+  }
+  // The cases were met: many rows, one-pixel spans, rows off the image.
+  EXPECT_GT(rows_checked, 200000);
+  EXPECT_GT(narrow, 10000);
+  EXPECT_GT(clipped, 10000);
+}
+
 TEST(ColumnFusionTest, APersonsColumnIsOccupiedAndTheFloorAroundIsFree) {
   testing::PeopleRoom scene;
   scene.Paint(2.0, 1.5);

@@ -74,28 +74,23 @@ void ViewExplainer::CameraTerm(int64_t k, int c, const ChangeRowSums& counts, co
   const size_t first = spans != nullptr ? spans->size() : 0;
   int64_t changed = 0, pixels = 0;
   const int step = RowStep(s, o.max_rows);
-  for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); y += step) {
-    int x0, x1;
-    if (!s.Span(y, x0, x1)) continue;
+  s.ForEachRow(std::max(s.first_row, 0), std::min(s.last_row, s.height - 1), step, [&](int y, int x0, int x1) {
     changed += counts.Count(y, x0, x1);
     pixels += x1 - x0 + 1;
     t.body.Add(y, x0, x1);
     if (spans != nullptr) spans->push_back({static_cast<uint16_t>(y), static_cast<uint16_t>(x0), static_cast<uint16_t>(x1)});
-  }
+  });
   if (pixels == 0) {
     if (spans != nullptr) spans->resize(first);
     return;
   }
   const size_t body_end = spans != nullptr ? spans->size() : 0;
   int64_t ground = 0;
-  const int band_end = GroundBandEnd(s, o);
-  for (int y = s.last_row + 1; y <= band_end; y += step) {
-    int x0, x1;
-    if (!s.Span(y, x0, x1)) continue;
+  s.ForEachRow(s.last_row + 1, GroundBandEnd(s, o), step, [&](int y, int x0, int x1) {
     ground += counts.Count(y, x0, x1);
     t.ground.Add(y, x0, x1);
     if (spans != nullptr) spans->push_back({static_cast<uint16_t>(y), static_cast<uint16_t>(x0), static_cast<uint16_t>(x1)});
-  }
+  });
   if (spans != nullptr) {
     t.first_span = static_cast<uint32_t>(first);
     t.body_rows = static_cast<uint32_t>(body_end - first);
@@ -261,11 +256,9 @@ void ViewExplainer::Cover(int64_t k, int32_t index, const std::vector<bool>& act
         rows.first = static_cast<uint32_t>(cover_spans_.size());
         const ColumnSpans s = PersonSpans(columns_, c, k, o);
         if (s.visible_rows > 0) {
-          for (int y = std::max(s.first_row, 0); y <= std::min(s.last_row, s.height - 1); ++y) {
-            int x0, x1;
-            if (!s.Span(y, x0, x1)) continue;
-            cover_spans_.push_back({static_cast<uint16_t>(y), static_cast<uint16_t>(x0), static_cast<uint16_t>(x1)});
-          }
+          const int y0 = std::max(s.first_row, 0), y1 = std::min(s.last_row, s.height - 1);
+          cover_spans_.resize(rows.first + static_cast<size_t>(y1 - y0 + 1));
+          cover_spans_.resize(rows.first + static_cast<size_t>(s.Rows(y0, y1, 1, cover_spans_.data() + rows.first)));
         }
         rows.rows = static_cast<uint32_t>(cover_spans_.size()) - rows.first;
       }

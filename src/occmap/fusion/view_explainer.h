@@ -113,10 +113,6 @@ class ViewExplainer {
       y1 = std::max(y1, y);
     }
   };
-  // A row's span of a model's image: RowSpan{y, x0, x1} as ColumnSpans::Span gives it.
-  struct RowSpan {
-    uint16_t y, x0, x1;
-  };
   // One candidate's gain in one camera with nobody chosen, and where it reads.
   struct Term {
     double gain = 0;
