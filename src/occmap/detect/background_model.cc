@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 #include <opencv2/video/background_segm.hpp>
 
 #include "occmap/util/simd.h"
@@ -204,6 +205,15 @@ Status BackgroundOptions::Validate() const {
   }
   if (chroma_threshold < 0 || chroma_threshold > 255) {
     return InvalidInput(fmt::format("backgrounds.chroma_threshold: expected 0..255, found {}", chroma_threshold));
+  }
+  if (grow_steps_px < 0 || grow_steps_px > 16) {
+    return InvalidInput(fmt::format("backgrounds.grow_steps_px: expected 0..16 pixels, found {}", grow_steps_px));
+  }
+  if (!(grow_seed_share >= 0 && grow_seed_share <= 1)) {
+    return InvalidInput(fmt::format("backgrounds.grow_seed_share: expected 0..1, found {}", grow_seed_share));
+  }
+  if (!(grow_threshold_share > 0 && grow_threshold_share <= 1)) {
+    return InvalidInput(fmt::format("backgrounds.grow_threshold_share: expected 0 < s <= 1, found {}", grow_threshold_share));
   }
   return shadows.Validate();
 }
@@ -760,6 +770,7 @@ bool BackgroundModel::TextureLikeBackground(ImageView<const uint8_t> frame_y, in
 void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold, ImageView<uint8_t> changes) const {
   OCCMAP_CHECK(frame.y.width() == width_ && frame.y.height() == height_, "background model: frame size differs");
   OCCMAP_CHECK(!chroma_ || frame.has_chroma(), "background model: the frame has no chroma");
+  Image<uint8_t> classes(width_, height_);
   for (int y = 0; y < height_; ++y) {
     for (int x = 0; x < width_; ++x) {
       const size_t i = static_cast<size_t>(y) * width_ + x;
@@ -771,8 +782,141 @@ void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold
       uint8_t cls = Classify(frame.y(x, y), u, v, by, bu, bv, threshold);
       if (cls == kShadow && !TextureLikeBackground(frame.y, x, y)) cls = kChanged;
       changes(x, y) = cls == kChanged ? 1 : 0;
+      classes(x, y) = cls;
     }
   }
+  if (options_.grow_steps_px == 0) return;
+  // The hysteresis. Seeds: the 8-connected changes of at least GrowSeedMinPixels() pixels.
+  Image<uint8_t> seeds(width_, height_, 0), seen(width_, height_, 0);
+  std::vector<std::pair<int, int>> component, stack;
+  for (int y0 = 0; y0 < height_; ++y0) {
+    for (int x0 = 0; x0 < width_; ++x0) {
+      if (changes(x0, y0) == 0 || seen(x0, y0) != 0) continue;
+      component.clear();
+      stack.assign(1, {x0, y0});
+      seen(x0, y0) = 1;
+      while (!stack.empty()) {
+        const auto [x, y] = stack.back();
+        stack.pop_back();
+        component.push_back({x, y});
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int xx = x + dx, yy = y + dy;
+            if (xx < 0 || xx >= width_ || yy < 0 || yy >= height_ || changes(xx, yy) == 0 || seen(xx, yy) != 0) continue;
+            seen(xx, yy) = 1;
+            stack.push_back({xx, yy});
+          }
+        }
+      }
+      if (static_cast<int64_t>(component.size()) < GrowSeedMinPixels()) continue;
+      for (const auto& [x, y] : component) seeds(x, y) = 1;
+    }
+  }
+  // Step by step from the seeds of the step before.
+  const int tl = GrowThreshold(threshold), tcl = chroma_ ? GrowThreshold(options_.chroma_threshold) : 0;
+  for (int step = 0; step < options_.grow_steps_px; ++step) {
+    const Image<uint8_t> before = seeds;
+    for (int y = 0; y < height_; ++y) {
+      for (int x = 0; x < width_; ++x) {
+        if (changes(x, y) != 0 || classes(x, y) != kBackground) continue;
+        bool next_to_change = false;
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int xx = x + dx, yy = y + dy;
+            if (xx >= 0 && xx < width_ && yy >= 0 && yy < height_ && before(xx, yy) != 0) next_to_change = true;
+          }
+        }
+        if (!next_to_change) continue;
+        const size_t i = static_cast<size_t>(y) * width_ + x;
+        const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+        const int by = std::min(255, (by_[i] + 128) >> 8);
+        const int bu = chroma_ ? std::min(255, (bu_[c] + 128) >> 8) : 128;
+        const int bv = chroma_ ? std::min(255, (bv_[c] + 128) >> 8) : 128;
+        const int u = chroma_ ? frame.u(x / 2, y / 2) : 128, v = chroma_ ? frame.v(x / 2, y / 2) : 128;
+        if (WeakChange(frame.y(x, y), u, v, by, bu, bv, tl, tcl)) changes(x, y) = seeds(x, y) = 1;
+      }
+    }
+  }
+}
+
+int64_t BackgroundModel::GrowSeedMinPixels() const {
+  return std::max<int64_t>(1, std::llround(options_.grow_seed_share * static_cast<double>(width_) * height_));
+}
+
+int BackgroundModel::GrowThreshold(int threshold) const {
+  if (threshold <= 0) return 0;
+  return std::max(1, static_cast<int>(std::lround(options_.grow_threshold_share * threshold)));
+}
+
+bool BackgroundModel::WeakChange(int y, int u, int v, int by, int bu, int bv, int tl, int tcl) const {
+  if (std::abs(y - ExpectedLuma(by)) > tl) return true;
+  if (tcl <= 0) return false;
+  const int eu = ClampInt(128 + transfer_.gain * (bu - 128), 0, 255);
+  const int ev = ClampInt(128 + transfer_.gain * (bv - 128), 0, 255);
+  return std::abs(u - eu) > tcl || std::abs(v - ev) > tcl;
+}
+
+int64_t BackgroundModel::GrowChanges(const YuvView& frame, int threshold, ImageView<uint8_t> changes) {
+  const int tl = GrowThreshold(threshold), tcl = chroma_ ? GrowThreshold(options_.chroma_threshold) : 0;
+  if (grow_band_.width() != width_ || grow_band_.height() != height_) grow_band_ = Image<uint8_t>(width_, height_);
+  // Only changes of at least grow_seed_share of the image grow: a speck (noise, the tip of a
+  // shadow) stays what it is.
+  Image<uint8_t>& seeds = grow_seeds_;
+  if (seeds.width() != width_ || seeds.height() != height_) seeds = Image<uint8_t>(width_, height_);
+  const cv::Mat changed_mat(height_, width_, CV_8U, changes.row(0), static_cast<size_t>(changes.stride_elems()));
+  const cv::Mat out(height_, width_, CV_8U, seeds.row(0), static_cast<size_t>(seeds.stride_elems()));
+  {
+    cv::Mat labels, stats, centroids;
+    const int labels_n = cv::connectedComponentsWithStats(changed_mat, labels, stats, centroids, 8, CV_32S);
+    const int64_t min_px = GrowSeedMinPixels();
+    std::vector<uint8_t> seed_of(static_cast<size_t>(labels_n), 0);
+    for (int l = 1; l < labels_n; ++l) seed_of[static_cast<size_t>(l)] = stats.at<int>(l, cv::CC_STAT_AREA) >= min_px;
+    for (int y = 0; y < height_; ++y) {
+      const int* lab = labels.ptr<int>(y);
+      uint8_t* s = seeds.row(y);
+      for (int x = 0; x < width_; ++x) s[x] = seed_of[static_cast<size_t>(lab[x])];
+    }
+  }
+  cv::Mat band(height_, width_, CV_8U, grow_band_.row(0), static_cast<size_t>(grow_band_.stride_elems()));
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {3, 3});
+  int64_t added = 0;
+  for (int step = 0; step < options_.grow_steps_px; ++step) {
+    // Out of the image counts as unchanged (OpenCV's default border for dilation is the minimum).
+    cv::dilate(out, band, kernel, {-1, -1}, 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+    int64_t step_added = 0;
+    for (int y = 0; y < height_; ++y) {
+      const uint8_t* b = grow_band_.row(y);
+      uint8_t* o = changes.row(y);
+      uint8_t* cls = class_.data() + static_cast<size_t>(y) * width_;
+      const uint8_t* fy = frame.y.row(y);
+      const uint8_t* b8 = bg8_.row(y);
+      for (int x = 0; x < width_; ++x) {
+        if (x + 8 <= width_) {  // past the band's empty stretches eight pixels at a time
+          uint64_t word;
+          std::memcpy(&word, b + x, 8);
+          if (word == 0) {
+            x += 7;
+            continue;
+          }
+        }
+        if (b[x] == 0 || o[x] != 0 || cls[x] != kBackground) continue;
+        bool weak = std::abs(fy[x] - pred_[b8[x]]) > tl;
+        if (!weak && tcl > 0) {
+          const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+          const int eu = pred_c_[std::min(255, (bu_[c] + 128) >> 8)], ev = pred_c_[std::min(255, (bv_[c] + 128) >> 8)];
+          weak = std::abs(frame.u(x / 2, y / 2) - eu) > tcl || std::abs(frame.v(x / 2, y / 2) - ev) > tcl;
+        }
+        if (!weak) continue;
+        o[x] = 1;
+        seeds(x, y) = 1;
+        cls[x] = kChanged;
+        ++step_added;
+      }
+    }
+    added += step_added;
+    if (step_added == 0) break;
+  }
+  return added;
 }
 
 void BackgroundModel::WarmUp(const std::vector<YuvView>& frames, int threshold) {
@@ -918,6 +1062,7 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
     }
     changed += row_changed;
   }
+  if (options_.grow_steps_px > 0 && changed > 0) changed += GrowChanges(frame, threshold, changes);
   const double np = static_cast<double>(width_) * height_;
   stats_.changed_fraction = static_cast<double>(changed) / np;
   stats_.shadow_fraction = static_cast<double>(shadow) / np;

@@ -121,6 +121,15 @@ struct BackgroundOptions {
   double absorb_s = 30;        // still objects that are not people become background after this
   double person_height_m = 1.2;  // a detection changed up to this height is a person
   int chroma_threshold = 16;   // Cb/Cr difference that is a change by itself (0: luma only)
+  // Hysteresis: a pixel next to a change (8-connected, repeated grow_steps_px times) is a change
+  // at grow_threshold_share of the luma and chroma thresholds. A person's edges, blurred by the
+  // lens and the codec, and clothing near the floor's shade fall under the threshold; next to
+  // the rest of the person they are kept, while noise away from any change is not. Only changes
+  // of at least grow_seed_share of the image grow (not specks such as a shadow's tip), and
+  // shadow pixels are not grown into. 0 steps: off.
+  int grow_steps_px = 3;
+  double grow_threshold_share = 0.6;
+  double grow_seed_share = 1e-4;
   ShadowOptions shadows;
   Status Validate() const;
 };
@@ -269,6 +278,14 @@ class BackgroundModel {
   size_t Index(int x, int y) const { return static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x); }
 
   uint8_t Classify(int y, int u, int v, int by, int bu, int bv, int threshold) const;
+  // The thresholds of the hysteresis, from the detection's (at least 1 level; chroma 0: none).
+  int GrowThreshold(int threshold) const;
+  int64_t GrowSeedMinPixels() const;
+  // Whether a pixel is changed at the hysteresis' thresholds (tl luma, tcl chroma), from its
+  // frame values and its background's 8-bit levels, under the current transfer.
+  bool WeakChange(int y, int u, int v, int by, int bu, int bv, int tl, int tcl) const;
+  // The hysteresis over DetectChanges' output and classes; returns the pixels added.
+  int64_t GrowChanges(const YuvView& frame, int threshold, ImageView<uint8_t> changes);
   // The colour part of the shadow test for a darker pixel; adds it to the learning sums when
   // `learn` is given. A frame's sums are applied at the start of the next DetectChanges, so
   // that the look a frame was tested with stays the model's until then (the reference test
@@ -313,6 +330,7 @@ class BackgroundModel {
   int32_t gain_q16_ = 65536, offset_q16_ = 32768;
   int ExpectedLuma(int level) const { return std::clamp((gain_q16_ * level + offset_q16_) >> 16, 0, 255); }
   std::vector<uint8_t> chroma_changed_;  // per pixel of the current chroma row
+  Image<uint8_t> grow_seeds_, grow_band_;  // GrowChanges: the changes that grow, dilated by a pixel
   ShadowLook look_;
   std::vector<double> ratio_histogram_;  // decayed, over [0, 1)
   ShadowLearning learning_;              // the last frame's sums

@@ -225,6 +225,51 @@ TEST(BackgroundModel, ShadowsAreNotChangesButObjectsOfTheSameBrightnessAre) {
   EXPECT_EQ(changes(2, 2), 1);
 }
 
+TEST(BackgroundModel, HysteresisKeepsAnObjectsFaintEdgeButNotSpecksNoiseOrShadows) {
+  const int w = 64, h = 64;
+  YuvImage b;
+  b.y = Image<uint8_t>(w, h, 160);
+  b.u = Image<uint8_t>(32, 32, 118);
+  b.v = Image<uint8_t>(32, 32, 138);
+  YuvImage f = b;
+  Paint(f, 10, 10, 30, 30, 80, 170, 100);  // an object, 400 pixels
+  for (int y = 10; y < 30; ++y) {
+    for (int x = 30; x < 34; ++x) f.y(x, y) = 173;  // its faint edge, 4 pixels wide, luma only
+  }
+  Paint(f, 10, 30, 30, 38, 80, static_cast<uint8_t>(128 + 0.5 * (118 - 128)), static_cast<uint8_t>(128 + 0.5 * (138 - 128)));  // its shadow
+  Paint(f, 50, 50, 52, 52, 80, 170, 100);  // a speck of 4 pixels
+  f.y(52, 50) = f.y(53, 50) = 173;          // and its faint edge
+  f.y(50, 20) = 173;                        // faint, alone
+  for (int steps : {1, 3}) {
+    BackgroundOptions options;
+    options.shadows.learn = false;  // the test of one frame
+    options.grow_steps_px = steps;
+    options.grow_threshold_share = 0.6;           // 12 of 20 levels: 13 is a change next to one
+    options.grow_seed_share = 8.0 / (w * h);     // seeds of 8 pixels or more
+    BackgroundModel model(options, 10);
+    model.Reset(b);
+    Image<uint8_t> changes(w, h), reference(w, h);
+    model.DetectChanges(f.view(), 20, changes.view());
+    model.DetectChangesReference(f.view(), 20, reference.view());
+    EXPECT_TRUE(changes == reference);
+    EXPECT_EQ(changes(20, 20), 1);
+    EXPECT_EQ(changes(30, 20), 1) << steps;
+    EXPECT_EQ(changes(31, 20), steps >= 2 ? 1 : 0) << steps;
+    EXPECT_EQ(changes(32, 20), steps >= 3 ? 1 : 0) << steps;
+    EXPECT_EQ(changes(33, 20), 0) << "beyond the steps";
+    EXPECT_EQ(changes(20, 32), 0) << "the shadow is not grown into";
+    EXPECT_EQ(changes(50, 50), 1) << "the speck is a change";
+    EXPECT_EQ(changes(52, 50), 0) << "but does not grow";
+    EXPECT_EQ(changes(50, 20), 0) << "faint alone";
+    EXPECT_EQ(changes(8, 20), 0) << "unchanged next to the object";
+    int64_t total = 0;
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) total += changes(x, y);
+    }
+    EXPECT_EQ(total, 400 + 20 * steps + 4);
+  }
+}
+
 TEST(BackgroundModel, AShadowKeepsTheFloorsTextureAndFlatClothesDoNot) {
   const YuvImage b = TexturedBackground(64, 64, 21);  // tiles and grain
   BackgroundOptions with_texture;
@@ -404,12 +449,19 @@ TEST_P(BackgroundModelKernels, DetectChangesEqualsItsReference) {
       if (!chroma) {
         b.u = b.v = f.u = f.v = Image<uint8_t>();
       }
-      BackgroundModel model(BackgroundOptions{}, 10);
-      model.Reset(b);
-      Image<uint8_t> fast(w, h), reference(w, h);
-      model.DetectChanges(f.view(), 18, fast.view());
-      model.DetectChangesReference(f.view(), 18, reference.view());
-      EXPECT_TRUE(fast == reference) << "chroma " << chroma << " seed " << seed;
+      // The default hysteresis (every change a seed at this size), seeds of 2 % of the image
+      // (some of the blocks), none.
+      for (const auto& [steps, seed_share] : {std::pair{3, 1e-4}, std::pair{2, 0.02}, std::pair{0, 0.0}}) {
+        BackgroundOptions options;
+        options.grow_steps_px = steps;
+        options.grow_seed_share = seed_share;
+        BackgroundModel model(options, 10);
+        model.Reset(b);
+        Image<uint8_t> fast(w, h), reference(w, h);
+        model.DetectChanges(f.view(), 18, fast.view());
+        model.DetectChangesReference(f.view(), 18, reference.view());
+        EXPECT_TRUE(fast == reference) << "chroma " << chroma << " seed " << seed << " steps " << steps;
+      }
     }
   }
 }
@@ -519,6 +571,15 @@ TEST(BackgroundOptions, ValidateNamesTheField) {
   o = {};
   o.absorb_s = 0;
   EXPECT_EQ(o.Validate().message(), "backgrounds.absorb_s: expected > 0, found 0");
+  o = {};
+  o.grow_steps_px = 17;
+  EXPECT_EQ(o.Validate().message(), "backgrounds.grow_steps_px: expected 0..16 pixels, found 17");
+  o = {};
+  o.grow_threshold_share = 0;
+  EXPECT_EQ(o.Validate().message(), "backgrounds.grow_threshold_share: expected 0 < s <= 1, found 0");
+  o = {};
+  o.grow_seed_share = 2;
+  EXPECT_EQ(o.Validate().message(), "backgrounds.grow_seed_share: expected 0..1, found 2");
   EXPECT_EQ(ParseBackgroundLearning("gmm").status().message(), "expected median, mode, mog2 or knn, found 'gmm'");
   EXPECT_EQ(*ParseBackgroundLearning("knn"), BackgroundLearning::kKnn);
 }

@@ -49,6 +49,8 @@ SummaryFile::SummaryFile(std::filesystem::path path, const Site& site, const Run
                         {"learn_samples", bo.learn_samples}, {"adapt_s", bo.adapt_s}, {"relight_s", bo.relight_s},
                         {"absorb_s", bo.absorb_s}, {"person_height_m", bo.person_height_m},
                         {"chroma", plan.chroma}, {"chroma_threshold", bo.chroma_threshold},
+                        {"grow", {{"steps_px", bo.grow_steps_px}, {"threshold_share", bo.grow_threshold_share},
+                                  {"seed_share", bo.grow_seed_share}}},
                         {"shadows", {{"enabled", bo.shadows.enabled}, {"min_ratio", bo.shadows.min_ratio},
                                      {"max_ratio", bo.shadows.max_ratio}, {"max_channel_spread", bo.shadows.max_channel_spread},
                                      {"texture_radius_px", bo.shadows.texture_radius_px},

@@ -347,7 +347,8 @@ Status ParseDetection(const YamlField& f, ChangeDetectionOptions& d) {
 // the message placed at the section.
 Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
   OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"adaptive", "learning", "learn_s", "learn_samples", "mode_radius", "alternative_min_share", "adapt_s",
-                                      "relight_s", "absorb_s", "person_height_m", "chroma_threshold", "shadows"}));
+                                      "relight_s", "absorb_s", "person_height_m", "chroma_threshold", "grow_steps_px",
+                                      "grow_threshold_share", "grow_seed_share", "shadows"}));
   OCCMAP_ASSIGN_OR_RETURN(b.adaptive, f.GetBool("adaptive", b.adaptive));
   OCCMAP_ASSIGN_OR_RETURN(std::string learning, f.GetString("learning", ToString(b.learning)));
   auto method = ParseBackgroundLearning(learning);
@@ -365,6 +366,10 @@ Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
   OCCMAP_ASSIGN_OR_RETURN(b.person_height_m, f.GetDouble("person_height_m", b.person_height_m));
   OCCMAP_ASSIGN_OR_RETURN(int64_t tc, f.GetInt("chroma_threshold", b.chroma_threshold));
   b.chroma_threshold = static_cast<int>(std::clamp<int64_t>(tc, -1, 1000));
+  OCCMAP_ASSIGN_OR_RETURN(int64_t steps, f.GetInt("grow_steps_px", b.grow_steps_px));
+  b.grow_steps_px = static_cast<int>(std::clamp<int64_t>(steps, -1, 1000));
+  OCCMAP_ASSIGN_OR_RETURN(b.grow_threshold_share, f.GetDouble("grow_threshold_share", b.grow_threshold_share));
+  OCCMAP_ASSIGN_OR_RETURN(b.grow_seed_share, f.GetDouble("grow_seed_share", b.grow_seed_share));
   if (auto s = f.Find("shadows")) {
     OCCMAP_RETURN_IF_ERROR(s->CheckKeys({"enabled", "min_ratio", "max_ratio", "learn", "ratio_window", "max_channel_spread",
                                          "texture_radius_px",
