@@ -767,19 +767,27 @@ bool BackgroundModel::TextureLikeBackground(ImageView<const uint8_t> frame_y, in
   return cov / std::sqrt(var_i * var_b) >= options_.shadows.min_texture_correlation;
 }
 
+BackgroundModel::PixelLevels BackgroundModel::LevelsAt(const YuvView& frame, int x, int y) const {
+  const size_t i = static_cast<size_t>(y) * width_ + x;
+  const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+  PixelLevels p{frame.y(x, y), 128, 128, std::min(255, (by_[i] + 128) >> 8), 128, 128};
+  if (chroma_) {
+    p.u = frame.u(x / 2, y / 2);
+    p.v = frame.v(x / 2, y / 2);
+    p.bu = std::min(255, (bu_[c] + 128) >> 8);
+    p.bv = std::min(255, (bv_[c] + 128) >> 8);
+  }
+  return p;
+}
+
 void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold, ImageView<uint8_t> changes) const {
   OCCMAP_CHECK(frame.y.width() == width_ && frame.y.height() == height_, "background model: frame size differs");
   OCCMAP_CHECK(!chroma_ || frame.has_chroma(), "background model: the frame has no chroma");
   Image<uint8_t> classes(width_, height_);
   for (int y = 0; y < height_; ++y) {
     for (int x = 0; x < width_; ++x) {
-      const size_t i = static_cast<size_t>(y) * width_ + x;
-      const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
-      const int by = std::min(255, (by_[i] + 128) >> 8);
-      const int bu = chroma_ ? std::min(255, (bu_[c] + 128) >> 8) : 128;
-      const int bv = chroma_ ? std::min(255, (bv_[c] + 128) >> 8) : 128;
-      const int u = chroma_ ? frame.u(x / 2, y / 2) : 128, v = chroma_ ? frame.v(x / 2, y / 2) : 128;
-      uint8_t cls = Classify(frame.y(x, y), u, v, by, bu, bv, threshold);
+      const PixelLevels p = LevelsAt(frame, x, y);
+      uint8_t cls = Classify(p.y, p.u, p.v, p.by, p.bu, p.bv, threshold);
       if (cls == kShadow && !TextureLikeBackground(frame.y, x, y)) cls = kChanged;
       changes(x, y) = cls == kChanged ? 1 : 0;
       classes(x, y) = cls;
@@ -827,13 +835,8 @@ void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold
           }
         }
         if (!next_to_change) continue;
-        const size_t i = static_cast<size_t>(y) * width_ + x;
-        const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
-        const int by = std::min(255, (by_[i] + 128) >> 8);
-        const int bu = chroma_ ? std::min(255, (bu_[c] + 128) >> 8) : 128;
-        const int bv = chroma_ ? std::min(255, (bv_[c] + 128) >> 8) : 128;
-        const int u = chroma_ ? frame.u(x / 2, y / 2) : 128, v = chroma_ ? frame.v(x / 2, y / 2) : 128;
-        if (WeakChange(frame.y(x, y), u, v, by, bu, bv, tl, tcl)) changes(x, y) = seeds(x, y) = 1;
+        const PixelLevels p = LevelsAt(frame, x, y);
+        if (WeakChange(p.y, p.u, p.v, p.by, p.bu, p.bv, tl, tcl)) changes(x, y) = seeds(x, y) = 1;
       }
     }
   }
@@ -866,13 +869,17 @@ int64_t BackgroundModel::GrowChanges(const YuvView& frame, int threshold, ImageV
   const cv::Mat changed_mat(height_, width_, CV_8U, changes.row(0), static_cast<size_t>(changes.stride_elems()));
   const cv::Mat out(height_, width_, CV_8U, seeds.row(0), static_cast<size_t>(seeds.stride_elems()));
   {
-    cv::Mat labels, stats, centroids;
+    // The labels written into the model's buffer (OpenCV keeps a matching one), not a new one a frame.
+    if (grow_labels_.width() != width_ || grow_labels_.height() != height_) grow_labels_ = Image<int32_t>(width_, height_);
+    cv::Mat labels(height_, width_, CV_32S, grow_labels_.row(0), static_cast<size_t>(grow_labels_.stride_elems()) * sizeof(int32_t));
+    cv::Mat stats, centroids;
     const int labels_n = cv::connectedComponentsWithStats(changed_mat, labels, stats, centroids, 8, CV_32S);
     const int64_t min_px = GrowSeedMinPixels();
-    std::vector<uint8_t> seed_of(static_cast<size_t>(labels_n), 0);
+    std::vector<uint8_t>& seed_of = grow_seed_of_;
+    seed_of.assign(static_cast<size_t>(labels_n), 0);
     for (int l = 1; l < labels_n; ++l) seed_of[static_cast<size_t>(l)] = stats.at<int>(l, cv::CC_STAT_AREA) >= min_px;
     for (int y = 0; y < height_; ++y) {
-      const int* lab = labels.ptr<int>(y);
+      const int32_t* lab = grow_labels_.row(y);
       uint8_t* s = seeds.row(y);
       for (int x = 0; x < width_; ++x) s[x] = seed_of[static_cast<size_t>(lab[x])];
     }

@@ -278,6 +278,11 @@ class BackgroundModel {
   size_t Index(int x, int y) const { return static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x); }
 
   uint8_t Classify(int y, int u, int v, int by, int bu, int bv, int threshold) const;
+  // Pixel (x, y)'s frame levels and its background's 8-bit levels (128 for chroma without it).
+  struct PixelLevels {
+    int y, u, v, by, bu, bv;
+  };
+  PixelLevels LevelsAt(const YuvView& frame, int x, int y) const;
   // The thresholds of the hysteresis, from the detection's (at least 1 level; chroma 0: none).
   int GrowThreshold(int threshold) const;
   int64_t GrowSeedMinPixels() const;
@@ -331,6 +336,8 @@ class BackgroundModel {
   int ExpectedLuma(int level) const { return std::clamp((gain_q16_ * level + offset_q16_) >> 16, 0, 255); }
   std::vector<uint8_t> chroma_changed_;  // per pixel of the current chroma row
   Image<uint8_t> grow_seeds_, grow_band_;  // GrowChanges: the changes that grow, dilated by a pixel
+  Image<int32_t> grow_labels_;             // and their connected components
+  std::vector<uint8_t> grow_seed_of_;      // per component: whether it grows
   ShadowLook look_;
   std::vector<double> ratio_histogram_;  // decayed, over [0, 1)
   ShadowLearning learning_;              // the last frame's sums
