@@ -166,76 +166,95 @@ double ViewExplainer::Terms(int64_t k, std::span<const ChangeRowSums> counts, co
   return gain;
 }
 
-double ViewExplainer::FastGain(int32_t index, std::span<const ImageView<const uint8_t>> changes,
-                               std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
-                               const ExplainOptions& o, int max_cover) const {
+const RowSpan* ViewExplainer::CoverSpan(int32_t index, int c, int y) const {
+  const CoverRows& rows =
+      cover_rows_[static_cast<size_t>(index) * static_cast<size_t>(columns_.num_cameras()) + static_cast<size_t>(c)];
+  OCCMAP_DCHECK(rows.known, "ViewExplainer::CoverSpan: a candidate never covered");
+  if (rows.rows == 0) return nullptr;
+  const RowSpan* first = cover_spans_.data() + rows.first;
+  const RowSpan* end = first + rows.rows;
+  const int i = y - first->y;
+  if (i < 0) return nullptr;
+  if (i < static_cast<int>(rows.rows) && first[i].y == y) return first + i;
+  // A row between two kept ones whose span missed the image: the rows are in order.
+  const RowSpan* at = std::lower_bound(first, end, y, [](const RowSpan& r, int row) { return r.y < row; });
+  return at != end && at->y == y ? at : nullptr;
+}
+
+void ViewExplainer::CountUncovered(int c, int y, int x0, int x1, int max_cover, const ChangeRowSums& counts,
+                                   int64_t& changed, int64_t& free) {
+  // The met people's spans on this row, clipped to x0..x1, as edges: +1 where one starts, -1
+  // just past where it ends.
+  edges_.clear();
+  const size_t cams = static_cast<size_t>(columns_.num_cameras());
+  for (int32_t j : met_) {
+    if (!cover_boxes_[static_cast<size_t>(j) * cams + static_cast<size_t>(c)].MeetsRow(y, x0, x1)) continue;
+    const RowSpan* span = CoverSpan(j, c, y);
+    if (span == nullptr) continue;
+    const int a = std::max<int>(span->x0, x0), b = std::min<int>(span->x1, x1);
+    if (a > b) continue;
+    edges_.push_back({a, +1});
+    edges_.push_back({b + 1, -1});
+  }
+  if (static_cast<int>(edges_.size() / 2) <= max_cover) {  // nowhere covered more than max_cover
+    changed += counts.Count(y, x0, x1);
+    free += x1 - x0 + 1;
+    return;
+  }
+  // A few people at most: insertion sort by position (the order within a position does not
+  // matter: every edge there is applied before the run from it is counted).
+  for (size_t i = 1; i < edges_.size(); ++i)
+    for (size_t k = i; k > 0 && edges_[k].first < edges_[k - 1].first; --k) std::swap(edges_[k], edges_[k - 1]);
+  int depth = 0;
+  size_t e = 0;
+  for (int at = x0; at <= x1;) {
+    while (e < edges_.size() && edges_[e].first <= at) depth += edges_[e++].second;
+    const int next = e < edges_.size() ? std::min(edges_[e].first, x1 + 1) : x1 + 1;
+    if (depth <= max_cover) {
+      changed += counts.Count(y, at, next - 1);
+      free += next - at;
+    }
+    at = next;
+  }
+}
+
+double ViewExplainer::FastGain(int32_t index, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
+                               const ExplainOptions& o, int max_cover) {
   const int cams = columns_.num_cameras();
   const Term* terms = terms_.data() + static_cast<size_t>(index) * static_cast<size_t>(cams);
-  constexpr int kMaxMet = 64;
   double gain = 0;
   for (int c = 0; c < cams; ++c) {
     const Term& t = terms[c];
     if (!active[c] || !t.counts) continue;
     // The chosen people whose coverage meets what the gain reads here.
-    const Box* met[kMaxMet];
-    int n_met = 0, body_met = 0;
-    bool ground_met = false, overflow = false;
+    met_.clear();
+    int body_met = 0;
+    bool ground_met = false;
     for (int32_t j : covered_) {
       const Box& b = cover_boxes_[static_cast<size_t>(j) * static_cast<size_t>(cams) + static_cast<size_t>(c)];
       const bool in_body = b.Meets(t.body), in_ground = b.Meets(t.ground);
       if (!in_body && !in_ground) continue;
       body_met += in_body ? 1 : 0;
       ground_met |= in_ground;
-      if (n_met == kMaxMet) overflow = true;
-      else met[n_met++] = &b;
+      met_.push_back(j);
     }
     // Nobody's coverage above max_cover on the body, none on the ground band: the term as it was.
     if (body_met <= max_cover && !ground_met) {
       gain += t.gain;
       continue;
     }
-    // Row by row: counted from the row sums where at most max_cover of the met boxes reach.
-    const auto reaching = [&](int y, int x0, int x1) {
-      if (overflow) return kMaxMet + 1;
-      int n = 0;
-      for (int m = 0; m < n_met; ++m) n += met[m]->MeetsRow(y, x0, x1) ? 1 : 0;
-      return n;
-    };
-    // The rows CameraTerm read (those whose span meets the image), body then ground band.
+    // Row by row, from the row sums: the runs of each row that at most max_cover of the met
+    // people's spans cover (on the ground band, none).
     const RowSpan* rows = term_spans_[t.arena].data() + t.first_span;
-    int64_t changed = 0, unchanged = 0, pixels = 0;
-    const uint8_t limit = static_cast<uint8_t>(max_cover);
+    int64_t changed = 0, free = 0, pixels = 0;
     for (const RowSpan* r = rows; r != rows + t.body_rows; ++r) {
-      const int y = r->y, x0 = r->x0, x1 = r->x1;
-      pixels += x1 - x0 + 1;
-      int row_changed = 0, row_free = 0;
-      if (reaching(y, x0, x1) <= max_cover) {
-        row_changed = counts[c].Count(y, x0, x1);
-        row_free = x1 - x0 + 1;
-      } else {
-        const uint8_t* ch = changes[c].row(y);
-        const uint8_t* cov = coverage_[c].row(y);
-        for (int x = x0; x <= x1; ++x) {
-          const int free = cov[x] <= limit ? 1 : 0;
-          row_free += free;
-          row_changed += free & (ch[x] != 0 ? 1 : 0);
-        }
-      }
-      changed += row_changed;
-      unchanged += row_free - row_changed;
+      pixels += r->x1 - r->x0 + 1;
+      CountUncovered(c, r->y, r->x0, r->x1, max_cover, counts[c], changed, free);
     }
-    int64_t ground = 0;
-    for (const RowSpan* r = rows + t.body_rows; r != rows + t.body_rows + t.ground_rows; ++r) {
-      const int y = r->y, x0 = r->x0, x1 = r->x1;
-      if (reaching(y, x0, x1) == 0) {
-        ground += counts[c].Count(y, x0, x1);
-        continue;
-      }
-      const uint8_t* ch = changes[c].row(y);
-      const uint8_t* cov = coverage_[c].row(y);
-      for (int x = x0; x <= x1; ++x) ground += (ch[x] != 0 && cov[x] == 0) ? 1 : 0;
-    }
-    gain += PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(unchanged) -
+    int64_t ground = 0, ground_free = 0;
+    for (const RowSpan* r = rows + t.body_rows; r != rows + t.body_rows + t.ground_rows; ++r)
+      CountUncovered(c, r->y, r->x0, r->x1, 0, counts[c], ground, ground_free);
+    gain += PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(free - changed) -
                           o.ground_weight * static_cast<double>(ground),
                       pixels);
   }
@@ -261,12 +280,11 @@ void ViewExplainer::Cover(int64_t k, int32_t index, const std::vector<bool>& act
           cover_spans_.resize(rows.first + static_cast<size_t>(s.Rows(y0, y1, 1, cover_spans_.data() + rows.first)));
         }
         rows.rows = static_cast<uint32_t>(cover_spans_.size()) - rows.first;
+        for (const RowSpan* r = cover_spans_.data() + rows.first; r != cover_spans_.data() + rows.first + rows.rows; ++r)
+          rows.box.Add(r->y, r->x0, r->x1);
       }
-      for (const RowSpan* r = cover_spans_.data() + rows.first; r != cover_spans_.data() + rows.first + rows.rows; ++r) {
-        uint8_t* cov = coverage_[c].row(r->y);
-        for (int x = r->x0; x <= r->x1; ++x) cov[x] = static_cast<uint8_t>(cov[x] + delta);
-        box.Add(r->y, r->x0, r->x1);
-      }
+      // No coverage written: FastGain counts from the chosen people's rows (CoverSpan).
+      box = rows.box;
       continue;
     }
     const ColumnSpans s = PersonSpans(columns_, c, k, o);
@@ -305,7 +323,8 @@ void ViewExplainer::Run(std::span<const ImageView<const uint8_t>> changes, std::
                         Context& ctx, std::vector<ExplainedPerson>& people, bool fast) {
   people.clear();
   const FloorGrid& grid = columns_.candidates();
-  if (coverage_.size() != static_cast<size_t>(columns_.num_cameras())) {
+  // The coverage images: the reference's alone (the fast path counts from the chosen people's rows).
+  if (!fast && coverage_.size() != static_cast<size_t>(columns_.num_cameras())) {
     coverage_.clear();
     for (int c = 0; c < columns_.num_cameras(); ++c) {
       const ImageSize size = columns_.image_size(c);
@@ -346,7 +365,7 @@ void ViewExplainer::Run(std::span<const ImageView<const uint8_t>> changes, std::
   // A gain against the coverage of the people chosen so far (k: the candidate of `index`).
   const auto gain_of = [&](int64_t k, int max_cover) {
     const int32_t index = index_of_[k];
-    return fast ? FastGain(index, changes, counts, active, o, max_cover) : Gain(k, changes, active, o, max_cover);
+    return fast ? FastGain(index, counts, active, o, max_cover) : Gain(k, changes, active, o, max_cover);
   };
   // 2. Forward, lazily: (gain, candidate index); ties go to the lower index.
   using Entry = std::pair<double, int64_t>;

@@ -35,9 +35,12 @@
 //
 // Fast path (Explain): each candidate's per-camera gain with nobody chosen is computed once, with
 // the bounds (row counts); a later gain reuses it for every camera where no chosen person's image
-// meets the candidate's, and counts from the row sums every row no chosen person's image meets,
-// so pixels are read one by one only where people overlap. ExplainReference reads every gain
-// pixel by pixel (equal results, tested).
+// meets the candidate's. Where one does, each row the gain reads is cut by the chosen people's
+// spans on it (their rows, worked out at their first Cover) into runs, and the runs that at most
+// max_cover of them cover are counted from the row sums: no pixel is read, and no coverage image
+// is kept (a pixel covered by 256 or more people would differ: the reference's counts are bytes).
+// ExplainReference keeps the coverage of the chosen people as an image per camera and reads every
+// gain pixel by pixel (equal results, tested).
 //
 //   ViewExplainer explainer(columns);
 //   explainer.Explain(changes, counts, active, column_map, options, ctx, people);
@@ -46,6 +49,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "occmap/fusion/column_fusion.h"
@@ -140,13 +144,18 @@ class ViewExplainer {
   double Terms(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
                const ExplainOptions& options, Term* terms, int arena);
   // Gain(k, ..., max_cover) for this frame's candidate `index`, from its Terms (their gains and
-  // rows) and the row sums.
-  double FastGain(int32_t index, std::span<const ImageView<const uint8_t>> changes,
-                  std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
-                  const ExplainOptions& options, int max_cover) const;
+  // rows), the chosen people's rows and the row sums.
+  double FastGain(int32_t index, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
+                  const ExplainOptions& options, int max_cover);
+  // Of row y's pixels x0 to x1 in camera c, those that at most max_cover of the people in met_
+  // cover: adds their number to free and the changed ones among them to changed.
+  void CountUncovered(int c, int y, int x0, int x1, int max_cover, const ChangeRowSums& counts, int64_t& changed,
+                      int64_t& free);
+  // The span of row y of covered candidate `index`'s image in camera c, or null when it has none.
+  const RowSpan* CoverSpan(int32_t index, int c, int y) const;
 
   const ColumnLut& columns_;
-  std::vector<Image<uint8_t>> coverage_;
+  std::vector<Image<uint8_t>> coverage_;  // the reference's: per camera, the chosen people covering each pixel
   std::vector<Box> boxes_;  // per candidate and camera, this frame
   std::vector<Term> terms_;  // per candidate and camera, this frame (fast path)
   std::vector<Box> cover_boxes_;  // per candidate and camera: the pixels its Cover writes
@@ -158,9 +167,12 @@ class ViewExplainer {
   struct CoverRows {
     uint32_t first = 0, rows = 0;
     bool known = false;
+    Box box;  // of those rows
   };
   std::vector<CoverRows> cover_rows_;  // per candidate (index) and camera
   std::vector<RowSpan> cover_spans_;
+  std::vector<int32_t> met_;  // FastGain: the covered candidates whose boxes meet the term's
+  std::vector<std::pair<int, int>> edges_;  // CountUncovered: (x, +1 or -1) where a span starts or ends
   bool fast_cover_ = false;  // Cover keeps its rows (the fast path); the reference works them out each time
 };
 
