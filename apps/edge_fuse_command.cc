@@ -47,6 +47,19 @@ CLI::App* AddEdgeCommand(CLI::App& app, EdgeCommand& cmd) {
   c->add_option("--background-frames", cmd.options.run.background_frames,
                 "K: frames in the median background of a camera without one")
       ->capture_default_str();
+  c->add_option("--protection-lag", cmd.options.protection_lag_frames,
+                "adaptive backgrounds over files: update frame t with the fuse's protection of frame t - N at the "
+                "oldest (waited for)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1000));
+  c->add_option("--protection-wait-s", cmd.options.protection_wait_s,
+                "adaptive backgrounds over files: wait this long for the due protection, then protect changed pixels")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  c->add_option("--protection-stale-s", cmd.options.protection_stale_s,
+                "adaptive backgrounds over live streams: apply the latest protection while younger than this")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   return c;
 }
 
@@ -181,6 +194,13 @@ Status RunEdgeCommand(EdgeCommand cmd, int threads, const std::string& data_root
                          s.seconds, s.stop_reason, s.reconnects, s.lost)
                  .c_str(),
              stdout);
+  if (site.backgrounds.adaptive) {
+    std::fputs(fmt::format("adaptive backgrounds: {} protections from the fuse, {} frame sets updated without one; "
+                           "learned backgrounds checked over this edge's cameras: {} pixels, {} swapped\n",
+                           s.protections, s.unprotected_updates, s.consensus_pixels_checked, s.consensus_pixels_swapped)
+                   .c_str(),
+               stdout);
+  }
   return Status::Ok();
 }
 

@@ -65,12 +65,13 @@ for scene in $scenes; do
   dir="$work/$scene"
   scale=()
   [ "$scene" != lab ] && scale=(--scale 0.5)
-  # Given backgrounds: edges refuse the adaptive ones (the plaza's default).
+  # Given backgrounds: the edge runs here without a fuse, and adaptive ones (the plaza's default)
+  # are updated from the fuse's protections (an edge alone would wait for them).
   if [ ! -f "$dir/site.yaml" ]; then
     nice "$occmap" synth --scene "$scene" "${scale[@]}" --site-backgrounds --frames "$frames" --video --no-change-masks --out "$dir" \
       >"$work/synth-$scene.log" 2>&1
   fi
-  # Edges refuse adaptive backgrounds (the plaza's): the scene's given ones instead.
+  # Not the adaptive backgrounds (the plaza's): the scene's given ones instead (see above).
   sed 's/^\(  adaptive:\) true/\1 false/' "$dir/site.yaml" >"$dir/site-edge.yaml"
   rm -rf "$dir/recorded"
   "$occmap" edge-sim "$dir/site-edge.yaml" --broker "$broker" --record "$dir/recorded" >"$work/record-$scene.log" 2>&1 &

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Runs every libFuzzer target of fuzz/ (the readers: site and scene YAML, OpenCV/GoPro/Tsai
 # calibrations, the table cache, run outputs, ground truth; the protocol messages: the MQTT
-# evidence of `occmap edge`, the JSON bodies of `occmap serve`'s API) for SECONDS each
-# (default 60), one after the other.
+# evidence of `occmap edge`, the protections `occmap fuse` sends the edges, the JSON bodies of
+# `occmap serve`'s API) for SECONDS each (default 60), one after the other.
 # Usage: scripts/fuzz.sh [SECONDS] [TARGET...] (all targets when none is named; builds only those run)
 # Installs clang-14 and libclang-rt-14-dev when missing, builds the `fuzz` preset (clang,
 # -fsanitize=fuzzer,address,undefined; build/fuzz, apart from the main build), seeds each
@@ -15,7 +15,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 all=(site_yaml scene_yaml opencv_calibration gopro_calibration tsai_calibration lut_file run_outputs ground_truth
-  edge_message serve_api)
+  edge_message protection_message serve_api)
 [ $# -gt 0 ] && targets=("$@") || targets=("${all[@]}")
 
 missing=()

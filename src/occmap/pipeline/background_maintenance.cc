@@ -169,7 +169,40 @@ BackgroundProtection::BackgroundProtection(std::vector<const CameraModel*> camer
   }
 }
 
+void BackgroundProtection::Clear() {
+  for (Image<uint8_t>& im : images_) {
+    for (int y = 0; y < im.height(); ++y) std::fill(im.row(y), im.row(y) + im.width(), BackgroundModel::kFree);
+  }
+  objects_ = persons_ = 0;
+  person_positions_.clear();
+  boxes_.clear();
+}
+
+void BackgroundProtection::Draw(const std::vector<ProtectedBox>& boxes, const std::vector<Eigen::Vector2d>& persons_m) {
+  Clear();
+  for (const ProtectedBox& b : boxes) Protect(b.x_m, b.y_m, b.radius_m, b.value);
+  objects_ = static_cast<int>(boxes.size());  // the map's objects and the people added alike
+  persons_ = static_cast<int>(persons_m.size());
+  person_positions_ = persons_m;
+}
+
+void BackgroundProtection::ProtectChanges(const std::vector<ImageView<const uint8_t>>& changes) {
+  OCCMAP_CHECK(changes.size() == cameras_.size(), "protection: one change mask per camera");
+  Clear();
+  for (size_t n = 0; n < cameras_.size(); ++n) {
+    if (changes[n].empty()) continue;
+    Image<uint8_t>& im = images_[n];
+    OCCMAP_CHECK(changes[n].width() == im.width() && changes[n].height() == im.height(), "protection: change mask size");
+    for (int y = 0; y < im.height(); ++y) {
+      const uint8_t* c = changes[n].row(y);
+      uint8_t* o = im.row(y);
+      for (int x = 0; x < im.width(); ++x) o[x] = c[x] != 0 ? BackgroundModel::kPerson : BackgroundModel::kFree;
+    }
+  }
+}
+
 void BackgroundProtection::Protect(double cx, double cy, double radius, uint8_t value) {
+  boxes_.push_back({cx, cy, radius, value});
   // The box's projection: its bounding rectangle in each camera.
   for (size_t n = 0; n < cameras_.size(); ++n) {
     const ImageSize size = cameras_[n]->image_size();
@@ -255,11 +288,7 @@ const std::vector<bool>& WalkedPeople::Update(const std::vector<Eigen::Vector2d>
 
 void BackgroundProtection::Compute(const OccupancyMap& map, const std::vector<ImageView<const uint8_t>>& changes) {
   OCCMAP_CHECK(changes.size() == cameras_.size(), "protection: one change mask per camera");
-  for (Image<uint8_t>& im : images_) {
-    for (int y = 0; y < im.height(); ++y) std::fill(im.row(y), im.row(y) + im.width(), BackgroundModel::kFree);
-  }
-  objects_ = persons_ = 0;
-  person_positions_.clear();
+  Clear();
   const FloorGrid& g = map.grid();
   const std::vector<Blob>& blobs = finder_.Find(map, {.min_area_m2 = options_.min_area_m2});
   for (const Blob& b : blobs) {

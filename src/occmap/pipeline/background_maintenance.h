@@ -35,6 +35,16 @@ struct ProtectionOptions {
 
 class BackgroundModel;
 
+// One protected box: the upright box of radius_m around (x_m, y_m) (metres, floor frame),
+// height ProtectionOptions::height_m, marked `value` (BackgroundModel::kObject, kPerson or
+// kWalkedPerson) in every camera's protection image. What the fuse sends the edges
+// (pipeline/protection_message.h): they draw the boxes into their own cameras.
+struct ProtectedBox {
+  double x_m = 0, y_m = 0, radius_m = 0;
+  uint8_t value = 1;
+  friend bool operator==(const ProtectedBox&, const ProtectedBox&) = default;
+};
+
 // Learned backgrounds checked against each other through the floor (after learning, before
 // the run): a floor cell looks alike from every camera, while a person who stood through the
 // learning window covers different cells in different views. Per block of 4 x 4 cells, the
@@ -73,20 +83,33 @@ class BackgroundProtection {
   // person k kWalkedPerson (WalkedPeople below).
   void AddPeople(const std::vector<Eigen::Vector2d>& positions_m, double radius_m, const std::vector<bool>& walked = {});
 
+  // Instead of Compute (+ AddPeople): the images from boxes another process computed (occmap
+  // edge: the fuse's, for its own cameras), persons_m the persons' positions it found.
+  void Draw(const std::vector<ProtectedBox>& boxes, const std::vector<Eigen::Vector2d>& persons_m);
+  // Instead of Compute, without a map (an edge before the fuse's first protection, or while the
+  // fuse is away): every changed pixel is kPerson (never absorbed, whatever stands there), the
+  // rest kFree. changes[n] empty: camera n all kFree.
+  void ProtectChanges(const std::vector<ImageView<const uint8_t>>& changes);
+
   const Image<uint8_t>& image(size_t camera) const { return images_[camera]; }
+  // The boxes of the last Compute and AddPeople (or Draw), in the order they were drawn.
+  const std::vector<ProtectedBox>& boxes() const { return boxes_; }
   int objects() const { return objects_; }
   int persons() const { return persons_; }
   // Where the persons stand (the groups' centroids, and the people added), metres.
   const std::vector<Eigen::Vector2d>& person_positions() const { return person_positions_; }
 
  private:
-  // Marks the image of the upright box of `radius` around (cx, cy) with value in every camera.
+  // Marks the image of the upright box of `radius` around (cx, cy) with value in every camera
+  // (and keeps the box in boxes_).
   void Protect(double cx, double cy, double radius, uint8_t value);
+  void Clear();
 
   std::vector<const CameraModel*> cameras_;
   double plane_height_m_;
   ProtectionOptions options_;
   std::vector<Image<uint8_t>> images_;
+  std::vector<ProtectedBox> boxes_;
   BlobFinder finder_;
   int objects_ = 0, persons_ = 0;
   std::vector<Eigen::Vector2d> person_positions_;
@@ -153,6 +176,8 @@ class ShadowTeachers {
   void Compute(const std::vector<ImageView<const uint8_t>>& classes, const std::vector<ImageView<const uint8_t>>& ratios,
                const OccupancyMap& map, const std::vector<Eigen::Vector2d>& people_m, double radius_m);
   static constexpr double kObjectMarginM = 0.1;
+  // Around a person's position, cells are their feet: the radius_m the pipeline passes.
+  static constexpr double kPersonRadiusM = 0.35;
 
   const Image<uint8_t>& image(size_t camera) const { return images_[camera]; }
   int64_t teachers() const { return teachers_; }  // of the last Compute, over the cameras

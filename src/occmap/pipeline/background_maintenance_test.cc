@@ -315,6 +315,44 @@ TEST(BackgroundProtection, PeopleFromAnotherDetectorAreProtectedAsPersons) {
   }
 }
 
+// An edge draws the fuse's boxes into its own cameras (occmap edge, protection_message.h): the
+// images equal those the fuse's Compute + AddPeople made for those cameras.
+TEST(BackgroundProtection, BoxesDrawnForSomeCamerasGiveTheirImages) {
+  testing::SmallRoom room(160, 120);
+  std::vector<const CameraModel*> cameras;
+  for (const auto& c : room.cameras) cameras.push_back(&c);
+  OccupancyMap map(room.grid);
+  for (auto& s : map.states()) s = CellState::kFree;
+  const FloorGrid& g = room.grid;
+  for (int j = 20; j < 28; ++j) {  // an object of 8 x 8 cells
+    for (int i = 30; i < 38; ++i) map.states()[static_cast<size_t>(j) * g.cells_x + i] = CellState::kOccupied;
+  }
+  std::vector<Image<uint8_t>> changes;
+  std::vector<ImageView<const uint8_t>> views;
+  for (int n = 0; n < 4; ++n) changes.emplace_back(160, 120, uint8_t{0});
+  for (auto& c : changes) views.push_back(c.view());
+  BackgroundProtection fuse(cameras, 0.0, ProtectionOptions{});
+  fuse.Compute(map, views);
+  fuse.AddPeople({Eigen::Vector2d(2.0, 1.5)}, 0.25, {true});
+  ASSERT_EQ(fuse.boxes().size(), 2u);
+  EXPECT_EQ(fuse.boxes()[0].value, BackgroundModel::kObject);
+  EXPECT_EQ(fuse.boxes()[1].value, BackgroundModel::kWalkedPerson);
+  BackgroundProtection edge({cameras[1], cameras[3]}, 0.0, ProtectionOptions{});
+  edge.Draw(fuse.boxes(), fuse.person_positions());
+  EXPECT_EQ(edge.person_positions(), fuse.person_positions());
+  EXPECT_EQ(edge.boxes(), fuse.boxes());
+  for (const auto& [local, n] : {std::pair<size_t, size_t>{0, 1}, {1, 3}}) {
+    EXPECT_EQ(edge.image(local), fuse.image(n)) << "camera " << n;
+  }
+  // Without the fuse's boxes, every changed pixel is a person's, the rest free.
+  changes[3](5, 7) = 1;
+  edge.ProtectChanges({views[1], views[3]});
+  EXPECT_TRUE(edge.boxes().empty());
+  EXPECT_EQ(edge.image(1)(5, 7), BackgroundModel::kPerson);
+  EXPECT_EQ(edge.image(1)(6, 7), BackgroundModel::kFree);
+  EXPECT_EQ(edge.image(0)(5, 7), BackgroundModel::kFree);
+}
+
 // Three people: one walks in and stops, one stands still where first seen (a ghost, or a person
 // learned in), one walks by and leaves. Flags follow each position, whatever its order.
 TEST(WalkedPeople, OnlyThoseSeenWalkingHaveWalked) {

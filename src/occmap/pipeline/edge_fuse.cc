@@ -23,11 +23,13 @@
 #include "occmap/pipeline/fusion_path.h"
 #include "occmap/pipeline/fusion_stage.h"
 #include "occmap/pipeline/mqtt_link.h"
+#include "occmap/pipeline/protection_message.h"
 #include "occmap/pipeline/sink_stage.h"
 #include "occmap/pipeline/summary_file.h"
 #include "occmap/site/site_lut.h"
 #include "occmap/util/file_util.h"
 #include "occmap/util/safe_files.h"
+#include "occmap/util/thread_pool.h"
 
 namespace occmap {
 namespace fs = std::filesystem;
@@ -43,13 +45,163 @@ std::string Prefix(const Site& site, const std::string& given) {
   return given.empty() ? "occmap/" + TopicSlug(site.name) : given;
 }
 
-// The edge's change test needs nothing from the other cameras; the adaptive backgrounds do.
-Status RefuseAdaptive(const Site& site, std::string_view command) {
-  if (!site.backgrounds.adaptive) return Status::Ok();
-  return InvalidInput(fmt::format("occmap {}: site '{}': backgrounds.adaptive: expected false (edge and fuse "
-                                  "support given or estimated backgrounds; the adaptive ones follow the fused map), "
-                                  "found true; run it with `occmap run`",
-                                  command, site.name));
+// Adaptive backgrounds at an edge (edge_fuse.h): the shadows' floor check and teachers over
+// this edge's cameras (the tables' other cameras abstain), and each frame's update with the
+// fuse's latest protection drawn into this edge's cameras, or, without one, with every changed
+// pixel protected as a person.
+class EdgeBackgrounds {
+ public:
+  EdgeBackgrounds(const Site& site, const GroundLut& lut, std::vector<CameraState>& cams, const std::vector<size_t>& index,
+                  const CameraChanges& changes, const EdgeOptions& o, bool live)
+      : site_(site),
+        lut_(lut),
+        cams_(cams),
+        index_(index),
+        changes_(changes),
+        o_(o),
+        live_(live),
+        expect_{EdgeTableKey(site), EdgeSettingsKey(site), site.grid.num_cells()},
+        protection_(CameraModels(cams), site.plane_height_m, Options(site)),
+        map_(site.grid),
+        views_(cams.size()),
+        classes_(site.cameras.size()),
+        ratios_(site.cameras.size()),
+        check_changes_(site.cameras.size()) {
+    const BackgroundOptions& bo = site.backgrounds;
+    if (bo.shadows.enabled && bo.shadows.floor_check) shadow_check_.emplace(lut);
+    if (bo.shadows.enabled && bo.shadows.learn) teachers_.emplace(lut);
+  }
+
+  bool shadow_check() const { return shadow_check_.has_value(); }
+
+  // After every active camera's Compute(dilate=false): shadows whose floor this edge's other
+  // cameras see lit are changes; then the tolerance, as FusionStage::DetectChanges.
+  void CheckShadows(FrameSet& set, std::vector<Image<uint8_t>>& raw, std::vector<std::vector<uint8_t>>& scratch) {
+    const int r = site_.detection.tolerance_px;
+    std::fill(classes_.begin(), classes_.end(), ImageView<const uint8_t>());
+    std::fill(check_changes_.begin(), check_changes_.end(), ImageView<uint8_t>());
+    for (size_t k = 0; k < cams_.size(); ++k) {
+      if (!set.active[k] || !cams_[k].model) continue;
+      classes_[index_[k]] = cams_[k].model->pixel_classes();
+      check_changes_[index_[k]] = r > 0 ? raw[k].view() : changes_.Slice(set, k);
+    }
+    shadow_check_->Apply(classes_, check_changes_);
+    if (r == 0) return;
+    for (size_t k = 0; k < cams_.size(); ++k) {
+      if (set.active[k]) changes_.Widen(k, raw[k].view(), changes_.Slice(set, k), scratch[k]);
+    }
+  }
+
+  // A message on <prefix>/protection; a refused one is said once per reason.
+  void Receive(const MqttReceived& r) {
+    auto m = DecodeProtectionMessage(r.payload, expect_, r.topic);
+    if (!m.ok()) {
+      if (refused_.insert(m.status().message()).second) {
+        std::fputs(fmt::format("occmap edge: refused: {}\n", m.status().message()).c_str(), stderr);
+      }
+      return;
+    }
+    latest_ = std::move(m).value();
+    latest_arrival_ = Clock::now();
+    drawn_ = false;
+    ++received_;
+  }
+  int64_t received() const { return received_; }
+  int64_t unprotected() const { return unprotected_; }
+
+  // Over files: the protection frame `frame` is updated with has arrived (none is due before
+  // the first frame + lag).
+  bool Ready(int64_t frame) const {
+    const int64_t due = frame - o_.protection_lag_frames;
+    return due < o_.run.start_frame || (latest_ && latest_->frame >= due);
+  }
+
+  void Update(FrameSet& set, Context& ctx) {
+    const bool protect = latest_ && (live_ ? Since(latest_arrival_) <= o_.protection_stale_s
+                                           : latest_->frame >= set.frame_index - o_.protection_lag_frames &&
+                                                 latest_->frame <= set.frame_index);
+    const bool teach = protect && teachers_.has_value();
+    if (protect && !drawn_) {
+      protection_.Draw(latest_->boxes, latest_->persons_m);
+      std::fill(map_.states().begin(), map_.states().end(), CellState::kUnseen);
+      MarkOccupied(latest_->occupied, map_);
+      drawn_ = true;
+    } else if (!protect) {
+      for (size_t k = 0; k < cams_.size(); ++k) {
+        views_[k] = set.active[k] ? std::as_const(changes_).Slice(std::as_const(set), k) : ImageView<const uint8_t>();
+      }
+      protection_.ProtectChanges(views_);
+      drawn_ = false;
+      ++unprotected_;
+    }
+    if (teach) {
+      std::fill(classes_.begin(), classes_.end(), ImageView<const uint8_t>());
+      std::fill(ratios_.begin(), ratios_.end(), ImageView<const uint8_t>());
+      for (size_t k = 0; k < cams_.size(); ++k) {
+        if (!set.active[k] || !cams_[k].model) continue;
+        classes_[index_[k]] = cams_[k].model->pixel_classes();
+        ratios_[index_[k]] = cams_[k].model->pixel_ratios();
+      }
+      teachers_->Compute(classes_, ratios_, map_, protection_.person_positions(), ShadowTeachers::kPersonRadiusM);
+    }
+    ParallelFor(ctx, 0, static_cast<int64_t>(cams_.size()), [&](int64_t b, int64_t e, int) {
+      for (int64_t k = b; k < e; ++k) {
+        if (!set.active[k] || !cams_[k].model) continue;
+        const YuvView frame = FrameYuv(set.frames[k]);
+        if (teach) cams_[k].model->LearnShadows(frame, teachers_->image(index_[k]).view());
+        cams_[k].model->Update(frame, protection_.image(static_cast<size_t>(k)).view(), set.frame_index);
+      }
+    });
+  }
+
+ private:
+  static std::vector<const CameraModel*> CameraModels(const std::vector<CameraState>& cams) {
+    std::vector<const CameraModel*> models;
+    for (const CameraState& c : cams) models.push_back(c.cam->camera.get());
+    return models;
+  }
+  static ProtectionOptions Options(const Site& site) {
+    ProtectionOptions po;
+    po.person_height_m = site.backgrounds.person_height_m;
+    return po;
+  }
+
+  const Site& site_;
+  const GroundLut& lut_;
+  std::vector<CameraState>& cams_;
+  const std::vector<size_t>& index_;
+  const CameraChanges& changes_;
+  const EdgeOptions& o_;
+  const bool live_;
+  const ProtectionExpectation expect_;
+  BackgroundProtection protection_;  // this edge's cameras
+  OccupancyMap map_;                 // the fuse's occupied cells (the shadow teachers read them)
+  std::optional<ShadowCheck> shadow_check_;
+  std::optional<ShadowTeachers> teachers_;
+  std::optional<ProtectionMessage> latest_;
+  Clock::time_point latest_arrival_;
+  bool drawn_ = false;
+  int64_t received_ = 0, unprotected_ = 0;
+  std::set<std::string> refused_;
+  std::vector<ImageView<const uint8_t>> views_;                        // per edge camera
+  std::vector<ImageView<const uint8_t>> classes_, ratios_;             // per site camera
+  std::vector<ImageView<uint8_t>> check_changes_;                      // per site camera
+};
+
+// Learned backgrounds checked against each other through the floor, as `occmap run` does
+// before its first frame set, over this edge's cameras (the others' models null).
+ConsensusResult ResolveAtEdge(const Site& site, const GroundLut& lut, std::vector<CameraState>& cams,
+                              const std::vector<size_t>& index) {
+  std::vector<BackgroundModel*> models(site.cameras.size(), nullptr);
+  bool any_alternative = false;
+  for (size_t k = 0; k < cams.size(); ++k) {
+    models[index[k]] = cams[k].model.get();
+    any_alternative |= cams[k].info.background.starts_with("learned") || cams[k].info.background.starts_with("reused");
+  }
+  if (!any_alternative) return {};
+  std::vector<const CameraModel*> cameras;
+  for (const SiteCamera& c : site.cameras) cameras.push_back(c.camera.get());
+  return ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold);
 }
 
 }  // namespace
@@ -58,10 +210,21 @@ std::string EdgeTopic(const std::string& prefix, const std::string& camera_id) {
   return prefix + "/edge/" + TopicSlug(camera_id);
 }
 
+std::string ProtectionTopic(const std::string& prefix) { return prefix + "/protection"; }
+
 Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx) {
   OCCMAP_RETURN_IF_ERROR(o.run.Validate());
   OCCMAP_RETURN_IF_ERROR(site.detection.Validate());
-  OCCMAP_RETURN_IF_ERROR(RefuseAdaptive(site, "edge"));
+  if (site.backgrounds.adaptive) OCCMAP_RETURN_IF_ERROR(site.backgrounds.Validate());
+  if (o.protection_lag_frames < 0) {
+    return InvalidInput(fmt::format("--protection-lag: expected >= 0 frames, found {}", o.protection_lag_frames));
+  }
+  if (!(o.protection_wait_s >= 0)) {
+    return InvalidInput(fmt::format("--protection-wait-s: expected >= 0, found {}", o.protection_wait_s));
+  }
+  if (!(o.protection_stale_s > 0)) {
+    return InvalidInput(fmt::format("--protection-stale-s: expected > 0, found {}", o.protection_stale_s));
+  }
   const auto t_start = Clock::now();
   std::vector<size_t> index;
   for (const std::string& id : o.cameras) {
@@ -86,12 +249,28 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
   const std::string prefix = Prefix(site, o.topic_prefix);
   const std::string client_id =
       o.client_id.empty() ? fmt::format("occmap-edge-{}-{}", TopicSlug(site.name), TopicSlug(cams[0].cam->id)) : o.client_id;
-  OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<MqttLink> link, MqttLink::Start(o.broker, client_id, {}));
+  const std::string protection_topic = ProtectionTopic(prefix);
+  OCCMAP_ASSIGN_OR_RETURN(
+      std::unique_ptr<MqttLink> link,
+      MqttLink::Start(o.broker, client_id, plan.adaptive ? std::vector<std::string>{protection_topic} : std::vector<std::string>{}));
   // Asked before the reader takes the live streams' sources.
   std::vector<double> fps;
   for (const CameraState& c : cams) fps.push_back(c.source->fps().value_or(0.0));
   FrameReader reader(cams, o.run, ctx.num_threads(), RunSourceOptions(plan, ctx.num_threads(), static_cast<int>(cams.size())));
   const CameraChanges changes(site, cams, plan.colour, /*change_pngs=*/false);
+  EdgeSummary summary;
+  // Adaptive backgrounds: the learned ones checked against each other over this edge's cameras
+  // (the tables of the whole site: the checks go through the floor), then kept from the fuse's
+  // protections.
+  std::optional<CachedLut> lut;
+  std::optional<EdgeBackgrounds> backgrounds;
+  if (plan.adaptive) {
+    OCCMAP_ASSIGN_OR_RETURN(CachedLut cached, LoadOrBuildSiteLut(site, o.run.cache_dir, ctx));
+    lut.emplace(std::move(cached));
+    const ConsensusResult r = ResolveAtEdge(site, lut->lut, cams, index);
+    summary.consensus_pixels_checked = r.pixels_checked;
+    summary.consensus_pixels_swapped = r.pixels_swapped;
+  }
   FrameSet set;
   set.frames.resize(cams.size());
   set.active.assign(cams.size(), false);
@@ -113,9 +292,15 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
   }
   const double live_epoch_unix =
       UnixNow() - std::chrono::duration<double>(Clock::now() - reader.live_epoch()).count();
-  EdgeSummary summary;
+  if (plan.adaptive) {
+    backgrounds.emplace(site, lut->lut, cams, index, changes, o, any_live);
+    // The first protection must not go by unheard.
+    for (int k = 0; k < 100 && !link->subscribed() && !stop_requested(); ++k) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
   int64_t next_frame = o.run.start_frame;
   bool away = false;
+  bool waiting = true;  // for the fuse's protections (files); false after a wait gave up, until one arrives
+  int64_t received_when_given_up = 0;
   Clock::time_point away_since;
   int64_t lost_while_away = 0;
   // While the broker is away, files wait for it (nothing is lost); live streams go on and the
@@ -146,9 +331,13 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
       continue;
     }
     changes.EnsureBuffer(set);
+    const bool check_shadows = backgrounds && backgrounds->shadow_check();
+    for (size_t k = 0; k < cams.size(); ++k) {
+      if (set.active[k]) changes.Compute(set, k, raw[k], scratch[k], /*dilate=*/!check_shadows);
+    }
+    if (check_shadows) backgrounds->CheckShadows(set, raw, scratch);
     for (size_t k = 0; k < cams.size(); ++k) {
       if (!set.active[k]) continue;
-      changes.Compute(set, k, raw[k], scratch[k], /*dilate=*/true);
       const ImageSize size = cams[k].cam->camera->image_size();
       m.kind = EdgeMessageKind::kChanges;
       m.camera = static_cast<uint32_t>(index[k]);
@@ -163,6 +352,28 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
       const std::string bytes = EncodeEdgeMessage(m);
       OCCMAP_RETURN_IF_ERROR(link->Publish(topics[k], bytes));
       ++summary.messages;
+    }
+    if (backgrounds) {  // the fuse's protection: over files, the one due for this frame is waited for
+      for (auto r = link->Pop(std::chrono::milliseconds(0)); r; r = link->Pop(std::chrono::milliseconds(0))) {
+        backgrounds->Receive(*r);
+      }
+      if (!any_live && waiting && !backgrounds->Ready(set.frame_index)) {
+        const auto t0 = Clock::now();
+        while (!backgrounds->Ready(set.frame_index) && !stop_requested() && Since(t0) < o.protection_wait_s) {
+          if (auto r = link->Pop(std::chrono::milliseconds(50))) backgrounds->Receive(*r);
+        }
+        if (!backgrounds->Ready(set.frame_index) && !stop_requested()) {
+          std::fputs(fmt::format("occmap edge: no protection from the fuse for frame {} after {:.0f} s: changed pixels "
+                                 "protected until one arrives\n",
+                                 set.frame_index, o.protection_wait_s)
+                         .c_str(),
+                     stderr);
+          waiting = false;
+          received_when_given_up = backgrounds->received();
+        }
+      }
+      if (!waiting && backgrounds->received() > received_when_given_up) waiting = true;
+      backgrounds->Update(set, ctx);
     }
   }
   // The end of every source (not on a stop request: a restarted edge goes on where it was).
@@ -180,6 +391,10 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
   if (!link->WaitPublished(std::chrono::seconds(10))) summary.lost += link->unacked();
   summary.bytes = link->bytes_published();
   summary.reconnects = std::max<int64_t>(0, link->connects() - 1);
+  if (backgrounds) {
+    summary.protections = backgrounds->received();
+    summary.unprotected_updates = backgrounds->unprotected();
+  }
   summary.seconds = Since(t_start);
   summary.stop_reason = !reader.stop_reason().empty() ? reader.stop_reason() : stop_requested() ? "stop requested" : "stopped";
   if (!reader.failure().ok()) return reader.failure();
@@ -190,7 +405,6 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   OCCMAP_RETURN_IF_ERROR(o.run.Validate());
   OCCMAP_RETURN_IF_ERROR(site.detection.Validate());
   OCCMAP_RETURN_IF_ERROR(site.fusion.Validate(static_cast<int>(site.cameras.size())));
-  OCCMAP_RETURN_IF_ERROR(RefuseAdaptive(site, "fuse"));
   if (!(o.latency_budget_s > 0)) return InvalidInput(fmt::format("--latency-budget-s: expected > 0, found {}", o.latency_budget_s));
   if (!(o.dead_after_s > 0)) return InvalidInput(fmt::format("--dead-after-s: expected > 0, found {}", o.dead_after_s));
   if (!(o.start_wait_s >= 0)) return InvalidInput(fmt::format("--start-wait-s: expected >= 0, found {}", o.start_wait_s));
@@ -228,7 +442,7 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   // The fusion stage's tables (FastFusion's, the people's columns: 16 s at 64 cameras of 960x540)
   // from the site file, before any message: made on the first one, they held up every frame set
   // queued meanwhile (p99 17.7 s over a 64-camera run). Its frame rate only paces the adaptive
-  // backgrounds' ages, which the fuse refuses: none yet.
+  // backgrounds' ages: the edges keep those backgrounds, the fuse none.
   OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FusionStage> fusion,
                           FusionStage::Create(site, options, plan, lut, cams, /*fps=*/0, ctx));
   while (!link->subscribed() && !stop_requested()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -316,6 +530,11 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   set.map = OccupancyMap(site.grid);
   const CameraChanges& changes = fusion->changes();
   std::optional<Clock::time_point> t_first_set;
+  const std::string protection_topic = ProtectionTopic(prefix);
+  ProtectionMessage protection;
+  int64_t protections = 0, protection_bytes = 0;
+  protection.table_key = EdgeTableKey(site);
+  protection.settings_key = EdgeSettingsKey(site);
   Status failure;
   auto emit = [&](AlignedSet& a) -> Status {
     if (!t_first_set) t_first_set = Clock::now();
@@ -348,6 +567,18 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
                                              : a.first_arrival;
     set.changes_given = true;
     fusion->Process(set, ctx);
+    if (const BackgroundProtection* p = fusion->protection()) {  // for the edges' adaptive backgrounds
+      protection.frame = set.frame_index;
+      protection.timestamp_s = set.timestamp_s;
+      protection.t_unix = set.t_unix;
+      protection.boxes = p->boxes();
+      protection.persons_m = p->person_positions();
+      protection.occupied = OccupiedRuns(set.map);
+      const std::string bytes = EncodeProtectionMessage(protection);
+      protection_bytes += static_cast<int64_t>(bytes.size());
+      ++protections;
+      OCCMAP_RETURN_IF_ERROR(link->Publish(protection_topic, bytes));
+    }
     FrameRecord record;
     OCCMAP_RETURN_IF_ERROR(post->Process(set, record));
     OCCMAP_RETURN_IF_ERROR(sink_stage.Consume(record));
@@ -412,6 +643,12 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
     info.left_out = aligner.left_out(n);
     info.late_messages = aligner.late(n);
     summary.cameras.push_back(info);
+  }
+  if (protections > 0) {
+    std::fputs(fmt::format("occmap fuse: {} protections sent to the edges' adaptive backgrounds, {:.0f} bytes each\n",
+                           protections, static_cast<double>(protection_bytes) / static_cast<double>(protections))
+                   .c_str(),
+               stderr);
   }
   if (aligner.late() > 0) {
     std::fputs(fmt::format("occmap fuse: {} messages came after their frame set was fused (dropped)\n", aligner.late()).c_str(),

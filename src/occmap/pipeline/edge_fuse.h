@@ -5,7 +5,7 @@
 // detect_track_stage.h, sink_stage.h) with run's outputs. On the same inputs the outputs equal
 // `occmap run`'s (a test with a real broker).
 //
-// Topics: <prefix>/edge/<camera id>, prefix occmap/<site slug> by default.
+// Topics: <prefix>/edge/<camera id> (and <prefix>/protection), prefix occmap/<site slug> by default.
 // Alignment (edge_align.h): by frame index over files (edges of one site file start at the same
 // frame), by timestamp within a tolerance over live streams (each edge stamps a live frame with
 // its arrival on the edge's wall clock, which NTP keeps in step across hosts). A frame set is
@@ -16,8 +16,18 @@
 // rejoins without a restart of the fuse). Over files, where edges run as fast as they decode, a
 // budget longer than the slowest edge's lag keeps every frame set whole (the outputs then equal
 // `occmap run`'s); over live streams the budget bounds the latency. When every camera has
-// reported the end of its source, the fuse finishes. Adaptive backgrounds (their update needs
-// the fused map) are not supported yet: both commands refuse such a site.
+// reported the end of its source, the fuse finishes.
+//
+// Adaptive backgrounds (site backgrounds.adaptive): each edge learns and keeps its cameras'
+// backgrounds; their update needs the fused map, so the fuse publishes per frame set the
+// protected boxes it computed (protection_message.h, on <prefix>/protection) and each edge draws
+// the latest it has into its cameras before it updates them. Over files an edge waits for the
+// protection of frame t - protection_lag_frames before it updates with frame t (run uses frame
+// t's own); over live streams it never waits and applies the latest while it is younger than
+// protection_stale_s. Without one (before the first, or the fuse away) the changed pixels are
+// protected as persons: nothing that changed is absorbed. The checks through the floor
+// (ResolveLearnedBackgrounds, the shadows' floor check and teachers) run at each edge over its
+// own cameras: fewer cameras check less.
 //
 //   OCCMAP_ASSIGN_OR_RETURN(EdgeSummary e, RunEdge(site, edge_options, ctx));
 //   OCCMAP_ASSIGN_OR_RETURN(RunSummary s, RunFuse(site, fuse_options, ctx, progress));
@@ -40,6 +50,13 @@ struct EdgeOptions {
   MqttBroker broker;
   std::string topic_prefix;          // empty: occmap/<site slug>
   std::string client_id;             // empty: occmap-edge-<site slug>-<first camera>
+  // Adaptive backgrounds: frame t is updated with the fuse's protection of frame t - lag at the
+  // oldest; over files the edge waits up to protection_wait_s for it (then goes on with changed
+  // pixels protected, without waiting again until one arrives); over live streams the latest
+  // protection is applied while younger than protection_stale_s.
+  int protection_lag_frames = 1;
+  double protection_wait_s = 30;
+  double protection_stale_s = 2;
 };
 
 struct EdgeSummary {
@@ -52,6 +69,11 @@ struct EdgeSummary {
   int64_t lost = 0;
   double seconds = 0;
   std::string stop_reason;
+  // Adaptive backgrounds: the fuse's protections received, the frame sets updated without one
+  // (changed pixels protected), and the learned backgrounds' check over this edge's cameras.
+  int64_t protections = 0;
+  int64_t unprotected_updates = 0;
+  int64_t consensus_pixels_checked = 0, consensus_pixels_swapped = 0;
 };
 
 Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& options, Context& ctx);
@@ -79,5 +101,7 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& options, Context
 
 // <prefix>/edge/<camera id>
 std::string EdgeTopic(const std::string& prefix, const std::string& camera_id);
+// <prefix>/protection: the fuse's protections for the edges' adaptive backgrounds
+std::string ProtectionTopic(const std::string& prefix);
 
 }  // namespace occmap

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "occmap/lut/ground_lut.h"
+#include "occmap/pipeline/wire_bytes.h"
 #include "occmap/util/hash.h"
 
 namespace occmap {
@@ -19,20 +20,8 @@ namespace {
 constexpr char kMagic[4] = {'O', 'C', 'M', 'E'};
 constexpr size_t kHeaderBytes = 4 + 2 + 2 + 8 + 8 + 4 + 4 + 4 + 8 + 8 + 8 + 8 + 4 + 4;
 
-template <typename T>
-void Put(std::string& out, T v) {
-  char b[sizeof(T)];
-  std::memcpy(b, &v, sizeof(T));
-  out.append(b, sizeof(T));
-}
-
-template <typename T>
-T Get(std::string_view bytes, size_t& at) {
-  T v;
-  std::memcpy(&v, bytes.data() + at, sizeof(T));
-  at += sizeof(T);
-  return v;
-}
+using wire::Get;
+using wire::Put;
 
 // The rows are coded as fax machines do (ITU-T T.6, "modified READ"): each row's changing
 // elements (where a pixel differs from its left neighbour) relative to the row above's, as
@@ -360,6 +349,21 @@ Status DecodeRows(std::string_view coded, uint32_t n_modes, int width, int heigh
 
 }  // namespace
 
+std::string wire::KeysMismatch(uint64_t table_key, uint64_t settings_key, uint64_t expected_table_key,
+                               uint64_t expected_settings_key, std::string_view sender) {
+  if (table_key != expected_table_key) {
+    return fmt::format("built for other tables (table key {:016x}, this site's {:016x}): the {}'s site file has other "
+                       "cameras, calibrations, masks or grid",
+                       table_key, expected_table_key, sender);
+  }
+  if (settings_key != expected_settings_key) {
+    return fmt::format("made with other detection settings (key {:016x}, this site's {:016x}): the {}'s site file has "
+                       "another threshold, tolerance, colour, backgrounds or camera ids",
+                       settings_key, expected_settings_key, sender);
+  }
+  return {};
+}
+
 uint64_t EdgeTableKey(const Site& site) { return GroundLutKey(site.LutInputs(), site.grid, site.lut); }
 
 uint64_t EdgeSettingsKey(const Site& site) {
@@ -443,15 +447,9 @@ Result<EdgeMessage> DecodeEdgeHeader(std::string_view bytes, const EdgeExpectati
   m.kind = static_cast<EdgeMessageKind>(kind);
   m.table_key = Get<uint64_t>(bytes, at);
   m.settings_key = Get<uint64_t>(bytes, at);
-  if (m.table_key != expect.table_key) {
-    return bad(fmt::format("built for other tables (table key {:016x}, this site's {:016x}): the edge's site file "
-                           "has other cameras, calibrations, masks or grid",
-                           m.table_key, expect.table_key));
-  }
-  if (m.settings_key != expect.settings_key) {
-    return bad(fmt::format("made with other detection settings (key {:016x}, this site's {:016x}): the edge's site "
-                           "file has another threshold, tolerance, colour, backgrounds or camera ids",
-                           m.settings_key, expect.settings_key));
+  if (std::string keys = wire::KeysMismatch(m.table_key, m.settings_key, expect.table_key, expect.settings_key, "edge");
+      !keys.empty()) {
+    return bad(keys);
   }
   m.camera = Get<uint32_t>(bytes, at);
   m.width = Get<uint32_t>(bytes, at);

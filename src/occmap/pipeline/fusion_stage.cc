@@ -14,9 +14,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-// Around a person's position, cells are their feet: they never teach the shadow look.
-constexpr double kShadowTeacherPersonRadiusM = 0.35;
-
 }  // namespace
 
 FusionStage::FusionStage(const Site& site, const RunOptions& options, const FusionPlan& plan, const GroundLut& lut,
@@ -214,13 +211,15 @@ void FusionStage::UpdateBackgrounds(FrameSet& set, Context& ctx) {
     for (const ExplainedPerson& p : set.people) people_positions_.emplace_back(p.x_m, p.y_m);
     protection_->AddPeople(people_positions_, site_.tracking.person_radius_m(), walked_people_.Update(people_positions_));
   }
-  if (teachers_) {  // the pixels that show the floor darkened, as the cameras agree
+  // Without models (occmap fuse: the edges keep them) only the protection is wanted.
+  const bool any_model = std::any_of(cams_.begin(), cams_.end(), [](const CameraState& c) { return c.model != nullptr; });
+  if (teachers_ && any_model) {  // the pixels that show the floor darkened, as the cameras agree
     for (size_t n = 0; n < n_cams; ++n) {
       teacher_classes_[n] = active[n] && cams_[n].model ? cams_[n].model->pixel_classes() : ImageView<const uint8_t>();
       teacher_ratios_[n] = active[n] && cams_[n].model ? cams_[n].model->pixel_ratios() : ImageView<const uint8_t>();
     }
     teachers_->Compute(teacher_classes_, teacher_ratios_, set.map, protection_->person_positions(),
-                        kShadowTeacherPersonRadiusM);
+                        ShadowTeachers::kPersonRadiusM);
   }
   ParallelFor(ctx, 0, static_cast<int64_t>(n_cams), [&](int64_t b, int64_t e, int) {
     for (int64_t n = b; n < e; ++n) {

@@ -37,8 +37,8 @@ class FusionStage {
  public:
   // Builds what the plan needs: FastFusion's tables for the paper's AND, the people's column
   // tables, the backgrounds' protection and shadow checks. fps: the run's, for the adaptive
-  // backgrounds' ages (0: none, as the fuse, which refuses them, makes its stage before the
-  // first message tells the rate).
+  // backgrounds' ages (0: none, as the fuse, whose edges keep the backgrounds, makes its stage
+  // before the first message tells the rate).
   static Result<std::unique_ptr<FusionStage>> Create(const Site& site, const RunOptions& options,
                                                      const FusionPlan& plan, const GroundLut& lut,
                                                      std::vector<CameraState>& cams, double fps, Context& ctx);
@@ -64,6 +64,9 @@ class FusionStage {
   Status SaveLearnedOccluders(const std::filesystem::path& out, std::vector<std::string>& written) const;
   // The last frame whose backgrounds were updated (options.start_frame before any).
   int64_t last_frame_index() const { return last_frame_index_; }
+  // Adaptive backgrounds: the protection of the last frame set (null without them). The fuse
+  // sends its boxes to the edges, which keep the backgrounds (protection_message.h).
+  const BackgroundProtection* protection() const { return protection_ ? &*protection_ : nullptr; }
 
  private:
   FusionStage(const Site& site, const RunOptions& options, const FusionPlan& plan, const GroundLut& lut,

@@ -1,0 +1,100 @@
+#!/usr/bin/env bash
+# Adaptive backgrounds through edges (issue 17): the plaza (busy, sunny, backgrounds learned from
+# the video and kept up from the fused map) run by `occmap run`, then by 2 edges of 3 cameras
+# and 1 fuse through a mosquitto of the test's own (127.0.0.1, an ephemeral port), the fuse
+# sending the edges its protections. Both are scored against the ground truth: the fuse's MODA
+# within 0.03 of the run's (the edges update with a protection one frame late, and check the
+# backgrounds and shadows through the floor over their own 3 cameras, not 6). Then one edge of
+# all 6 cameras with --protection-lag 0 (each frame updated with its own frame set's protection,
+# as the run does): the fuse's detections and tracks equal the run's byte for byte.
+#
+#   tests/edge_fuse_adaptive_test.sh OCCMAP_BINARY [FRAMES]
+set -uo pipefail
+occmap=$(realpath "${1:?usage: edge_fuse_adaptive_test.sh OCCMAP_BINARY [FRAMES]}")
+frames=${2:-150}
+source "$(dirname "$0")/test_lib.sh"
+for tool in /usr/sbin/mosquitto mosquitto_pub; do
+  command -v "$tool" >/dev/null || { echo "SKIP: no $tool (scripts/install-deps.sh installs it)"; exit 0; }
+done
+tl_init
+"$occmap" synth --scene plaza --scale 0.25 --frames "$frames" --out "$work/plaza" >"$work/synth.log" 2>&1 ||
+  { echo "FAIL synth --scene plaza: $(tail -2 "$work/synth.log")"; exit 1; }
+grep -q "adaptive: true" "$work/plaza/site.yaml" || { echo "FAIL the plaza's site is not adaptive"; exit 1; }
+tl_broker
+broker="mqtt://127.0.0.1:$broker_port"
+common=(--no-cache --threads 1)
+
+"$occmap" run "$work/plaza/site.yaml" --out "$work/run" --no-video --no-wall-clock "${common[@]}" >"$work/run.log" 2>&1 ||
+  fail "occmap run: $(tail -2 "$work/run.log")"
+
+"$occmap" fuse "$work/plaza/site.yaml" --broker "$broker" --out "$work/fuse" --no-video --no-wall-clock \
+  --latency-budget-s 60 --dead-after-s 60 --start-wait-s 120 "${common[@]}" >"$work/fuse.log" 2>&1 &
+fuse_pid=$!
+tl_track $fuse_pid
+for _ in $(seq 600); do grep -q "subscribed to" "$work/fuse.log" && break; sleep 0.05; done
+edge_pids=()
+for cams in c1,c2,c3 c4,c5,c6; do
+  "$occmap" edge "$work/plaza/site.yaml" --cameras $cams --broker "$broker" "${common[@]}" >"$work/edge-$cams.log" 2>&1 &
+  edge_pids+=($!)
+  tl_track $!
+done
+for p in "${edge_pids[@]}"; do wait "$p" || fail "an edge exited $? ($(cat "$work"/edge-*.log | tail -3))"; done
+for _ in $(seq 1200); do kill -0 $fuse_pid 2>/dev/null || break; sleep 0.05; done
+if kill -0 $fuse_pid 2>/dev/null; then
+  fail "the fuse did not finish after every edge ended: $(tail -3 "$work/fuse.log")"
+else
+  wait $fuse_pid
+  code=$?
+  [ $code -eq 0 ] && ok || fail "occmap fuse exited $code: $(tail -3 "$work/fuse.log")"
+fi
+grep "protections sent" "$work/fuse.log"
+n=$(summary_field "$work/fuse" "s['frames']")
+[ "$n" = "$frames" ] && ok || fail "fuse: $frames frame sets expected, found $n"
+# Every edge heard the fuse: all but the first frame updated with its protection.
+for cams in c1,c2,c3 c4,c5,c6; do
+  line=$(grep "adaptive backgrounds:" "$work/edge-$cams.log")
+  echo "edge $cams: $line"
+  received=$(sed -n 's/^adaptive backgrounds: \([0-9]*\) protections.*/\1/p' <<<"$line")
+  without=$(sed -n 's/.*protections from the fuse, \([0-9]*\) frame sets updated without.*/\1/p' <<<"$line")
+  if [ -n "$received" ] && [ "$received" -ge $((frames - 1)) ] && [ -n "$without" ] && [ "$without" -le 1 ]; then
+    ok
+  else
+    fail "edge $cams: expected $((frames - 1))+ protections and 1 update without, found: $line"
+  fi
+done
+
+moda() {
+  "$occmap" eval "$work/plaza" "$1" --json 2>/dev/null | "$python" -c "import json, sys; print(json.load(sys.stdin)['detection']['moda'])"
+}
+run_moda=$(moda "$work/run")
+fuse_moda=$(moda "$work/fuse")
+echo "MODA over $frames frames of the plaza: occmap run $run_moda, 2 edges + fuse $fuse_moda"
+if "$python" -c "import sys; a, b = float(sys.argv[1]), float(sys.argv[2]); sys.exit(0 if abs(a - b) <= 0.03 else 1)" \
+  "$run_moda" "$fuse_moda" 2>/dev/null; then
+  ok
+else
+  fail "MODA: edges + fuse $fuse_moda, run $run_moda: more than 0.03 apart"
+fi
+
+# 2. One edge of every camera, each frame updated with its own frame set's protection: the run's
+# outputs exactly.
+"$occmap" fuse "$work/plaza/site.yaml" --broker "$broker" --out "$work/one" --no-video --no-wall-clock \
+  --latency-budget-s 60 --dead-after-s 60 --start-wait-s 120 --topic-prefix occmap-test/one "${common[@]}" \
+  >"$work/one.log" 2>&1 &
+one_pid=$!
+tl_track $one_pid
+for _ in $(seq 600); do grep -q "subscribed to" "$work/one.log" && break; sleep 0.05; done
+"$occmap" edge "$work/plaza/site.yaml" --protection-lag 0 --topic-prefix occmap-test/one --broker "$broker" \
+  "${common[@]}" >"$work/edge-one.log" 2>&1 || fail "the edge of every camera failed: $(tail -3 "$work/edge-one.log")"
+for _ in $(seq 1200); do kill -0 $one_pid 2>/dev/null || break; sleep 0.05; done
+if kill -0 $one_pid 2>/dev/null; then
+  fail "the fuse of one edge did not finish: $(tail -3 "$work/one.log")"
+else
+  grep -q "adaptive backgrounds: $frames protections from the fuse, 0 frame sets updated without" "$work/edge-one.log" &&
+    ok || fail "edge of every camera, lag 0: $(grep adaptive "$work/edge-one.log")"
+  for f in detections.jsonl tracks.jsonl; do
+    cmp -s "$work/run/$f" "$work/one/$f" && ok || fail "one edge, lag 0: the fuse's $f differs from the run's"
+  done
+fi
+
+tl_finish edge_fuse_adaptive
