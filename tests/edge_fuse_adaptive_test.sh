@@ -6,7 +6,8 @@
 # within 0.03 of the run's (the edges update with a protection one frame late, and check the
 # backgrounds and shadows through the floor over their own 3 cameras, not 6). Then one edge of
 # all 6 cameras with --protection-lag 0 (each frame updated with its own frame set's protection,
-# as the run does): the fuse's detections and tracks equal the run's byte for byte.
+# as the run does): the fuse's detections and tracks equal the run's byte for byte. Then over
+# live streams (the lab, with ffmpeg): the edges apply the fuse's latest protections.
 #
 #   tests/edge_fuse_adaptive_test.sh OCCMAP_BINARY [FRAMES]
 set -uo pipefail
@@ -95,6 +96,49 @@ else
   for f in detections.jsonl tracks.jsonl; do
     cmp -s "$work/run/$f" "$work/one/$f" && ok || fail "one edge, lag 0: the fuse's $f differs from the run's"
   done
+fi
+
+# 3. Live streams (the lab's 4 cameras over UDP, its backgrounds given and kept adaptive): the
+# edges never wait for the fuse and apply its latest protection, a frame or a few late; only the
+# first frame sets, before the fuse's first protection, are updated without one.
+if command -v ffmpeg >/dev/null; then
+  tl_synth_lab "$occmap" "$work/lab" --video --frames 100 --shadows
+  read -r -a ports <<<"$(tl_free_ports udp 4)"
+  tl_stream_site "$work/lab" "$work/lab/live.yaml" "${ports[@]}"
+  printf 'backgrounds:\n  adaptive: true\n' >>"$work/lab/live.yaml"
+  for n in 1 2 3 4; do tl_serve "$work/lab" $n "${ports[$((n - 1))]}"; done
+  "$occmap" fuse "$work/lab/live.yaml" --broker "$broker" --out "$work/live" --no-video --summary-every-s 0.3 \
+    --latency-budget-s 0.5 --dead-after-s 1.5 --topic-prefix occmap-test/live "${common[@]}" >"$work/live.log" 2>&1 &
+  live_pid=$!
+  tl_track $live_pid
+  for _ in $(seq 600); do grep -q "subscribed to" "$work/live.log" && break; sleep 0.05; done
+  live_edges=()
+  for cams in cam1,cam2 cam3,cam4; do
+    "$occmap" edge "$work/lab/live.yaml" --cameras $cams --topic-prefix occmap-test/live --broker "$broker" \
+      "${common[@]}" >"$work/live-$cams.log" 2>&1 &
+    live_edges+=($!)
+    tl_track $!
+  done
+  for _ in $(seq 600); do [ "$(summary_field "$work/live" "s['frames']")" -ge 80 ] && break; sleep 0.1; done
+  kill -INT "${live_edges[@]}" 2>/dev/null
+  for p in "${live_edges[@]}"; do wait "$p"; done
+  kill -INT $live_pid 2>/dev/null
+  wait $live_pid
+  for cams in cam1,cam2 cam3,cam4; do
+    sets=$(sed -n 's/^\([0-9]*\) frame sets, .*/\1/p' "$work/live-$cams.log")
+    line=$(grep "adaptive backgrounds:" "$work/live-$cams.log")
+    received=$(sed -n 's/^adaptive backgrounds: \([0-9]*\) protections.*/\1/p' <<<"$line")
+    without=$(sed -n 's/.*protections from the fuse, \([0-9]*\) frame sets updated without.*/\1/p' <<<"$line")
+    echo "live edge $cams: $sets frame sets; $line"
+    if [ -n "$sets" ] && [ "$sets" -ge 60 ] && [ -n "$received" ] && [ "$received" -ge $((sets * 8 / 10)) ] &&
+      [ -n "$without" ] && [ "$without" -le $((sets / 10)) ]; then
+      ok
+    else
+      fail "live edge $cams: most frame sets updated with a protection expected: $sets frame sets; $line"
+    fi
+  done
+else
+  echo "SKIP live streams: no ffmpeg program"
 fi
 
 tl_finish edge_fuse_adaptive
