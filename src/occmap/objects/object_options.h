@@ -66,8 +66,10 @@ struct ObjectOptions {
   double split_area_margin = 0.2;
   // Distance-transform peaks: a secondary peak counts as another person only if it stands at
   // least this much above the saddle joining it to a higher peak (the "neck" between two
-  // people; at least one cell size is used) ...
-  double split_min_neck_m = 0.05;
+  // people; at least one cell size is used). 3 cm: a chair pushed a step ahead of its pusher
+  // leaves a neck of 3-5 cm once their fragments are grouped; one person's feet are kept whole
+  // by the area cap (split_area_margin), not by the neck ...
+  double split_min_neck_m = 0.03;
   // ... and is at least this far from the group's edge.
   double split_min_peak_radius_m = 0.08;
 
