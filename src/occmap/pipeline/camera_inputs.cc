@@ -123,7 +123,7 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
     c.info.background = fmt::format("given: {}", cam.background->string());
     if (auto f = c.source->fps()) fps = *f;
   } else {
-    Hasher h = BackgroundKey("adaptive-background-v3", site, cam, options.start_frame, chroma);
+    Hasher h = BackgroundKey("adaptive-background-v4", site, cam, options.start_frame, chroma);
     h.Add(ToString(bo.learning));
     h.AddPod(bo.learn_s);
     h.AddPod(bo.learn_samples);
@@ -139,15 +139,21 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
       auto u = chroma ? ReadGrayImage(plane_path("u")) : Result<Image<uint8_t>>(Image<uint8_t>());
       auto v = chroma ? ReadGrayImage(plane_path("v")) : Result<Image<uint8_t>>(Image<uint8_t>());
       auto alt_y = ReadGrayImage(plane_path("alt-y"));
+      auto alt_u = chroma ? ReadGrayImage(plane_path("alt-u")) : Result<Image<uint8_t>>(Image<uint8_t>());
+      auto alt_v = chroma ? ReadGrayImage(plane_path("alt-v")) : Result<Image<uint8_t>>(Image<uint8_t>());
       auto alt_n = ReadGrayImage(plane_path("alt-n"));
       if (y.ok() && u.ok() && v.ok() && y->width() == size.width && y->height() == size.height) {
         background.y = std::move(y).value();
         background.u = std::move(u).value();
         background.v = std::move(v).value();
-        if (alt_y.ok() && alt_n.ok() && alt_y->width() == size.width && alt_n->width() == size.width &&
-            alt_y->height() == size.height && alt_n->height() == size.height) {
+        if (alt_y.ok() && alt_u.ok() && alt_v.ok() && alt_n.ok() && alt_y->width() == size.width &&
+            alt_n->width() == size.width && alt_y->height() == size.height && alt_n->height() == size.height &&
+            alt_u->width() == background.u.width() && alt_u->height() == background.u.height() &&
+            alt_v->width() == background.v.width() && alt_v->height() == background.v.height()) {
           alternative.emplace();
           alternative->levels.y = std::move(alt_y).value();
+          alternative->levels.u = std::move(alt_u).value();
+          alternative->levels.v = std::move(alt_v).value();
           alternative->support = std::move(alt_n).value();
         }
         reused = true;
@@ -184,6 +190,10 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
         }
         if (alternative) {
           OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("alt-y"), alternative->levels.y.view()));
+          if (chroma) {
+            OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("alt-u"), alternative->levels.u.view()));
+            OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("alt-v"), alternative->levels.v.view()));
+          }
           OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("alt-n"), alternative->support.view()));
         }
         OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("y"), background.y.view()));  // last: marks the set complete
@@ -197,14 +207,19 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
     c.model->PreferLitAlternatives();
   }
   if (bo.shadows.enabled && bo.shadows.learn) {
-    // The shadow look before the first frame, so that the first frames are tested with it: from
-    // the learning samples, or with a given background from the first seconds of a file source
-    // (read a second time; a live stream learns it from its first frames instead).
+    // The shadow look before the first frame, so that the first frames are tested with it. A
+    // file source is run from its start: the look comes from its first seconds (read again),
+    // whether the background was learned, reused from the cache or given, so that a run gives
+    // the same answer with and without the cache (the samples spread over the learning window
+    // carry its whole exposure drift: plaza MODA 0.958 learned against 0.967 reused). A live
+    // stream goes on from where learning stopped: it takes the learning samples, or without
+    // them learns the look from its first frames.
     std::vector<YuvView> samples;
     std::vector<Frame> first;
-    if (learned_from) {
+    const bool file = cam.source.kind == FrameSourceSpec::Kind::kVideo || cam.source.kind == FrameSourceSpec::Kind::kImages;
+    if (learned_from && !file) {
       for (int k = 0; k < learned_from->count(); ++k) samples.push_back(learned_from->Sample(k));
-    } else if (cam.source.kind == FrameSourceSpec::Kind::kVideo || cam.source.kind == FrameSourceSpec::Kind::kImages) {
+    } else if (file) {
       OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> src, OpenFrameSource(cam.source, src_opts));
       OCCMAP_RETURN_IF_ERROR(src->SkipTo(options.start_frame));
       const int64_t n = std::min<int64_t>(kShadowWarmUpFrames, std::max<int64_t>(1, std::llround(kShadowWarmUpS * fps)));
