@@ -32,22 +32,14 @@ common=(--no-cache --threads 1)
   --latency-budget-s 60 --dead-after-s 60 --start-wait-s 120 "${common[@]}" >"$work/fuse.log" 2>&1 &
 fuse_pid=$!
 tl_track $fuse_pid
-for _ in $(seq 600); do grep -q "subscribed to" "$work/fuse.log" && break; sleep 0.05; done
+tl_wait_for "$work/fuse.log" "subscribed to" 30
 edge_pids=()
 for cams in c1,c2,c3 c4,c5,c6; do
   "$occmap" edge "$work/plaza/site.yaml" --cameras $cams --broker "$broker" "${common[@]}" >"$work/edge-$cams.log" 2>&1 &
   edge_pids+=($!)
   tl_track $!
 done
-for p in "${edge_pids[@]}"; do wait "$p" || fail "an edge exited $? ($(cat "$work"/edge-*.log | tail -3))"; done
-for _ in $(seq 1200); do kill -0 $fuse_pid 2>/dev/null || break; sleep 0.05; done
-if kill -0 $fuse_pid 2>/dev/null; then
-  fail "the fuse did not finish after every edge ended: $(tail -3 "$work/fuse.log")"
-else
-  wait $fuse_pid
-  code=$?
-  [ $code -eq 0 ] && ok || fail "occmap fuse exited $code: $(tail -3 "$work/fuse.log")"
-fi
+tl_edges_then_fuse $fuse_pid "$work/fuse.log" 60 "${edge_pids[@]}"
 grep "protections sent" "$work/fuse.log"
 n=$(summary_field "$work/fuse" "s['frames']")
 [ "$n" = "$frames" ] && ok || fail "fuse: $frames frame sets expected, found $n"
@@ -84,7 +76,7 @@ fi
   >"$work/one.log" 2>&1 &
 one_pid=$!
 tl_track $one_pid
-for _ in $(seq 600); do grep -q "subscribed to" "$work/one.log" && break; sleep 0.05; done
+tl_wait_for "$work/one.log" "subscribed to" 30
 "$occmap" edge "$work/plaza/site.yaml" --protection-lag 0 --topic-prefix occmap-test/one --broker "$broker" \
   "${common[@]}" >"$work/edge-one.log" 2>&1 || fail "the edge of every camera failed: $(tail -3 "$work/edge-one.log")"
 for _ in $(seq 1200); do kill -0 $one_pid 2>/dev/null || break; sleep 0.05; done
@@ -111,7 +103,7 @@ if command -v ffmpeg >/dev/null; then
     --latency-budget-s 0.5 --dead-after-s 1.5 --topic-prefix occmap-test/live "${common[@]}" >"$work/live.log" 2>&1 &
   live_pid=$!
   tl_track $live_pid
-  for _ in $(seq 600); do grep -q "subscribed to" "$work/live.log" && break; sleep 0.05; done
+  tl_wait_for "$work/live.log" "subscribed to" 30
   live_edges=()
   for cams in cam1,cam2 cam3,cam4; do
     "$occmap" edge "$work/lab/live.yaml" --cameras $cams --topic-prefix occmap-test/live --broker "$broker" \

@@ -27,7 +27,7 @@ out="$work/fuse"
   --latency-budget-s 0.5 --dead-after-s 1.5 --summary-every-s 0.3 "${common[@]}" >"$work/fuse.log" 2>&1 &
 fuse_pid=$!
 tl_track $fuse_pid
-for _ in $(seq 200); do grep -q "subscribed to" "$work/fuse.log" && break; sleep 0.05; done
+tl_wait_for "$work/fuse.log" "subscribed to" 10
 declare -A edge_pid
 start_edge() {  # start_edge CAMERAS
   "$occmap" edge "$work/lab/live.yaml" --cameras "$1" --broker "$broker" "${common[@]}" >>"$work/edge-$1.log" 2>&1 &

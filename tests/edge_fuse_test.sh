@@ -27,22 +27,14 @@ common=(--no-cache --threads 1)
   --latency-budget-s 60 --dead-after-s 60 "${common[@]}" >"$work/fuse.log" 2>&1 &
 fuse_pid=$!
 tl_track $fuse_pid
-for _ in $(seq 200); do grep -q "subscribed to" "$work/fuse.log" && break; sleep 0.05; done
+tl_wait_for "$work/fuse.log" "subscribed to" 10
 edge_pids=()
 for cams in cam1,cam2 cam3 cam4; do
   "$occmap" edge "$work/lab/site.yaml" --cameras $cams --broker "$broker" "${common[@]}" >"$work/edge-$cams.log" 2>&1 &
   edge_pids+=($!)
   tl_track $!
 done
-for p in "${edge_pids[@]}"; do wait "$p" || fail "an edge exited $? ($(cat "$work"/edge-*.log | tail -3))"; done
-for _ in $(seq 600); do kill -0 $fuse_pid 2>/dev/null || break; sleep 0.05; done
-if kill -0 $fuse_pid 2>/dev/null; then
-  fail "the fuse did not finish after every edge ended: $(tail -3 "$work/fuse.log")"
-else
-  wait $fuse_pid
-  code=$?
-  [ $code -eq 0 ] && ok || fail "occmap fuse exited $code: $(tail -3 "$work/fuse.log")"
-fi
+tl_edges_then_fuse $fuse_pid "$work/fuse.log" 30 "${edge_pids[@]}"
 for f in detections.jsonl tracks.jsonl tracks_mot.csv $([ -f "$work/run/events.jsonl" ] && echo events.jsonl); do
   if [ -f "$work/run/$f" ] && cmp -s "$work/run/$f" "$work/fuse/$f"; then
     ok
@@ -60,7 +52,7 @@ sed 's/^\(  threshold:\).*/\1 41/' "$work/lab/site.yaml" >"$work/lab/other.yaml"
   --topic-prefix occmap-test/other "${common[@]}" >"$work/other.log" 2>&1 &
 other_pid=$!
 tl_track $other_pid
-for _ in $(seq 200); do grep -q "subscribed to" "$work/other.log" && break; sleep 0.05; done
+tl_wait_for "$work/other.log" "subscribed to" 10
 "$occmap" edge "$work/lab/site.yaml" --cameras cam1 --frames 3 --topic-prefix occmap-test/other --broker "$broker" \
   "${common[@]}" >/dev/null 2>&1
 for _ in $(seq 40); do grep -q "refused" "$work/other.log" && break; sleep 0.05; done
@@ -74,7 +66,7 @@ kill -INT $other_pid 2>/dev/null
   --latency-budget-s 60 --dead-after-s 60 --topic-prefix occmap-test/again "${common[@]}" >"$work/again.log" 2>&1 &
 again_pid=$!
 tl_track $again_pid
-for _ in $(seq 200); do grep -q "subscribed to" "$work/again.log" && break; sleep 0.05; done
+tl_wait_for "$work/again.log" "subscribed to" 10
 tl_restart_broker
 sleep 7  # the fuse's reconnect back-off (1 s, then 2, 4) and its subscription
 for cams in cam1,cam2,cam3 cam4; do
@@ -100,7 +92,7 @@ printf 'people:\n  occluders: {learn: true, episode_frames: 1, min_episodes: 1}\
   --latency-budget-s 60 --dead-after-s 60 --topic-prefix occmap-test/people "${common[@]}" >"$work/people-fuse.log" 2>&1 &
 people_pid=$!
 tl_track $people_pid
-for _ in $(seq 200); do grep -q "subscribed to" "$work/people-fuse.log" && break; sleep 0.05; done
+tl_wait_for "$work/people-fuse.log" "subscribed to" 10
 "$occmap" edge "$work/lab/people.yaml" --frames 30 --topic-prefix occmap-test/people --broker "$broker" \
   "${common[@]}" >/dev/null 2>&1 || fail "the people site's edge failed"
 for _ in $(seq 600); do kill -0 $people_pid 2>/dev/null || break; sleep 0.05; done

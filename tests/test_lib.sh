@@ -128,3 +128,27 @@ summary_field() {
   "$python" -c "import json, sys; s = json.load(open(sys.argv[1] + '/summary.json')); print($2)" "$1" 2>/dev/null ||
     echo -1
 }
+
+# tl_wait_for LOG TEXT SECONDS: waits until LOG holds TEXT (a fuse or serve "subscribed to"), at
+# most SECONDS; the test goes on either way and finds out from what follows.
+tl_wait_for() {
+  local k
+  for k in $(seq $(($3 * 20))); do grep -q "$2" "$1" 2>/dev/null && return 0; sleep 0.05; done
+  return 1
+}
+
+# tl_edges_then_fuse FUSE_PID FUSE_LOG SECONDS EDGE_PID...: every edge must exit 0, then the fuse
+# must finish within SECONDS and exit 0 (counted as one ok, or failed with the logs' tails).
+tl_edges_then_fuse() {
+  local fuse_pid=$1 fuse_log=$2 seconds=$3 p k code
+  shift 3
+  for p in "$@"; do wait "$p" || fail "an edge exited $? ($(cat "$(dirname "$fuse_log")"/edge-*.log | tail -3))"; done
+  for k in $(seq $((seconds * 20))); do kill -0 "$fuse_pid" 2>/dev/null || break; sleep 0.05; done
+  if kill -0 "$fuse_pid" 2>/dev/null; then
+    fail "the fuse did not finish after every edge ended: $(tail -3 "$fuse_log")"
+  else
+    wait "$fuse_pid"
+    code=$?
+    [ $code -eq 0 ] && ok || fail "occmap fuse exited $code: $(tail -3 "$fuse_log")"
+  fi
+}
