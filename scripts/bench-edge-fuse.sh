@@ -15,6 +15,7 @@
 #
 #   scripts/bench-edge-fuse.sh build/release/occmap [WORK_DIR]
 #   PEOPLE=off FRAMES=100 RATE=10 SECONDS_PER_RUN=30 CAMERAS="4 16 64" SCENES="lab wildtrack plaza" scripts/bench-edge-fuse.sh ...
+# BLOCK_PX=2: the sites' changes in 2x2 blocks (detection.block_px), as the edges send them.
 set -euo pipefail
 occmap=$(realpath "${1:?usage: bench-edge-fuse.sh OCCMAP [WORK_DIR]}")
 work=$(realpath -m "${2:-/tmp/occmap-bench-edge-fuse}")
@@ -27,6 +28,7 @@ per_process=${CAMERAS_PER_EDGE:-4}
 # PEOPLE=off: the fuse runs the floor AND alone (the site's people: section left out); else the scene's own
 # people detector (WILDTRACK: explain).
 people=${PEOPLE:-site}
+block_px=${BLOCK_PX:-1}
 warmup=${WARMUP_S:-5}
 mkdir -p "$work"
 pids=()
@@ -73,6 +75,13 @@ for scene in $scenes; do
   fi
   # Not the adaptive backgrounds (the plaza's): the scene's given ones instead (see above).
   sed 's/^\(  adaptive:\) true/\1 false/' "$dir/site.yaml" >"$dir/site-edge.yaml"
+  if [ "$block_px" != 1 ]; then
+    if grep -q '^detection:$' "$dir/site-edge.yaml"; then
+      sed -i "s/^detection:\$/detection:\n  block_px: $block_px/" "$dir/site-edge.yaml"
+    else
+      printf 'detection:\n  block_px: %s\n' "$block_px" >>"$dir/site-edge.yaml"
+    fi
+  fi
   rm -rf "$dir/recorded"
   "$occmap" edge-sim "$dir/site-edge.yaml" --broker "$broker" --record "$dir/recorded" >"$work/record-$scene.log" 2>&1 &
   record_pid=$!

@@ -2,7 +2,8 @@
 # `occmap edge` x 3 + `occmap fuse` through a mosquitto of the test's own (127.0.0.1, an
 # ephemeral port) on a rendered lab scene: the fuse's detections, tracks and events equal
 # `occmap run`'s byte for byte; a fuse given a site with other detection settings refuses the
-# edges' messages, naming what differs; a fuse survives a restart of the broker.
+# edges' messages, naming what differs; a fuse survives a restart of the broker; with the
+# changes in 2x2 blocks (detection.block_px 2) the fuse still equals the run.
 #
 #   tests/edge_fuse_test.sh OCCMAP_BINARY
 set -uo pipefail
@@ -82,28 +83,60 @@ else
   fail "after the broker's restart the fuse's tracks differ from the run's"
 fi
 
+# A run of SITE's first 30 frames into $work/NAME-run, then a fuse into $work/NAME-fuse fed by
+# one edge of all the cameras; fails unless the fuse finishes (returns 1 then).
+run_then_fuse() {  # NAME SITE
+  local name=$1 site=$2 pid
+  "$occmap" run "$site" --out "$work/$name-run" --frames 30 --no-video --no-wall-clock "${common[@]}" \
+    >"$work/$name-run.log" 2>&1 || fail "occmap run ($name): $(tail -2 "$work/$name-run.log")"
+  "$occmap" fuse "$site" --broker "$broker" --out "$work/$name-fuse" --no-video --no-wall-clock \
+    --latency-budget-s 60 --dead-after-s 60 --topic-prefix "occmap-test/$name" "${common[@]}" >"$work/$name-fuse.log" 2>&1 &
+  pid=$!
+  tl_track $pid
+  tl_wait_for "$work/$name-fuse.log" "subscribed to" 10
+  "$occmap" edge "$site" --frames 30 --topic-prefix "occmap-test/$name" --broker "$broker" \
+    "${common[@]}" >"$work/$name-edge.log" 2>&1 || fail "the $name site's edge failed"
+  for _ in $(seq 600); do kill -0 $pid 2>/dev/null || break; sleep 0.05; done
+  if kill -0 $pid 2>/dev/null; then
+    fail "the $name site's fuse did not finish: $(tail -3 "$work/$name-fuse.log")"
+    return 1
+  fi
+}
+
 # 4. With `people: {occluders: {learn: true}}` the fuse saves what it learned, as the run does:
 # the same occluders.txt (learning set to count every frame, so that 30 frame sets learn some).
 cp "$work/lab/site.yaml" "$work/lab/people.yaml"
 printf 'people:\n  occluders: {learn: true, episode_frames: 1, min_episodes: 1}\n' >>"$work/lab/people.yaml"
-"$occmap" run "$work/lab/people.yaml" --out "$work/people-run" --frames 30 --no-video --no-wall-clock "${common[@]}" \
-  >"$work/people-run.log" 2>&1 || fail "occmap run with people: $(tail -2 "$work/people-run.log")"
-"$occmap" fuse "$work/lab/people.yaml" --broker "$broker" --out "$work/people-fuse" --no-video --no-wall-clock \
-  --latency-budget-s 60 --dead-after-s 60 --topic-prefix occmap-test/people "${common[@]}" >"$work/people-fuse.log" 2>&1 &
-people_pid=$!
-tl_track $people_pid
-tl_wait_for "$work/people-fuse.log" "subscribed to" 10
-"$occmap" edge "$work/lab/people.yaml" --frames 30 --topic-prefix occmap-test/people --broker "$broker" \
-  "${common[@]}" >/dev/null 2>&1 || fail "the people site's edge failed"
-for _ in $(seq 600); do kill -0 $people_pid 2>/dev/null || break; sleep 0.05; done
-if kill -0 $people_pid 2>/dev/null; then
-  fail "the people site's fuse did not finish: $(tail -3 "$work/people-fuse.log")"
-elif [ ! -s "$work/people-run/occluders.txt" ]; then
-  fail "occmap run with learning wrote no occluders.txt"
-elif cmp -s "$work/people-run/occluders.txt" "$work/people-fuse/occluders.txt"; then
-  ok
+if run_then_fuse people "$work/lab/people.yaml"; then
+  if [ ! -s "$work/people-run/occluders.txt" ]; then
+    fail "occmap run with learning wrote no occluders.txt"
+  elif cmp -s "$work/people-run/occluders.txt" "$work/people-fuse/occluders.txt"; then
+    ok
+  else
+    fail "fuse's occluders.txt differs from run's or is missing: $(ls "$work/people-fuse")"
+  fi
+fi
+
+# 5. Changes in 2x2 blocks (detection.block_px 2, the people detector on): the edge sends one
+# pixel per block, and the fuse's outputs are still the run's byte for byte.
+if grep -q '^detection:$' "$work/lab/people.yaml"; then
+  sed 's/^detection:$/detection:\n  block_px: 2/' "$work/lab/people.yaml" >"$work/lab/blocks.yaml"
 else
-  fail "fuse's occluders.txt differs from run's or is missing: $(ls "$work/people-fuse")"
+  { cat "$work/lab/people.yaml"; printf 'detection:\n  block_px: 2\n'; } >"$work/lab/blocks.yaml"
+fi
+if run_then_fuse blocks "$work/lab/blocks.yaml"; then
+  for f in detections.jsonl tracks.jsonl; do
+    if [ -s "$work/blocks-run/$f" ] && cmp -s "$work/blocks-run/$f" "$work/blocks-fuse/$f"; then
+      ok
+    else
+      fail "with block_px 2 the fuse's $f differs from the run's"
+    fi
+  done
+  if cmp -s "$work/people-run/detections.jsonl" "$work/blocks-run/detections.jsonl"; then
+    fail "block_px 2 changed nothing in the run's detections (not applied?)"
+  else
+    ok
+  fi
 fi
 
 tl_finish edge_fuse

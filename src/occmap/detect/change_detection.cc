@@ -33,7 +33,47 @@ Status ChangeDetectionOptions::Validate() const {
     return InvalidInput(
         fmt::format("tolerance_px: expected 0..{} pixels, found {}", kMaxTolerancePx, tolerance_px));
   }
+  if (block_width_px < 1 || block_width_px > 2 || block_height_px < 1 || block_height_px > 2) {
+    return InvalidInput(fmt::format("block_px: expected 1 or 2 pixels wide and high, found {} x {}", block_width_px,
+                                    block_height_px));
+  }
   return Status::Ok();
+}
+
+void QuantiseChanges(ImageView<uint8_t> changes, int block_w, int block_h) {
+  OCCMAP_CHECK(block_w >= 1 && block_w <= 2 && block_h >= 1 && block_h <= 2, "QuantiseChanges: blocks of 1 or 2 pixels");
+  if (block_w == 1 && block_h == 1) return;
+  const int w = changes.width(), h = changes.height();
+  for (int y = 0; y < h; y += block_h) {
+    uint8_t* a = changes.row(y);
+    uint8_t* b = block_h == 2 && y + 1 < h ? changes.row(y + 1) : a;
+    if (block_w == 1) {
+      for (int x = 0; x < w; ++x) a[x] = b[x] = (a[x] | b[x]) != 0;
+      continue;
+    }
+    int x = 0;
+    for (; x + 2 <= w; x += 2) {
+      const uint8_t v = (a[x] | a[x + 1] | b[x] | b[x + 1]) != 0;
+      a[x] = a[x + 1] = b[x] = b[x + 1] = v;
+    }
+    if (x < w) a[x] = b[x] = (a[x] | b[x]) != 0;
+  }
+}
+
+void QuantiseChangesReference(ImageView<uint8_t> changes, int block_w, int block_h) {
+  if (block_w == 1 && block_h == 1) return;
+  const int w = changes.width(), h = changes.height();
+  for (int by = 0; by < h; by += block_h) {
+    for (int bx = 0; bx < w; bx += block_w) {
+      uint8_t any = 0;
+      for (int y = by; y < std::min(h, by + block_h); ++y) {
+        for (int x = bx; x < std::min(w, bx + block_w); ++x) any |= changes.row(y)[x] != 0;
+      }
+      for (int y = by; y < std::min(h, by + block_h); ++y) {
+        for (int x = bx; x < std::min(w, bx + block_w); ++x) changes.row(y)[x] = any;
+      }
+    }
+  }
 }
 
 void DetectChangesGray(ImageView<const uint8_t> frame, ImageView<const uint8_t> background, int threshold,

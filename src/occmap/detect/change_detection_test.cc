@@ -166,6 +166,8 @@ TEST(ChangeDetectionOptions, ValidateNamesTheFieldAndTheRange) {
   EXPECT_EQ(ChangeDetectionOptions{.tolerance_px = 65}.Validate().message(),
             "tolerance_px: expected 0..64 pixels, found 65");
   EXPECT_EQ(ChangeDetectionOptions{.tolerance_px = -2}.Validate().code(), StatusCode::kInvalidInput);
+  EXPECT_EQ(ChangeDetectionOptions{.block_height_px = 3}.Validate().message(),
+            "block_px: expected 1 or 2 pixels wide and high, found 1 x 3");
 }
 
 // Sparse random masks with arbitrary non-zero values (any non-zero counts as set).
@@ -283,6 +285,38 @@ TEST(DilateFloorChanges, AChangeOffTheFloorIsWidenedOffItButNotOntoIt) {
       const bool widened_on_the_wall = y <= 4 && std::abs(x - 3) <= 1 && y >= 3;
       EXPECT_EQ(out(x, y), (widened_floor_change || widened_on_the_wall) ? 1 : 0) << x << "," << y;
     }
+  }
+}
+
+TEST(QuantiseChanges, FastMatchesBruteForceOnOddSizesAndStrides) {
+  std::mt19937 rng(17);
+  for (int bw : {1, 2}) {
+    for (int bh : {1, 2}) {
+      for (int w : {1, 2, 7, 33, 64}) {
+        for (int h : {1, 2, 5, 17}) {
+          Padded<uint8_t> fast(w, h, 3, 9), ref(w, h, 3, 9);
+          RandomSparseMask(rng, fast.view(), 0.2);
+          ref.buffer = fast.buffer;
+          QuantiseChanges(fast.view(), bw, bh);
+          QuantiseChangesReference(ref.view(), bw, bh);
+          ASSERT_EQ(fast.buffer, ref.buffer) << bw << "x" << bh << " blocks, " << w << "x" << h;  // padding untouched
+        }
+      }
+    }
+  }
+}
+
+TEST(QuantiseChanges, OnePixelMarksItsBlockAndBlockOneLeavesTheMask) {
+  Image<uint8_t> m(5, 3, 0);
+  m(3, 1) = 200;
+  m(4, 2) = 1;
+  Image<uint8_t> same = m;
+  QuantiseChanges(same.view(), 1, 1);
+  EXPECT_EQ(same(3, 1), 200);
+  QuantiseChanges(m.view(), 2, 2);
+  const std::vector<std::vector<int>> expected = {{0, 0, 1, 1, 0}, {0, 0, 1, 1, 0}, {0, 0, 0, 0, 1}};
+  for (int y = 0; y < 3; ++y) {
+    for (int x = 0; x < 5; ++x) EXPECT_EQ(m(x, y), expected[y][x]) << x << "," << y;
   }
 }
 

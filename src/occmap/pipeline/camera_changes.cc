@@ -57,6 +57,11 @@ void CameraChanges::Compute(FrameSet& set, size_t n, Image<uint8_t>& raw, std::v
   if (r > 0 && dilate) Widen(n, raw.view(), slice, scratch);
 }
 
+void CameraChanges::Quantise(FrameSet& set, size_t n) const {
+  const ChangeDetectionOptions& d = site_.detection;
+  if (d.blocks()) QuantiseChanges(Slice(set, n), d.block_width_px, d.block_height_px);
+}
+
 void CameraChanges::Widen(size_t n, ImageView<const uint8_t> raw, ImageView<uint8_t> slice,
                           std::vector<uint8_t>& scratch) const {
   const CameraState& c = cams_[n];

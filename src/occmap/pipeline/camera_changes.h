@@ -41,6 +41,10 @@ class CameraChanges {
   // The tolerance (detection.tolerance_px) of camera n's raw changes into its slice; a camera with
   // the adaptive model widens only the changes on its floor mask (DilateFloorChanges).
   void Widen(size_t n, ImageView<const uint8_t> raw, ImageView<uint8_t> slice, std::vector<uint8_t>& scratch) const;
+  // Camera n's finished slice (after the tolerance and the shadows' floor check) per block of
+  // detection.block_px (QuantiseChanges); nothing with blocks of 1 x 1. Every reader of the
+  // changes (the floor, the people, an edge's message) reads them so.
+  void Quantise(FrameSet& set, size_t n) const;
 
  private:
   const Site& site_;

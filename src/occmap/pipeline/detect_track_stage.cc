@@ -231,7 +231,9 @@ void DetectTrackStage::RenderMosaic(FrameSet& set, const std::vector<Detection>&
   if (!set.changes_ready) {  // fully fused: the changes of this frame, for its picture
     changes_.EnsureBuffer(set);
     for (size_t n = 0; n < cams_.size(); ++n) {
-      if (active[n]) changes_.Compute(set, n, raw_[n], scratch_[n], true);
+      if (!active[n]) continue;
+      changes_.Compute(set, n, raw_[n], scratch_[n], true);
+      changes_.Quantise(set, n);
     }
     set.changes_ready = true;
   }

@@ -337,6 +337,9 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
     }
     if (check_shadows) backgrounds->CheckShadows(set, raw, scratch);
     for (size_t k = 0; k < cams.size(); ++k) {
+      if (set.active[k]) changes.Quantise(set, k);
+    }
+    for (size_t k = 0; k < cams.size(); ++k) {
       if (!set.active[k]) continue;
       const ImageSize size = cams[k].cam->camera->image_size();
       m.kind = EdgeMessageKind::kChanges;
@@ -347,6 +350,8 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
       m.timestamp_s = live[k] ? live_epoch_unix + set.frames[k].timestamp_s : set.frames[k].timestamp_s;
       m.t_unix = live[k] ? m.timestamp_s : set.t_unix;
       m.fps = fps[k];
+      m.block_w = static_cast<uint8_t>(site.detection.block_width_px);
+      m.block_h = static_cast<uint8_t>(site.detection.block_height_px);
       const uint8_t* first = set.changes.data() + changes.offset(k);
       m.changes.assign(first, first + static_cast<size_t>(size.width) * size.height);
       const std::string bytes = EncodeEdgeMessage(m);

@@ -18,7 +18,8 @@ namespace occmap {
 namespace {
 
 constexpr char kMagic[4] = {'O', 'C', 'M', 'E'};
-constexpr size_t kHeaderBytes = 4 + 2 + 2 + 8 + 8 + 4 + 4 + 4 + 8 + 8 + 8 + 8 + 4 + 4;
+constexpr size_t kHeaderBytes = 4 + 2 + 2 + 8 + 8 + 4 + 4 + 4 + 8 + 8 + 8 + 8 + 4 + 4 + 2;
+constexpr size_t kModesAt = kHeaderBytes - 10, kBlockAt = kHeaderBytes - 2;
 
 using wire::Get;
 using wire::Put;
@@ -347,6 +348,10 @@ Status DecodeRows(std::string_view coded, uint32_t n_modes, int width, int heigh
   return Status::Ok();
 }
 
+// The coded image's width or height: one pixel per block (those at the edges clipped).
+int Blocks(uint32_t pixels, int block_px) { return static_cast<int>((pixels + block_px - 1) / block_px); }
+bool ValidBlock(int w, int h) { return w >= 1 && w <= 2 && h >= 1 && h <= 2; }
+
 }  // namespace
 
 std::string wire::KeysMismatch(uint64_t table_key, uint64_t settings_key, uint64_t expected_table_key,
@@ -358,7 +363,7 @@ std::string wire::KeysMismatch(uint64_t table_key, uint64_t settings_key, uint64
   }
   if (settings_key != expected_settings_key) {
     return fmt::format("made with other detection settings (key {:016x}, this site's {:016x}): the {}'s site file has "
-                       "another threshold, tolerance, colour, backgrounds or camera ids",
+                       "another threshold, tolerance, block, colour, backgrounds or camera ids",
                        settings_key, expected_settings_key, sender);
   }
   return {};
@@ -373,6 +378,10 @@ uint64_t EdgeSettingsKey(const Site& site) {
   h.AddPod(static_cast<int64_t>(site.detection.tolerance_px));
   h.AddPod(static_cast<uint8_t>(site.detection.colour));
   h.AddPod(static_cast<uint8_t>(site.backgrounds.adaptive));
+  if (site.detection.blocks()) {
+    h.AddPod(static_cast<int64_t>(site.detection.block_width_px));
+    h.AddPod(static_cast<int64_t>(site.detection.block_height_px));
+  }
   for (const SiteCamera& c : site.cameras) h.Add(c.id);
   return h.Digest();
 }
@@ -381,13 +390,28 @@ std::string EncodeEdgeMessage(const EdgeMessage& m) {
   const size_t pixels = static_cast<size_t>(m.width) * m.height;
   std::string payload;
   uint32_t n_modes = 0;
+  OCCMAP_CHECK(ValidBlock(m.block_w, m.block_h), "EncodeEdgeMessage: blocks of 1 or 2 pixels");
+  const int block_w = m.block_w, block_h = m.block_h;
   if (m.kind == EdgeMessageKind::kChanges && pixels > 0) {
-    if (m.changes.size() >= pixels) {
-      payload = CodeRows(m.changes.data(), static_cast<int>(m.width), static_cast<int>(m.height), n_modes);
-    } else {
-      std::vector<uint8_t> whole(m.changes);
+    std::vector<uint8_t> whole;
+    const uint8_t* changes = m.changes.data();
+    if (m.changes.size() < pixels) {
+      whole = m.changes;
       whole.resize(pixels, 0);
-      payload = CodeRows(whole.data(), static_cast<int>(m.width), static_cast<int>(m.height), n_modes);
+      changes = whole.data();
+    }
+    if (block_w == 1 && block_h == 1) {
+      payload = CodeRows(changes, static_cast<int>(m.width), static_cast<int>(m.height), n_modes);
+    } else {  // a block is changed when any of its pixels is (QuantiseChanges made them alike)
+      const int w = static_cast<int>(m.width), h = static_cast<int>(m.height);
+      const int bw = Blocks(m.width, block_w), bh = Blocks(m.height, block_h);
+      std::vector<uint8_t> blocks(static_cast<size_t>(bw) * bh, 0);
+      for (int y = 0; y < h; ++y) {
+        const uint8_t* row = changes + static_cast<size_t>(y) * w;
+        uint8_t* out = blocks.data() + static_cast<size_t>(y / block_h) * bw;
+        for (int x = 0; x < w; ++x) out[x / block_w] |= row[x] != 0;
+      }
+      payload = CodeRows(blocks.data(), bw, bh, n_modes);
     }
   }
   std::string out;
@@ -406,6 +430,8 @@ std::string EncodeEdgeMessage(const EdgeMessage& m) {
   Put<double>(out, m.fps);
   Put<uint32_t>(out, n_modes);
   Put<uint32_t>(out, static_cast<uint32_t>(payload.size()));
+  Put<uint8_t>(out, static_cast<uint8_t>(block_w));
+  Put<uint8_t>(out, static_cast<uint8_t>(block_h));
   out += payload;
   return out;
 }
@@ -460,6 +486,8 @@ Result<EdgeMessage> DecodeEdgeHeader(std::string_view bytes, const EdgeExpectati
   m.fps = Get<double>(bytes, at);
   const uint32_t n_modes = Get<uint32_t>(bytes, at);
   const uint32_t payload_bytes = Get<uint32_t>(bytes, at);
+  m.block_w = Get<uint8_t>(bytes, at);
+  m.block_h = Get<uint8_t>(bytes, at);
   if (m.camera >= expect.camera_sizes.size()) {
     return bad(fmt::format("camera: expected 0..{}, found {}", expect.camera_sizes.size() - 1, m.camera));
   }
@@ -470,11 +498,14 @@ Result<EdgeMessage> DecodeEdgeHeader(std::string_view bytes, const EdgeExpectati
                            m.height));
   }
   if (m.frame < 0) return bad(fmt::format("frame: expected >= 0, found {}", m.frame));
-  const size_t pixels = static_cast<size_t>(m.width) * m.height;
-  // A row has at most one mode per pixel and one at its end.
-  const size_t most = pixels + static_cast<size_t>(m.height);
-  if (n_modes < m.height || n_modes > most) {
-    return bad(fmt::format("modes: expected {}..{} for {}x{} pixels, found {}", m.height, most, m.width, m.height, n_modes));
+  if (!ValidBlock(m.block_w, m.block_h)) {
+    return bad(fmt::format("block: expected 1 or 2 pixels wide and high, found {} x {}", m.block_w, m.block_h));
+  }
+  // A row of blocks has at most one mode per block and one at its end.
+  const uint32_t bw = static_cast<uint32_t>(Blocks(m.width, m.block_w)), bh = static_cast<uint32_t>(Blocks(m.height, m.block_h));
+  const size_t most = static_cast<size_t>(bw) * bh + bh;
+  if (n_modes < bh || n_modes > most) {
+    return bad(fmt::format("modes: expected {}..{} for {}x{} blocks, found {}", bh, most, bw, bh, n_modes));
   }
   if (bytes.size() - at != payload_bytes) {
     return bad(fmt::format("payload: expected {} bytes, found {}", payload_bytes, bytes.size() - at));
@@ -483,20 +514,42 @@ Result<EdgeMessage> DecodeEdgeHeader(std::string_view bytes, const EdgeExpectati
 }
 
 Status DecodeEdgeChanges(std::string_view bytes, std::span<uint8_t> out, std::string_view source) {
-  constexpr size_t kSizeAt = 4 + 2 + 2 + 8 + 8 + 4, kModesAt = kHeaderBytes - 8;
+  constexpr size_t kSizeAt = 4 + 2 + 2 + 8 + 8 + 4;
   uint32_t width = 0, height = 0, n_modes = 0;
+  uint8_t block_w = 0, block_h = 0;
   if (bytes.size() >= kHeaderBytes) {
     std::memcpy(&width, bytes.data() + kSizeAt, 4);
     std::memcpy(&height, bytes.data() + kSizeAt + 4, 4);
     std::memcpy(&n_modes, bytes.data() + kModesAt, 4);
+    std::memcpy(&block_w, bytes.data() + kBlockAt, 1);
+    std::memcpy(&block_h, bytes.data() + kBlockAt + 1, 1);
   }
-  if (bytes.size() < kHeaderBytes || static_cast<size_t>(width) * height != out.size()) {
+  if (bytes.size() < kHeaderBytes || static_cast<size_t>(width) * height != out.size() || !ValidBlock(block_w, block_h)) {
     return InvalidInput(fmt::format("{}: edge message: expected a message of {} pixels, found {} bytes", source,
                                     out.size(), bytes.size()));
   }
-  const Status rows = DecodeRows(bytes.substr(kHeaderBytes), n_modes, static_cast<int>(width), static_cast<int>(height),
-                                 out.data());
+  const std::string_view payload = bytes.substr(kHeaderBytes);
+  const int w = static_cast<int>(width), h = static_cast<int>(height);
+  if (block_w == 1 && block_h == 1) {
+    const Status rows = DecodeRows(payload, n_modes, w, h, out.data());
+    if (!rows.ok()) return InvalidInput(fmt::format("{}: edge message: payload: {}", source, rows.message()));
+    return Status::Ok();
+  }
+  // The blocks, then each block's value into its pixels (the fuse's threads decode in parallel).
+  thread_local std::vector<uint8_t> blocks;
+  const int bw = Blocks(width, block_w), bh = Blocks(height, block_h);
+  blocks.resize(static_cast<size_t>(bw) * bh);
+  const Status rows = DecodeRows(payload, n_modes, bw, bh, blocks.data());
   if (!rows.ok()) return InvalidInput(fmt::format("{}: edge message: payload: {}", source, rows.message()));
+  for (int y = 0; y < h; ++y) {
+    const uint8_t* in = blocks.data() + static_cast<size_t>(y / block_h) * bw;
+    uint8_t* row = out.data() + static_cast<size_t>(y) * w;
+    if (block_w == 1) {
+      std::memcpy(row, in, static_cast<size_t>(w));
+    } else {
+      for (int x = 0; x < w; ++x) row[x] = in[x / 2];
+    }
+  }
   return Status::Ok();
 }
 

@@ -4,13 +4,14 @@
 // needs nothing else for the floor's AND, the vote rule, the elevated check and the people's
 // fusions: they all read the change buffer.
 //
-// Binary, little-endian, version 3:
+// Binary, little-endian, version 4:
 //   "OCME"  u16 schema version  u16 kind (0 changes, 1 end of the camera's source)
 //   u64 table key (GroundLutKey of the site: cameras, masks, grid)
 //   u64 settings key (the detection section: threshold, tolerance, colour, backgrounds)
 //   u32 camera index  u32 width  u32 height  i64 frame index
 //   f64 timestamp_s (NaN: none)  f64 t_unix  f64 fps (the source's, 0: none)
-//   u32 number of modes  u32 payload bytes
+//   u32 number of modes  u32 payload bytes  u8 block width  u8 block height (detection.block_px,
+//   1 or 2 each: the changes come in blocks alike, coded one pixel per block)
 //   payload: the rows' T.6 modes (0 vertical 0, 1-3 vertical +1..+3, 4-6 vertical -1..-3,
 //   7 pass, 8 horizontal) and the horizontal modes' run lengths, coded by an adaptive binary
 //   range coder whose contexts are the colour and the mode that made b1 in the row above
@@ -34,7 +35,7 @@
 
 namespace occmap {
 
-constexpr uint16_t kEdgeSchemaVersion = 3;
+constexpr uint16_t kEdgeSchemaVersion = 4;
 
 enum class EdgeMessageKind : uint16_t { kChanges = 0, kEnd = 1 };
 
@@ -48,6 +49,10 @@ struct EdgeMessage {
   double timestamp_s = 0;
   double t_unix = 0;
   double fps = 0;  // the camera source's frame rate (0: none): times of frames without timestamps
+  // 1 or 2 each: `changes` come in blocks of block_w x block_h pixels alike (QuantiseChanges),
+  // coded one pixel per block (a block is changed when any of its pixels is); decoded, every
+  // pixel of a block holds its value.
+  uint8_t block_w = 1, block_h = 1;
   // kChanges: width * height bytes, 1 changed, 0 not (decoded), or any non-zero changed (to encode).
   std::vector<uint8_t> changes;
   // The fuse's: the message as received, its changes decoded again when its frame set is fused

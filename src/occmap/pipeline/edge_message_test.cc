@@ -56,6 +56,49 @@ TEST(EdgeMessage, RoundTripKeepsEveryFieldAndEveryChangedPixel) {
   for (size_t k = 0; k < m.changes.size(); ++k) ASSERT_EQ(back->changes[k], m.changes[k] != 0 ? 1 : 0) << k;
 }
 
+TEST(EdgeMessage, BlocksOfTwoPixelsRoundTripAsBlocksInFewerBytes) {
+  EdgeMessage m = Sample();  // 33 x 17: the last column and row of blocks are clipped
+  const std::string whole = EncodeEdgeMessage(m);
+  m.block_w = m.block_h = 2;
+  const std::string blocks = EncodeEdgeMessage(m);
+  auto back = DecodeEdgeMessage(blocks, Expect(), "t");
+  ASSERT_TRUE(back.ok()) << back.status().message();
+  EXPECT_EQ(back->block_w, 2);
+  EXPECT_EQ(back->block_h, 2);
+  EXPECT_LT(blocks.size(), whole.size());
+  // Each pixel holds its block's value: changed when any of the block's pixels is.
+  for (int y = 0; y < 17; ++y) {
+    for (int x = 0; x < 33; ++x) {
+      int any = 0;
+      for (int v = y / 2 * 2; v < std::min(17, y / 2 * 2 + 2); ++v) {
+        for (int u = x / 2 * 2; u < std::min(33, x / 2 * 2 + 2); ++u) any |= m.changes[static_cast<size_t>(v) * 33 + u] != 0;
+      }
+      ASSERT_EQ(back->changes[static_cast<size_t>(y) * 33 + x], any) << x << "," << y;
+    }
+  }
+  std::string three = blocks;
+  three[77] = 3;
+  auto refused = DecodeEdgeMessage(three, Expect(), "t");
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().message(), "t: edge message: block: expected 1 or 2 pixels wide and high, found 2 x 3");
+}
+
+TEST(EdgeMessage, BlocksOneWideTwoHighRoundTrip) {
+  EdgeMessage m = Sample();
+  m.block_w = 1;
+  m.block_h = 2;
+  auto back = DecodeEdgeMessage(EncodeEdgeMessage(m), Expect(), "t");
+  ASSERT_TRUE(back.ok()) << back.status().message();
+  for (int y = 0; y < 17; ++y) {
+    for (int x = 0; x < 33; ++x) {
+      int any = m.changes[static_cast<size_t>(y) * 33 + x] != 0;
+      const int other = y % 2 == 0 ? y + 1 : y - 1;
+      if (other < 17) any |= m.changes[static_cast<size_t>(other) * 33 + x] != 0;
+      ASSERT_EQ(back->changes[static_cast<size_t>(y) * 33 + x], any) << x << "," << y;
+    }
+  }
+}
+
 TEST(EdgeMessage, NoTimestampAndTheEndOfASourceRoundTrip) {
   EdgeMessage m = Sample(0);
   m.timestamp_s = std::nan("");
@@ -200,7 +243,7 @@ TEST(EdgeMessage, TheFusesHalvesDecodeTheHeaderThenTheChangesIntoItsSlice) {
 
 TEST(EdgeMessage, TheChangesRefuseBrokenRowsThatTheHeaderLetThrough) {
   const std::string good = EncodeEdgeMessage(Sample());
-  constexpr size_t kModesAt = 68, kPayloadAt = 72, kHeaderBytes = 76;
+  constexpr size_t kModesAt = 68, kPayloadAt = 72, kHeaderBytes = 78;
   auto with = [&](uint32_t n_modes, std::string_view payload) {
     std::string b = good.substr(0, kHeaderBytes);
     std::memcpy(b.data() + kModesAt, &n_modes, 4);

@@ -17,9 +17,9 @@ FusionPlan ChooseFusionPath(const Site& site, bool needs_change_buffer) {
   for (const SiteCamera& c : site.cameras) p.any_mask_source |= c.source.kind == FrameSourceSpec::Kind::kMasks;
   // Fully fused (no change buffer at all) when nothing needs the per-pixel changes: the paper's
   // AND on grey frames, no mask sources, no output that draws the changes (the mosaic picture
-  // of the best frame gets its changes computed when it is drawn).
+  // of the best frame gets its changes computed when it is drawn), changes per pixel.
   const bool fusable = !p.people_detector && p.paper_and && !p.colour && !p.adaptive && !p.any_mask_source &&
-                       !needs_change_buffer;
+                       !needs_change_buffer && !site.detection.blocks();
   const int r = site.detection.tolerance_px;
   if (fusable && r == 0) {
     p.path = FusionPath::kFused;
@@ -46,7 +46,10 @@ std::string FusionPlan::Describe(const Site& site) const {
   const std::string changes =
       fmt::format("{} change detection{} into change buffers",
                   site.detection.colour ? "colour" : "grey",
-                  r > 0 ? fmt::format(" dilated by tolerance_px {}", r) : std::string());
+                  r > 0 ? fmt::format(" dilated by tolerance_px {}", r) : std::string()) +
+      (site.detection.blocks()
+           ? fmt::format(" in {}x{} blocks", site.detection.block_width_px, site.detection.block_height_px)
+           : std::string());
   if (path == FusionPath::kFastChanges) return changes + ", FastFusion::FuseChanges" + people_path;
   return fmt::format("{}, Fusion::Fuse ({}, max_free_views {}){}", changes,
                      site.fusion.method == FusionMethod::kImageBased ? "image-based" : "map-based",

@@ -126,6 +126,13 @@ void FusionStage::DetectChanges(FrameSet& set, Context& ctx) {
       });
     }
   }
+  if (site_.detection.blocks()) {
+    ParallelFor(ctx, 0, static_cast<int64_t>(n_cams), [&](int64_t b, int64_t e, int) {
+      for (int64_t n = b; n < e; ++n) {
+        if (active[n]) changes_.Quantise(set, static_cast<size_t>(n));
+      }
+    });
+  }
   set.changes_ready = true;
   if (options_.change_pngs) {
     set.change_pictures.resize(n_cams);

@@ -332,7 +332,7 @@ Status ParseCamera(const YamlField& field, const PathContext& ctx, const FloorGr
 }
 
 Status ParseDetection(const YamlField& f, ChangeDetectionOptions& d) {
-  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"threshold", "colour", "tolerance_px"}));
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"threshold", "colour", "tolerance_px", "block_px"}));
   OCCMAP_ASSIGN_OR_RETURN(int64_t t, f.GetInt("threshold", d.threshold));
   if (t < 0 || t > 254) return f.Find("threshold")->Error(fmt::format("expected 0..254 grey levels, found {}", t));
   d.threshold = static_cast<int>(t);
@@ -340,6 +340,21 @@ Status ParseDetection(const YamlField& f, ChangeDetectionOptions& d) {
   OCCMAP_ASSIGN_OR_RETURN(int64_t tol, f.GetInt("tolerance_px", d.tolerance_px));
   if (tol < 0 || tol > 64) return f.Find("tolerance_px")->Error(fmt::format("expected 0..64 pixels, found {}", tol));
   d.tolerance_px = static_cast<int>(tol);
+  // block_px: 2 (2x2 blocks) or [width, height], each 1 or 2.
+  if (const std::optional<YamlField> b = f.Find("block_px")) {
+    std::vector<double> wh;
+    if (b->IsSequence()) {
+      OCCMAP_ASSIGN_OR_RETURN(wh, b->AsDoubles(2));
+    } else {
+      OCCMAP_ASSIGN_OR_RETURN(int64_t v, b->AsInt());
+      wh = {static_cast<double>(v), static_cast<double>(v)};
+    }
+    for (const double v : wh) {
+      if (v != 1 && v != 2) return b->Error(fmt::format("expected 1 or 2, or [width, height] of 1 or 2 pixels, found {}", v));
+    }
+    d.block_width_px = static_cast<int>(wh[0]);
+    d.block_height_px = static_cast<int>(wh[1]);
+  }
   return Status::Ok();
 }
 

@@ -102,6 +102,7 @@ TEST_F(SiteFixture, LoadsAValidSite) {
   EXPECT_EQ(site->objects.min_support, 0.3);
   EXPECT_EQ(site->objects.support_slack_m, 0.04);
   EXPECT_FALSE(site->backgrounds.adaptive);  // the paper's fixed background unless asked
+  EXPECT_FALSE(site->detection.blocks());      // changes per pixel unless asked
 }
 
 TEST_F(SiteFixture, ReadsTheBackgroundsSection) {
@@ -245,6 +246,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadSite{"duplicate_id", "id: b", "id: a", ":15: cameras[1].id: duplicate camera id 'a'"},
         BadSite{"threshold_range", "threshold: 25", "threshold: 300",
                 ":25: detection.threshold: expected 0..254 grey levels, found 300"},
+        BadSite{"block_size", "tolerance_px: 2", "tolerance_px: 2\n  block_px: [2, 3]",
+                ":27: detection.block_px: expected 1 or 2, or [width, height] of 1 or 2 pixels, found 3"},
         BadSite{"vote_range", "max_free_views: 1", "max_free_views: 2",
                 ":29: fusion.max_free_views: expected 0..1 (fewer than the 2 cameras), found 2"},
         BadSite{"algorithm", "algorithm: map-based", "algorithm: fastest",
