@@ -15,7 +15,8 @@
 #
 #   scripts/bench-edge-fuse.sh build/release/occmap [WORK_DIR]
 #   PEOPLE=off FRAMES=100 RATE=10 SECONDS_PER_RUN=30 CAMERAS="4 16 64" SCENES="lab wildtrack plaza" scripts/bench-edge-fuse.sh ...
-# BLOCK_PX=2: the sites' changes in 2x2 blocks (detection.block_px), as the edges send them.
+# BLOCK_PX=2 (or "[1, 2]"): the sites' changes in blocks (detection.block_px), as the edges send
+# them; BLOCK_RULE=half: a block changed when half its pixels are (detection.block_rule).
 set -euo pipefail
 occmap=$(realpath "${1:?usage: bench-edge-fuse.sh OCCMAP [WORK_DIR]}")
 work=$(realpath -m "${2:-/tmp/occmap-bench-edge-fuse}")
@@ -29,6 +30,7 @@ per_process=${CAMERAS_PER_EDGE:-4}
 # people detector (WILDTRACK: explain).
 people=${PEOPLE:-site}
 block_px=${BLOCK_PX:-1}
+block_rule=${BLOCK_RULE:-any}
 warmup=${WARMUP_S:-5}
 mkdir -p "$work"
 pids=()
@@ -77,9 +79,9 @@ for scene in $scenes; do
   sed 's/^\(  adaptive:\) true/\1 false/' "$dir/site.yaml" >"$dir/site-edge.yaml"
   if [ "$block_px" != 1 ]; then
     if grep -q '^detection:$' "$dir/site-edge.yaml"; then
-      sed -i "s/^detection:\$/detection:\n  block_px: $block_px/" "$dir/site-edge.yaml"
+      sed -i "s/^detection:\$/detection:\n  block_px: $block_px\n  block_rule: $block_rule/" "$dir/site-edge.yaml"
     else
-      printf 'detection:\n  block_px: %s\n' "$block_px" >>"$dir/site-edge.yaml"
+      printf 'detection:\n  block_px: %s\n  block_rule: %s\n' "$block_px" "$block_rule" >>"$dir/site-edge.yaml"
     fi
   fi
   rm -rf "$dir/recorded"

@@ -40,10 +40,12 @@ Status ChangeDetectionOptions::Validate() const {
   return Status::Ok();
 }
 
-void QuantiseChanges(ImageView<uint8_t> changes, int block_w, int block_h) {
+void QuantiseChanges(ImageView<uint8_t> changes, int block_w, int block_h, BlockRule rule) {
   OCCMAP_CHECK(block_w >= 1 && block_w <= 2 && block_h >= 1 && block_h <= 2, "QuantiseChanges: blocks of 1 or 2 pixels");
   if (block_w == 1 && block_h == 1) return;
   const int w = changes.width(), h = changes.height();
+  // Of a block's n pixels, c changed: any c >= 1; half 2c >= n (a block of 2: any).
+  const bool any = rule == BlockRule::kAny;
   for (int y = 0; y < h; y += block_h) {
     uint8_t* a = changes.row(y);
     uint8_t* b = block_h == 2 && y + 1 < h ? changes.row(y + 1) : a;
@@ -52,25 +54,36 @@ void QuantiseChanges(ImageView<uint8_t> changes, int block_w, int block_h) {
       continue;
     }
     int x = 0;
-    for (; x + 2 <= w; x += 2) {
-      const uint8_t v = (a[x] | a[x + 1] | b[x] | b[x + 1]) != 0;
-      a[x] = a[x + 1] = b[x] = b[x + 1] = v;
+    if (any || a == b) {
+      for (; x + 2 <= w; x += 2) {
+        const uint8_t v = (a[x] | a[x + 1] | b[x] | b[x + 1]) != 0;
+        a[x] = a[x + 1] = b[x] = b[x + 1] = v;
+      }
+    } else {
+      for (; x + 2 <= w; x += 2) {
+        const int c = (a[x] != 0) + (a[x + 1] != 0) + (b[x] != 0) + (b[x + 1] != 0);
+        a[x] = a[x + 1] = b[x] = b[x + 1] = c >= 2;
+      }
     }
     if (x < w) a[x] = b[x] = (a[x] | b[x]) != 0;
   }
 }
 
-void QuantiseChangesReference(ImageView<uint8_t> changes, int block_w, int block_h) {
+void QuantiseChangesReference(ImageView<uint8_t> changes, int block_w, int block_h, BlockRule rule) {
   if (block_w == 1 && block_h == 1) return;
   const int w = changes.width(), h = changes.height();
   for (int by = 0; by < h; by += block_h) {
     for (int bx = 0; bx < w; bx += block_w) {
-      uint8_t any = 0;
+      int n = 0, c = 0;
       for (int y = by; y < std::min(h, by + block_h); ++y) {
-        for (int x = bx; x < std::min(w, bx + block_w); ++x) any |= changes.row(y)[x] != 0;
+        for (int x = bx; x < std::min(w, bx + block_w); ++x) {
+          ++n;
+          c += changes.row(y)[x] != 0;
+        }
       }
+      const uint8_t v = rule == BlockRule::kAny ? c >= 1 : 2 * c >= n;
       for (int y = by; y < std::min(h, by + block_h); ++y) {
-        for (int x = bx; x < std::min(w, bx + block_w); ++x) changes.row(y)[x] = any;
+        for (int x = bx; x < std::min(w, bx + block_w); ++x) changes.row(y)[x] = v;
       }
     }
   }

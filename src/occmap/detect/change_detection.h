@@ -27,6 +27,10 @@
 
 namespace occmap {
 
+// When a block of pixels is changed (QuantiseChanges): any of its pixels changed, or at least
+// half of them (2 of a 2x2 block; a clipped block's own pixels).
+enum class BlockRule { kAny, kHalf };
+
 struct ChangeDetectionOptions {
   static constexpr int kMaxTolerancePx = 64;
 
@@ -34,10 +38,11 @@ struct ChangeDetectionOptions {
   bool colour = false;    // compare R, G, B rather than luma
   int tolerance_px = 0;   // dilation radius r, 0..kMaxTolerancePx
   // Changes decided per block of block_width_px x block_height_px pixels (each 1 or 2) after the
-  // tolerance, a block changed when any of its pixels is (QuantiseChanges): an edge message then
-  // codes one pixel per block (block height 2: half the rows).
+  // tolerance, a block changed by block_rule (QuantiseChanges): an edge message then codes one
+  // pixel per block (block height 2: half the rows).
   int block_width_px = 1;
   int block_height_px = 1;
+  BlockRule block_rule = BlockRule::kAny;
   bool blocks() const { return block_width_px > 1 || block_height_px > 1; }
   Status Validate() const;
 };
@@ -83,10 +88,11 @@ void DilateFloorChangesReference(ImageView<const uint8_t> in, ImageView<const ui
 
 // Changes per block of block_w x block_h pixels (each 1 or 2), in place: every pixel of a block
 // (the blocks start at (0, 0); those at the right and bottom edges are clipped) becomes 1 when
-// any pixel of the block is non-zero, else 0. Blocks of 1 x 1 leave `changes` as it is. An edge
-// message then codes one pixel per block (pipeline/edge_message.h), the fuse expands it to this.
-void QuantiseChanges(ImageView<uint8_t> changes, int block_w, int block_h);
-void QuantiseChangesReference(ImageView<uint8_t> changes, int block_w, int block_h);
+// the block is changed by `rule` (any non-zero pixel, or at least half of them non-zero), else 0.
+// Blocks of 1 x 1 leave `changes` as it is. An edge message then codes one pixel per block
+// (pipeline/edge_message.h), and the fuse expands it back to this.
+void QuantiseChanges(ImageView<uint8_t> changes, int block_w, int block_h, BlockRule rule = BlockRule::kAny);
+void QuantiseChangesReference(ImageView<uint8_t> changes, int block_w, int block_h, BlockRule rule = BlockRule::kAny);
 
 // Converts a foreground mask from another tool (any 8-bit image, non-zero = foreground) to a
 // change mask (1 / 0), resampling to out's size when they differ: nearest pixel under the

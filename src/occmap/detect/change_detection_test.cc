@@ -294,12 +294,15 @@ TEST(QuantiseChanges, FastMatchesBruteForceOnOddSizesAndStrides) {
     for (int bh : {1, 2}) {
       for (int w : {1, 2, 7, 33, 64}) {
         for (int h : {1, 2, 5, 17}) {
-          Padded<uint8_t> fast(w, h, 3, 9), ref(w, h, 3, 9);
-          RandomSparseMask(rng, fast.view(), 0.2);
-          ref.buffer = fast.buffer;
-          QuantiseChanges(fast.view(), bw, bh);
-          QuantiseChangesReference(ref.view(), bw, bh);
-          ASSERT_EQ(fast.buffer, ref.buffer) << bw << "x" << bh << " blocks, " << w << "x" << h;  // padding untouched
+          for (const BlockRule rule : {BlockRule::kAny, BlockRule::kHalf}) {
+            Padded<uint8_t> fast(w, h, 3, 9), ref(w, h, 3, 9);
+            RandomSparseMask(rng, fast.view(), 0.3);
+            ref.buffer = fast.buffer;
+            QuantiseChanges(fast.view(), bw, bh, rule);
+            QuantiseChangesReference(ref.view(), bw, bh, rule);
+            ASSERT_EQ(fast.buffer, ref.buffer) << bw << "x" << bh << " blocks, " << w << "x" << h << " rule "
+                                               << static_cast<int>(rule);  // the padding untouched too
+          }
         }
       }
     }

@@ -59,7 +59,7 @@ void CameraChanges::Compute(FrameSet& set, size_t n, Image<uint8_t>& raw, std::v
 
 void CameraChanges::Quantise(FrameSet& set, size_t n) const {
   const ChangeDetectionOptions& d = site_.detection;
-  if (d.blocks()) QuantiseChanges(Slice(set, n), d.block_width_px, d.block_height_px);
+  if (d.blocks()) QuantiseChanges(Slice(set, n), d.block_width_px, d.block_height_px, d.block_rule);
 }
 
 void CameraChanges::Widen(size_t n, ImageView<const uint8_t> raw, ImageView<uint8_t> slice,

@@ -381,6 +381,7 @@ uint64_t EdgeSettingsKey(const Site& site) {
   if (site.detection.blocks()) {
     h.AddPod(static_cast<int64_t>(site.detection.block_width_px));
     h.AddPod(static_cast<int64_t>(site.detection.block_height_px));
+    h.AddPod(static_cast<int64_t>(site.detection.block_rule));
   }
   for (const SiteCamera& c : site.cameras) h.Add(c.id);
   return h.Digest();

@@ -332,7 +332,7 @@ Status ParseCamera(const YamlField& field, const PathContext& ctx, const FloorGr
 }
 
 Status ParseDetection(const YamlField& f, ChangeDetectionOptions& d) {
-  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"threshold", "colour", "tolerance_px", "block_px"}));
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"threshold", "colour", "tolerance_px", "block_px", "block_rule"}));
   OCCMAP_ASSIGN_OR_RETURN(int64_t t, f.GetInt("threshold", d.threshold));
   if (t < 0 || t > 254) return f.Find("threshold")->Error(fmt::format("expected 0..254 grey levels, found {}", t));
   d.threshold = static_cast<int>(t);
@@ -355,6 +355,11 @@ Status ParseDetection(const YamlField& f, ChangeDetectionOptions& d) {
     d.block_width_px = static_cast<int>(wh[0]);
     d.block_height_px = static_cast<int>(wh[1]);
   }
+  OCCMAP_ASSIGN_OR_RETURN(std::string rule, f.GetString("block_rule", "any"));
+  if (rule != "any" && rule != "half") {
+    return f.Find("block_rule")->Error(fmt::format("expected any or half, found '{}'", rule));
+  }
+  d.block_rule = rule == "half" ? BlockRule::kHalf : BlockRule::kAny;
   return Status::Ok();
 }
 

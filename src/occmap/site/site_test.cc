@@ -248,6 +248,8 @@ INSTANTIATE_TEST_SUITE_P(
                 ":25: detection.threshold: expected 0..254 grey levels, found 300"},
         BadSite{"block_size", "tolerance_px: 2", "tolerance_px: 2\n  block_px: [2, 3]",
                 ":27: detection.block_px: expected 1 or 2, or [width, height] of 1 or 2 pixels, found 3"},
+        BadSite{"block_rule", "tolerance_px: 2", "tolerance_px: 2\n  block_rule: most",
+                ":27: detection.block_rule: expected any or half, found 'most'"},
         BadSite{"vote_range", "max_free_views: 1", "max_free_views: 2",
                 ":29: fusion.max_free_views: expected 0..1 (fewer than the 2 cameras), found 2"},
         BadSite{"algorithm", "algorithm: map-based", "algorithm: fastest",
