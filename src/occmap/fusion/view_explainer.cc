@@ -65,41 +65,131 @@ double ViewExplainer::UpperBound(int64_t k, std::span<const ChangeRowSums> count
   return gain;
 }
 
-// The spans read from the row sums and the ground band below them, once for UpperBound and Terms.
-void ViewExplainer::CameraTerm(int64_t k, int c, const ChangeRowSums& counts, const ExplainOptions& o, Term& t,
-                               std::vector<RowSpan>* spans) const {
+// The spans read from the row sums and the ground band below them (the reference's bound).
+void ViewExplainer::CameraTerm(int64_t k, int c, const ChangeRowSums& counts, const ExplainOptions& o,
+                               Term& t) const {
   t = Term{};
   const ColumnSpans s = PersonSpans(columns_, c, k, o);
   if (s.visible_rows == 0) return;
-  const size_t first = spans != nullptr ? spans->size() : 0;
   int64_t changed = 0, pixels = 0;
   const int step = RowStep(s, o.max_rows);
   s.ForEachRow(std::max(s.first_row, 0), std::min(s.last_row, s.height - 1), step, [&](int y, int x0, int x1) {
     changed += counts.Count(y, x0, x1);
     pixels += x1 - x0 + 1;
     t.body.Add(y, x0, x1);
-    if (spans != nullptr) spans->push_back({static_cast<uint16_t>(y), static_cast<uint16_t>(x0), static_cast<uint16_t>(x1)});
   });
-  if (pixels == 0) {
-    if (spans != nullptr) spans->resize(first);
-    return;
-  }
-  const size_t body_end = spans != nullptr ? spans->size() : 0;
+  if (pixels == 0) return;
   int64_t ground = 0;
   s.ForEachRow(s.last_row + 1, GroundBandEnd(s, o), step, [&](int y, int x0, int x1) {
     ground += counts.Count(y, x0, x1);
     t.ground.Add(y, x0, x1);
-    if (spans != nullptr) spans->push_back({static_cast<uint16_t>(y), static_cast<uint16_t>(x0), static_cast<uint16_t>(x1)});
   });
-  if (spans != nullptr) {
-    t.first_span = static_cast<uint32_t>(first);
-    t.body_rows = static_cast<uint32_t>(body_end - first);
-    t.ground_rows = static_cast<uint32_t>(spans->size() - body_end);
-  }
   t.counts = true;
   t.gain = PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(pixels - changed) -
                          o.ground_weight * static_cast<double>(ground),
                      pixels);
+}
+
+// The rows CameraTerm reads, without the counts.
+void ViewExplainer::WorkOutModelRows(int64_t k, int c, const ExplainOptions& o, ModelRows& m,
+                                     std::vector<RowSpan>& spans) const {
+  m = ModelRows{};
+  m.image = ImageBox(k, c, o);
+  const ColumnSpans s = PersonSpans(columns_, c, k, o);
+  if (s.visible_rows == 0) return;
+  const size_t first = spans.size();
+  int64_t pixels = 0;
+  const int step = RowStep(s, o.max_rows);
+  s.ForEachRow(std::max(s.first_row, 0), std::min(s.last_row, s.height - 1), step, [&](int y, int x0, int x1) {
+    pixels += x1 - x0 + 1;
+    m.body.Add(y, x0, x1);
+    spans.push_back({static_cast<uint16_t>(y), static_cast<uint16_t>(x0), static_cast<uint16_t>(x1)});
+  });
+  if (pixels == 0) {
+    spans.resize(first);
+    m.body = Box{};
+    return;
+  }
+  const size_t body_end = spans.size();
+  s.ForEachRow(s.last_row + 1, GroundBandEnd(s, o), step, [&](int y, int x0, int x1) {
+    m.ground.Add(y, x0, x1);
+    spans.push_back({static_cast<uint16_t>(y), static_cast<uint16_t>(x0), static_cast<uint16_t>(x1)});
+  });
+  m.counts = true;
+  m.pixels = pixels;
+  m.first_span = static_cast<uint32_t>(first);
+  m.body_rows = static_cast<uint32_t>(body_end - first);
+  m.ground_rows = static_cast<uint32_t>(spans.size() - body_end);
+}
+
+ViewExplainer::Box ViewExplainer::ImageBox(int64_t k, int c, const ExplainOptions& o) const {
+  Box box;
+  const ColumnSpans sp = PersonSpans(columns_, c, k, o);
+  if (sp.visible_rows == 0) return box;
+  for (int y : {std::max(sp.first_row, 0), std::min(sp.last_row, sp.height - 1)}) {
+    int x0, x1;
+    if (!sp.Span(y, x0, x1)) continue;
+    box.x0 = std::min(box.x0, x0);
+    box.x1 = std::max(box.x1, x1);
+  }
+  box.y0 = std::max(sp.first_row, 0);
+  box.y1 = std::min(sp.last_row, sp.height - 1);
+  return box;
+}
+
+void ViewExplainer::KeepModelRows(const std::vector<int64_t>& candidates, const ExplainOptions& o, Context& ctx) {
+  const int cams = columns_.num_cameras();
+  ModelKey key;
+  key.radius_m = o.radius_m;
+  key.ground_band = o.ground_band;
+  key.ground = o.ground_band > 0 && o.ground_weight > 0;  // GroundBandEnd
+  key.max_rows = o.max_rows;
+  key.revision = columns_.revision();
+  const size_t cells = static_cast<size_t>(columns_.candidates().num_cells());
+  if (!(key == model_key_) || model_of_.size() != cells || model_spans_.size() > kMaxModelSpans) {
+    model_key_ = key;
+    model_of_.assign(cells, -1);
+    model_rows_.clear();
+    model_spans_.clear();
+  }
+  missing_.clear();
+  for (int64_t k : candidates)
+    if (model_of_[static_cast<size_t>(k)] < 0) missing_.push_back(k);
+  if (missing_.empty()) return;
+  OCCMAP_CHECK(model_rows_.size() + missing_.size() * static_cast<size_t>(cams) < (size_t{1} << 31),
+               "ViewExplainer: too many kept model rows");
+  arenas_.resize(static_cast<size_t>(std::max(1, ctx.num_threads())));
+  OCCMAP_CHECK(arenas_.size() <= 256, "ViewExplainer: at most 256 threads");
+  for (auto& arena : arenas_) arena.clear();
+  missing_rows_.resize(missing_.size() * static_cast<size_t>(cams));
+  missing_arena_.resize(missing_.size());
+  ParallelFor(
+      ctx, 0, static_cast<int64_t>(missing_.size()),
+      [&](int64_t b, int64_t e, int worker) {
+        std::vector<RowSpan>& arena = arenas_[static_cast<size_t>(worker)];
+        for (int64_t i = b; i < e; ++i) {
+          missing_arena_[static_cast<size_t>(i)] = static_cast<uint8_t>(worker);
+          for (int c = 0; c < cams; ++c)
+            WorkOutModelRows(missing_[static_cast<size_t>(i)], c, o,
+                             missing_rows_[static_cast<size_t>(i) * static_cast<size_t>(cams) + static_cast<size_t>(c)],
+                             arena);
+        }
+      },
+      64);
+  // Into the kept rows, in the order of the candidates.
+  for (size_t i = 0; i < missing_.size(); ++i) {
+    model_of_[static_cast<size_t>(missing_[i])] = static_cast<int32_t>(model_rows_.size());
+    const std::vector<RowSpan>& arena = arenas_[missing_arena_[i]];
+    for (int c = 0; c < cams; ++c) {
+      ModelRows m = missing_rows_[i * static_cast<size_t>(cams) + static_cast<size_t>(c)];
+      const uint32_t n = m.body_rows + m.ground_rows;
+      const size_t at = model_spans_.size();
+      model_spans_.insert(model_spans_.end(), arena.begin() + m.first_span, arena.begin() + m.first_span + n);
+      OCCMAP_CHECK(model_spans_.size() < (size_t{1} << 32), "ViewExplainer: too many kept model rows");
+      m.first_span = static_cast<uint32_t>(at);
+      model_rows_.push_back(m);
+    }
+  }
 }
 
 double ViewExplainer::Gain(int64_t k, std::span<const ImageView<const uint8_t>> changes,
@@ -154,14 +244,31 @@ double ViewExplainer::Gain(int64_t k, std::span<const ImageView<const uint8_t>> 
 }
 
 double ViewExplainer::Terms(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
-                            const ExplainOptions& o, Term* terms, int arena) {
+                            const ExplainOptions& o, Term* terms) const {
+  const int cams = columns_.num_cameras();
+  const ModelRows* model = model_rows_.data() + model_of_[static_cast<size_t>(k)];
   double gain = 0;
-  for (int c = 0; c < columns_.num_cameras(); ++c) {
-    terms[c] = Term{};
-    if (!active[c]) continue;
-    CameraTerm(k, c, counts[c], o, terms[c], &term_spans_[static_cast<size_t>(arena)]);
-    terms[c].arena = static_cast<uint8_t>(arena);
-    gain += terms[c].gain;
+  for (int c = 0; c < cams; ++c) {
+    Term& t = terms[c];
+    t = Term{};
+    const ModelRows& m = model[c];
+    if (!active[c] || !m.counts) continue;
+    const ChangeRowSums& count = counts[c];
+    const RowSpan* rows = model_spans_.data() + m.first_span;
+    int64_t changed = 0, ground = 0;
+    for (const RowSpan* r = rows; r != rows + m.body_rows; ++r) changed += count.Count(r->y, r->x0, r->x1);
+    for (const RowSpan* r = rows + m.body_rows; r != rows + m.body_rows + m.ground_rows; ++r)
+      ground += count.Count(r->y, r->x0, r->x1);
+    t.counts = true;
+    t.body = m.body;
+    t.ground = m.ground;
+    t.first_span = m.first_span;
+    t.body_rows = m.body_rows;
+    t.ground_rows = m.ground_rows;
+    t.gain = PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(m.pixels - changed) -
+                           o.ground_weight * static_cast<double>(ground),
+                       m.pixels);
+    gain += t.gain;
   }
   return gain;
 }
@@ -245,7 +352,7 @@ double ViewExplainer::FastGain(int32_t index, std::span<const ChangeRowSums> cou
     }
     // Row by row, from the row sums: the runs of each row that at most max_cover of the met
     // people's spans cover (on the ground band, none).
-    const RowSpan* rows = term_spans_[t.arena].data() + t.first_span;
+    const RowSpan* rows = model_spans_.data() + t.first_span;
     int64_t changed = 0, free = 0, pixels = 0;
     for (const RowSpan* r = rows; r != rows + t.body_rows; ++r) {
       pixels += r->x1 - r->x0 + 1;
@@ -344,9 +451,7 @@ void ViewExplainer::Run(std::span<const ImageView<const uint8_t>> changes, std::
       OCCMAP_CHECK(columns_.image_size(c).width <= 65536 && columns_.image_size(c).height <= 65536,
                    "ViewExplainer: images up to 65536 pixels a side");
     terms_.resize(candidates.size() * static_cast<size_t>(cams));
-    term_spans_.resize(static_cast<size_t>(std::max(1, ctx.num_threads())));
-    OCCMAP_CHECK(term_spans_.size() <= 256, "ViewExplainer: at most 256 threads");
-    for (auto& arena : term_spans_) arena.clear();
+    KeepModelRows(candidates, o, ctx);
     cover_rows_.assign(candidates.size() * static_cast<size_t>(cams), CoverRows{});
     cover_spans_.clear();
   }
@@ -355,9 +460,9 @@ void ViewExplainer::Run(std::span<const ImageView<const uint8_t>> changes, std::
   covered_.clear();
   ParallelFor(
       ctx, 0, static_cast<int64_t>(candidates.size()),
-      [&](int64_t b, int64_t e, int worker) {
+      [&](int64_t b, int64_t e, int) {
         for (int64_t i = b; i < e; ++i) {
-          bound[i] = fast ? Terms(candidates[i], counts, active, o, terms_.data() + static_cast<size_t>(i) * cams, worker)
+          bound[i] = fast ? Terms(candidates[i], counts, active, o, terms_.data() + static_cast<size_t>(i) * cams)
                           : UpperBound(candidates[i], counts, active, o);
         }
       },
@@ -399,27 +504,22 @@ void ViewExplainer::Run(std::span<const ImageView<const uint8_t>> changes, std::
   // Each candidate's image box per camera: adding a person changes only the gains of the
   // candidates whose image meets its image in some camera.
   boxes_.assign(candidates.size() * static_cast<size_t>(cams), Box{});
-  ParallelFor(
-      ctx, 0, static_cast<int64_t>(candidates.size()),
-      [&](int64_t b, int64_t e, int) {
-        for (int64_t i = b; i < e; ++i) {
-          for (int c = 0; c < cams; ++c) {
-            if (!active[c]) continue;
-            const ColumnSpans sp = PersonSpans(columns_, c, candidates[i], o);
-            if (sp.visible_rows == 0) continue;
-            Box& box = boxes_[static_cast<size_t>(i) * cams + c];
-            for (int y : {std::max(sp.first_row, 0), std::min(sp.last_row, sp.height - 1)}) {
-              int x0, x1;
-              if (!sp.Span(y, x0, x1)) continue;
-              box.x0 = std::min(box.x0, x0);
-              box.x1 = std::max(box.x1, x1);
-            }
-            box.y0 = std::max(sp.first_row, 0);
-            box.y1 = std::min(sp.last_row, sp.height - 1);
-          }
-        }
-      },
-      64);
+  if (fast) {  // kept with the model's rows
+    for (size_t i = 0; i < candidates.size(); ++i) {
+      const ModelRows* model = model_rows_.data() + model_of_[static_cast<size_t>(candidates[i])];
+      for (int c = 0; c < cams; ++c)
+        if (active[c]) boxes_[i * static_cast<size_t>(cams) + static_cast<size_t>(c)] = model[c].image;
+    }
+  } else {
+    ParallelFor(
+        ctx, 0, static_cast<int64_t>(candidates.size()),
+        [&](int64_t b, int64_t e, int) {
+          for (int64_t i = b; i < e; ++i)
+            for (int c = 0; c < cams; ++c)
+              if (active[c]) boxes_[static_cast<size_t>(i) * cams + c] = ImageBox(candidates[i], c, o);
+        },
+        64);
+  }
   const auto overlaps = [&](size_t i, size_t j) {
     for (int c = 0; c < cams; ++c) {
       const Box& a = boxes_[i * cams + c];

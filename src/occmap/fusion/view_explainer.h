@@ -35,7 +35,10 @@
 //
 // Fast path (Explain): each candidate's per-camera gain with nobody chosen is computed once, with
 // the bounds (row counts); a later gain reuses it for every camera where no chosen person's image
-// meets the candidate's. Where one does, each row the gain reads is cut by the chosen people's
+// meets the candidate's. The rows those gains read (the model's spans, the ground band's, the
+// image box) depend on the geometry alone: they are worked out the first frame a candidate
+// appears and kept across frames (for the same options and column table), so that a frame
+// only counts. Where one does, each row the gain reads is cut by the chosen people's
 // spans on it (their rows, worked out at their first Cover) into runs, and the runs that at most
 // max_cover of them cover are counted from the row sums: no pixel is read, and no coverage image
 // is kept (a pixel covered by 256 or more people would differ: the reference's counts are bytes).
@@ -123,10 +126,19 @@ class ViewExplainer {
     bool counts = false;  // the camera says something about it
     Box body, ground;     // the pixels the gain reads: the model's rows, the ground band's
     // Fast path: the rows the gain reads (those whose span meets the image), body rows then
-    // ground rows, in term_spans_[arena] from first_span.
+    // ground rows, in model_spans_ from first_span.
     uint32_t first_span = 0;
     uint32_t body_rows = 0, ground_rows = 0;
-    uint8_t arena = 0;
+  };
+  // Fast path: where a candidate's Term reads in one camera, whatever the changes (geometry
+  // alone, kept across frames: see model_of_).
+  struct ModelRows {
+    bool counts = false;  // the model's image has rows in the camera (not blocked, projected)
+    Box body, ground;     // as Term's
+    Box image;            // the model's whole image (Run's boxes_)
+    uint32_t first_span = 0;  // into the worker's arena while worked out, then into model_spans_
+    uint32_t body_rows = 0, ground_rows = 0;
+    int64_t pixels = 0;   // of the body rows
   };
 
   void Run(std::span<const ImageView<const uint8_t>> changes, std::span<const ChangeRowSums> counts,
@@ -136,13 +148,18 @@ class ViewExplainer {
   void Cover(int64_t k, int32_t index, const std::vector<bool>& active, const ExplainOptions& options, int delta);
   double UpperBound(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
                     const ExplainOptions& options) const;
-  // Candidate k's Term in camera c (gain 0, counts false when c says nothing about it); with
-  // `spans`, the rows it read are appended there (Term::first_span, body_rows, ground_rows).
-  void CameraTerm(int64_t k, int c, const ChangeRowSums& counts, const ExplainOptions& options, Term& term,
-                  std::vector<RowSpan>* spans = nullptr) const;
-  // UpperBound, keeping each camera's Term (terms: one per camera) and its rows in term_spans_[arena].
+  // Candidate k's Term in camera c (gain 0, counts false when c says nothing about it).
+  void CameraTerm(int64_t k, int c, const ChangeRowSums& counts, const ExplainOptions& options, Term& term) const;
+  // Candidate k's ModelRows in camera c, its rows appended to spans (first_span: their index there).
+  void WorkOutModelRows(int64_t k, int c, const ExplainOptions& options, ModelRows& rows,
+                        std::vector<RowSpan>& spans) const;
+  // The image box of candidate k's model in camera c (empty when c says nothing about it).
+  Box ImageBox(int64_t k, int c, const ExplainOptions& options) const;
+  // Keeps the ModelRows of every candidate of this frame (works out those not yet kept).
+  void KeepModelRows(const std::vector<int64_t>& candidates, const ExplainOptions& options, Context& ctx);
+  // UpperBound from the kept ModelRows of candidate k, keeping each camera's Term (terms: one per camera).
   double Terms(int64_t k, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
-               const ExplainOptions& options, Term* terms, int arena);
+               const ExplainOptions& options, Term* terms) const;
   // Gain(k, ..., max_cover) for this frame's candidate `index`, from its Terms (their gains and
   // rows), the chosen people's rows and the row sums.
   double FastGain(int32_t index, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
@@ -158,12 +175,28 @@ class ViewExplainer {
   std::vector<Image<uint8_t>> coverage_;  // the reference's: per camera, the chosen people covering each pixel
   std::vector<Box> boxes_;  // per candidate and camera, this frame
   std::vector<Term> terms_;  // per candidate and camera, this frame (fast path)
+  static constexpr size_t kMaxModelSpans = size_t{1} << 21;  // 12 MB of kept rows
   std::vector<Box> cover_boxes_;  // per candidate and camera: the pixels its Cover writes
   std::vector<int32_t> covered_;  // the candidates (indices) covered now, once per Cover(+1)
   std::vector<int32_t> index_of_;  // per candidate cell: its index among this frame's candidates, else -1
-  // Fast path, this frame: the rows of the Terms, one arena per worker; every row of a model's
-  // image that Cover writes, per candidate (index) and camera, worked out at its first Cover.
-  std::vector<std::vector<RowSpan>> term_spans_;
+  // Fast path, across frames: each candidate's ModelRows (cameras in order) from
+  // model_of_[candidate cell] (-1: not kept yet), their rows in model_spans_. They depend on the
+  // options below and the column table's revision alone; kept until one of those changes or
+  // model_spans_ outgrows kMaxModelSpans (then all are dropped at the start of a frame).
+  std::vector<int32_t> model_of_;
+  std::vector<ModelRows> model_rows_;
+  std::vector<RowSpan> model_spans_;
+  struct ModelKey {
+    double radius_m = -1, ground_band = -1;
+    bool ground = false;
+    int max_rows = -1;
+    uint64_t revision = 0;
+    bool operator==(const ModelKey&) const = default;
+  } model_key_;
+  std::vector<std::vector<RowSpan>> arenas_;  // one per worker: rows being worked out
+  std::vector<int64_t> missing_;              // this frame's candidates whose ModelRows are not kept
+  std::vector<ModelRows> missing_rows_;       // theirs, per camera
+  std::vector<uint8_t> missing_arena_;        // the arena holding their rows
   struct CoverRows {
     uint32_t first = 0, rows = 0;
     bool known = false;

@@ -151,6 +151,49 @@ TEST(ViewExplainerTest, FastEqualsReferenceInADenseCrowd) {
   }
 }
 
+// The fast path keeps each candidate's model rows across frames: one explainer fed frame after
+// frame (the crowd moving, the options changing, a camera's views learned blocked and then
+// unblocked) finds what a fresh reference finds on each frame.
+TEST(ViewExplainerTest, FastEqualsReferenceFrameAfterFrame) {
+  testing::PeopleRoom scene;
+  ViewExplainer explainer(scene.columns);
+  const std::vector<bool> active(4, true);
+  Context ctx(2);
+  std::vector<int64_t> blocked;
+  for (int frame = 0; frame < 9; ++frame) {
+    scene.Clear();
+    PaintNoisyCrowd(scene, 100 + frame / 2, 8, 0.3, 0.15, 3, 1000 + frame);  // frames in pairs: rows reused
+    ColumnFusionOptions column;
+    column.band_low_m = 0.8;
+    OccupancyMap column_map;
+    ColumnFusion(scene.columns).Fuse(scene.Sums(), active, column, ctx, column_map);
+    ExplainOptions o;
+    if (frame >= 3) o.radius_m = 0.2;  // the kept rows no longer fit
+    if (frame >= 4) o.max_rows = 20;
+    if (frame >= 5) o.ground_weight = 0;
+    if (frame == 6) {  // camera 0 learns that it cannot see most candidates
+      for (int64_t k = 0; k < column_map.grid().num_cells(); ++k) {
+        if (column_map.state(k) != CellState::kOccupied || k % 3 == 0) continue;
+        scene.columns.SetLearnedBlocked(0, k, true);
+        blocked.push_back(k);
+      }
+      ASSERT_FALSE(blocked.empty());
+    }
+    if (frame == 8)
+      for (int64_t k : blocked) scene.columns.SetLearnedBlocked(0, k, false);
+    std::vector<ExplainedPerson> fast, reference;
+    explainer.Explain(scene.Views(), scene.Sums(), active, column_map, o, ctx, fast);
+    ViewExplainer(scene.columns).ExplainReference(scene.Views(), scene.Sums(), active, column_map, o, ctx, reference);
+    ASSERT_EQ(fast.size(), reference.size()) << frame;
+    EXPECT_GE(fast.size(), 4u) << frame;
+    for (size_t i = 0; i < fast.size(); ++i) {
+      EXPECT_EQ(fast[i].candidate, reference[i].candidate) << frame << " " << i;
+      EXPECT_EQ(fast[i].gain, reference[i].gain) << frame << " " << i;
+      EXPECT_EQ(fast[i].views, reference[i].views) << frame << " " << i;
+    }
+  }
+}
+
 TEST(ViewExplainerTest, GainCountsOnlyWhatNobodyCoversYet) {
   testing::PeopleRoom scene;
   scene.Paint(2.0, 1.5);
