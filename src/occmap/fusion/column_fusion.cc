@@ -251,6 +251,7 @@ std::shared_ptr<const ColumnFusion::Plan> ColumnFusion::PlanFor(const ColumnFusi
   plan->revision = columns_.revision();
   const double h = columns_.options().height_m;
   const int64_t n = columns_.candidates().num_cells();
+  OCCMAP_CHECK(columns_.num_cameras() <= 256, "ColumnFusion: at most 256 cameras");
   plan->first_entry.reserve(static_cast<size_t>(n) + 1);
   for (int64_t k = 0; k < n; ++k) {
     plan->first_entry.push_back(static_cast<uint32_t>(plan->entries.size()));
@@ -289,15 +290,22 @@ void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector
   const Plan& plan = *held;
   const double h = columns_.options().height_m;
   const ColumnFusionOptions& o = options;
-  // As CandidateState, the first look's spans read from the plan.
+  // As CandidateState, the first look's spans read from the plan, and every camera's first look
+  // before any camera's whole band: the state depends only on how many cameras test and how many
+  // of them vote free, not on the order they are asked in (more than max_free_views free votes
+  // make it free whatever the rest say), and a first look is a few counts where a band is up to
+  // max_rows spans worked out and counted. Most candidates near a person pass the first look in
+  // the cameras that see the person on their line of sight and fail it in another.
   const auto state = [&](int64_t k) {
     int tested = 0, free_votes = 0;
+    uint32_t pending[256];  // the entries whose first look passed (a camera is a uint8_t)
+    int num_pending = 0;
     for (uint32_t e = plan.first_entry[k]; e < plan.first_entry[k + 1]; ++e) {
       const Plan::Entry& entry = plan.entries[e];
       const int c = entry.camera;
       if (!active[c]) continue;
-      const ChangeRowSums& count = counts[c];
       if (entry.pixels > 0) {
+        const ChangeRowSums& count = counts[c];
         int64_t changed = 0;
         for (uint32_t q = entry.first_span; q < entry.first_span + entry.num_spans; ++q)
           changed += count.Count(plan.spans[q].y, plan.spans[q].x0, plan.spans[q].x1);
@@ -307,10 +315,14 @@ void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector
           continue;
         }
       }
+      pending[num_pending++] = e;
+    }
+    for (int p = 0; p < num_pending; ++p) {
+      const int c = plan.entries[pending[p]].camera;
       const ColumnSpans s =
           MakeColumnSpans(columns_.view(c, k), o.radius_m, o.band_low_m / h, o.band_high_m / h, columns_.image_size(c));
       int64_t pixels = 0;
-      const int64_t changed = CountBand(s, count, o.max_rows, pixels);
+      const int64_t changed = CountBand(s, counts[c], o.max_rows, pixels);
       if (pixels == 0) continue;
       ++tested;
       if (static_cast<double>(changed) < o.min_changed * static_cast<double>(pixels)) {

@@ -15,8 +15,10 @@
 // spaced), after a first look at 4 of them: a camera that sees less than half of min_changed
 // there votes free at once (most columns are empty). The first look's rows and spans are worked
 // out once for the band and radius (the plan: per candidate, the cameras that test it and
-// their spans), so a frame reads only counts. ColumnFusion::FuseReference counts the same rows
-// pixel by pixel, working out every span (equal, tested).
+// their spans), so a frame reads only counts. Fuse takes every camera's first look before any
+// camera's whole band (the state depends only on how many cameras test and vote free, not on the
+// order). ColumnFusion::FuseReference counts the same rows pixel by pixel, camera after camera,
+// working out every span (equal, tested).
 //
 //   ChangeRowSums counts[n]; counts[n].Build(changes_n);
 //   ColumnFusion fusion(columns);

@@ -149,13 +149,15 @@ TEST(ColumnFusionTest, FastEqualsReferenceAndOneThreadEqualsTwo) {
     for (int n = 0; n < 3000; ++n) im(px(rng), py(rng)) ^= 1;
   ColumnFusion fusion(scene.columns);
   for (const char* kernels : {"portable", "best"})
-  for (int max_free_views : {0, 1}) {
+  for (int max_free_views : {0, 1, 2})
+  for (double min_changed : {0.5, 0.25}) {  // lower: more first looks pass, more bands counted
     ASSERT_TRUE(ForceKernelsForTesting(kernels));
     for (bool camera_off : {false, true}) {
       std::vector<bool> active(4, true);
       active[2] = !camera_off;
       ColumnFusionOptions o;
       o.max_free_views = max_free_views;
+      o.min_changed = min_changed;
       OccupancyMap fast1, fast2, reference;
       Context one(1), two(2);
       fusion.Fuse(scene.Sums(), active, o, one, fast1);
