@@ -273,31 +273,21 @@ double ViewExplainer::Terms(int64_t k, std::span<const ChangeRowSums> counts, co
   return gain;
 }
 
-const RowSpan* ViewExplainer::CoverSpan(int32_t index, int c, int y) const {
-  const CoverRows& rows =
-      cover_rows_[static_cast<size_t>(index) * static_cast<size_t>(columns_.num_cameras()) + static_cast<size_t>(c)];
-  OCCMAP_DCHECK(rows.known, "ViewExplainer::CoverSpan: a candidate never covered");
-  if (rows.rows == 0) return nullptr;
-  const RowSpan* first = cover_spans_.data() + rows.first;
-  const RowSpan* end = first + rows.rows;
-  const int i = y - first->y;
-  if (i < 0) return nullptr;
-  if (i < static_cast<int>(rows.rows) && first[i].y == y) return first + i;
-  // A row between two kept ones whose span missed the image: the rows are in order.
-  const RowSpan* at = std::lower_bound(first, end, y, [](const RowSpan& r, int row) { return r.y < row; });
-  return at != end && at->y == y ? at : nullptr;
-}
-
-void ViewExplainer::CountUncovered(int c, int y, int x0, int x1, int max_cover, const ChangeRowSums& counts,
+void ViewExplainer::CountUncovered(int y, int x0, int x1, int max_cover, const ChangeRowSums& counts,
                                    int64_t& changed, int64_t& free) {
   // The met people's spans on this row, clipped to x0..x1, as edges: +1 where one starts, -1
   // just past where it ends.
   edges_.clear();
-  const size_t cams = static_cast<size_t>(columns_.num_cameras());
-  for (int32_t j : met_) {
-    if (!cover_boxes_[static_cast<size_t>(j) * cams + static_cast<size_t>(c)].MeetsRow(y, x0, x1)) continue;
-    const RowSpan* span = CoverSpan(j, c, y);
-    if (span == nullptr) continue;
+  for (const Met& m : met_) {
+    if (!m.box.MeetsRow(y, x0, x1)) continue;
+    // Row y's span: a direct index, or a search where a row whose span missed the image was dropped.
+    const int i = y - m.first->y;  // the box holds y: a span was kept on its first row
+    if (i < 0) continue;
+    const RowSpan* span = m.first + i;
+    if (!(i < m.end - m.first && span->y == y)) {
+      span = std::lower_bound(m.first, m.end, y, [](const RowSpan& r, int row) { return r.y < row; });
+      if (span == m.end || span->y != y) continue;
+    }
     const int a = std::max<int>(span->x0, x0), b = std::min<int>(span->x1, x1);
     if (a > b) continue;
     edges_.push_back({a, +1});
@@ -338,12 +328,15 @@ double ViewExplainer::FastGain(int32_t index, std::span<const ChangeRowSums> cou
     int body_met = 0;
     bool ground_met = false;
     for (int32_t j : covered_) {
-      const Box& b = cover_boxes_[static_cast<size_t>(j) * static_cast<size_t>(cams) + static_cast<size_t>(c)];
+      const size_t at = static_cast<size_t>(j) * static_cast<size_t>(cams) + static_cast<size_t>(c);
+      const Box& b = cover_boxes_[at];
       const bool in_body = b.Meets(t.body), in_ground = b.Meets(t.ground);
       if (!in_body && !in_ground) continue;
       body_met += in_body ? 1 : 0;
       ground_met |= in_ground;
-      met_.push_back(j);
+      const CoverRows& rows = cover_rows_[at];
+      OCCMAP_DCHECK(rows.known && rows.rows > 0, "ViewExplainer::FastGain: a covered candidate without rows");
+      met_.push_back({b, cover_spans_.data() + rows.first, cover_spans_.data() + rows.first + rows.rows});
     }
     // Nobody's coverage above max_cover on the body, none on the ground band: the term as it was.
     if (body_met <= max_cover && !ground_met) {
@@ -356,11 +349,11 @@ double ViewExplainer::FastGain(int32_t index, std::span<const ChangeRowSums> cou
     int64_t changed = 0, free = 0, pixels = 0;
     for (const RowSpan* r = rows; r != rows + t.body_rows; ++r) {
       pixels += r->x1 - r->x0 + 1;
-      CountUncovered(c, r->y, r->x0, r->x1, max_cover, counts[c], changed, free);
+      CountUncovered(r->y, r->x0, r->x1, max_cover, counts[c], changed, free);
     }
     int64_t ground = 0, ground_free = 0;
     for (const RowSpan* r = rows + t.body_rows; r != rows + t.body_rows + t.ground_rows; ++r)
-      CountUncovered(c, r->y, r->x0, r->x1, 0, counts[c], ground, ground_free);
+      CountUncovered(r->y, r->x0, r->x1, 0, counts[c], ground, ground_free);
     gain += PerCamera(static_cast<double>(changed) - o.unchanged_weight * static_cast<double>(free - changed) -
                           o.ground_weight * static_cast<double>(ground),
                       pixels);
@@ -390,7 +383,7 @@ void ViewExplainer::Cover(int64_t k, int32_t index, const std::vector<bool>& act
         for (const RowSpan* r = cover_spans_.data() + rows.first; r != cover_spans_.data() + rows.first + rows.rows; ++r)
           rows.box.Add(r->y, r->x0, r->x1);
       }
-      // No coverage written: FastGain counts from the chosen people's rows (CoverSpan).
+      // No coverage written: FastGain counts from the chosen people's rows.
       box = rows.box;
       continue;
     }

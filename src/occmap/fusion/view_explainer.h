@@ -164,12 +164,10 @@ class ViewExplainer {
   // rows), the chosen people's rows and the row sums.
   double FastGain(int32_t index, std::span<const ChangeRowSums> counts, const std::vector<bool>& active,
                   const ExplainOptions& options, int max_cover);
-  // Of row y's pixels x0 to x1 in camera c, those that at most max_cover of the people in met_
-  // cover: adds their number to free and the changed ones among them to changed.
-  void CountUncovered(int c, int y, int x0, int x1, int max_cover, const ChangeRowSums& counts, int64_t& changed,
+  // Of row y's pixels x0 to x1 in FastGain's camera, those that at most max_cover of the people
+  // in met_ cover: adds their number to free and the changed ones among them to changed.
+  void CountUncovered(int y, int x0, int x1, int max_cover, const ChangeRowSums& counts, int64_t& changed,
                       int64_t& free);
-  // The span of row y of covered candidate `index`'s image in camera c, or null when it has none.
-  const RowSpan* CoverSpan(int32_t index, int c, int y) const;
 
   const ColumnLut& columns_;
   std::vector<Image<uint8_t>> coverage_;  // the reference's: per camera, the chosen people covering each pixel
@@ -204,7 +202,14 @@ class ViewExplainer {
   };
   std::vector<CoverRows> cover_rows_;  // per candidate (index) and camera
   std::vector<RowSpan> cover_spans_;
-  std::vector<int32_t> met_;  // FastGain: the covered candidates whose boxes meet the term's
+  // FastGain, in one camera: the covered candidates whose boxes meet the term's, each with its
+  // Cover's box and rows there (rows in order, one per image row but where a span missed the image).
+  struct Met {
+    Box box;
+    const RowSpan* first;
+    const RowSpan* end;
+  };
+  std::vector<Met> met_;
   std::vector<std::pair<int, int>> edges_;  // CountUncovered: (x, +1 or -1) where a span starts or ends
   bool fast_cover_ = false;  // Cover keeps its rows (the fast path); the reference works them out each time
 };
