@@ -115,6 +115,11 @@ struct BackgroundOptions {
   // kMode: a pixel's second cluster with at least this share of the samples is kept as its
   // alternative background (BackgroundModel::SetAlternative); 0: none.
   double alternative_min_share = 0.1;
+  // File sources: before the run, the learning window is run once through the change test, the
+  // fusion and the maintenance, and the run starts from the backgrounds as they are at its end
+  // (pipeline/settle_backgrounds.h). People who stood from the first frame and left are then
+  // floor from the first frame on, not only from when they leave.
+  bool settle = true;
   // Maintenance.
   double adapt_s = 30;         // time constant of unprotected, unchanged pixels
   double relight_s = 2;        // unexplained steady changes become background after this

@@ -13,6 +13,7 @@ namespace {
 constexpr int kRingPoints = 12;  // points per circle of the projected box
 constexpr int kConsensusBlock = 4;  // cells per side of a consensus block
 constexpr int kVoteWindowPx = 2;
+constexpr double kStoodOnShare = 0.25;  // of a block's pixels in a camera with two looks
 
 bool ChangedNear(ImageView<const uint8_t> changes, int cx, int cy) {
   for (int y = std::max(0, cy - kVoteWindowPx); y <= std::min(changes.height() - 1, cy + kVoteWindowPx); ++y) {
@@ -32,7 +33,7 @@ bool Inside(const Eigen::Vector2d& px, ImageSize size) {
 
 ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vector<const CameraModel*>& cameras,
                                           double plane_height_m, const std::vector<BackgroundModel*>& models,
-                                          int threshold) {
+                                          int threshold, bool drop_kept) {
   OCCMAP_CHECK(static_cast<int>(models.size()) == lut.num_cameras(), "consensus: one model (or null) per camera");
   OCCMAP_CHECK(cameras.empty() || cameras.size() == models.size(), "consensus: no cameras or one per model");
   const size_t cams = models.size();
@@ -71,9 +72,9 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
       pixel_block[n][p] = j * bx + i;
     }
   }
-  // Mean background luma per (block, camera).
+  // Mean background luma per (block, camera), and the pixels with two looks far apart.
   std::vector<float> sum(cells * cams, 0.0f);
-  std::vector<uint16_t> count(cells * cams, 0);
+  std::vector<uint16_t> count(cells * cams, 0), two_looks(cells * cams, 0);
   for (size_t n = 0; n < cams; ++n) {
     const BackgroundModel* m = models[n];
     if (m == nullptr || m->empty()) continue;
@@ -83,14 +84,32 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
       const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
       const size_t k = static_cast<size_t>(pixel_block[n][p]) * cams + n;
       if (count[k] == 65535) continue;
-      sum[k] += static_cast<float>(m->BackgroundLevel(x, y));
+      const int level = m->BackgroundLevel(x, y), alt = m->AlternativeLevel(x, y);
+      sum[k] += static_cast<float>(level);
       ++count[k];
+      if (alt >= 0 && std::abs(alt - level) > threshold) ++two_looks[k];
     }
   }
   auto mean = [&](const std::vector<float>& s, size_t cell, size_t n) {
     const size_t k = cell * cams + n;
     return count[k] ? s[k] / count[k] : -1.0f;
   };
+  // Before settling: the blocks something stood on for part of the window, where most of the
+  // cameras that see the block have two looks over at least kStoodOnShare of its pixels. Every
+  // camera saw the same thing there, so the consensus cannot tell which look is the floor.
+  std::vector<uint8_t> stood_on(cells, 0);
+  if (!drop_kept) {
+    for (size_t c = 0; c < cells; ++c) {
+      int seeing = 0, both = 0;
+      for (size_t n = 0; n < cams; ++n) {
+        const size_t k = c * cams + n;
+        if (count[k] == 0) continue;
+        ++seeing;
+        both += two_looks[k] >= kStoodOnShare * count[k];
+      }
+      stood_on[c] = seeing >= 2 && 2 * both > seeing;
+    }
+  }
   // Each camera's exposure relative to the camera that sees the most cells.
   std::vector<int64_t> seen(cams, 0);
   for (size_t c = 0; c < cells; ++c) {
@@ -151,7 +170,7 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
         m->DropAlternative(x, y);
         ++result.pixels_swapped;
         ++result.pixels_settled;
-      } else if (d_bg + static_cast<float>(threshold) < d_alt) {
+      } else if ((drop_kept || !stood_on[static_cast<size_t>(b)]) && d_bg + static_cast<float>(threshold) < d_alt) {
         m->DropAlternative(x, y);
         ++result.pixels_settled;
       }

@@ -65,9 +65,14 @@ struct ConsensusResult {
   int64_t pixels_settled = 0;  // decided either way: their alternative is dropped
 };
 // cameras: at the models' image size, to carry the check beyond the grid (empty: the grid only).
+// drop_kept: a pixel that keeps its background drops its alternative. Before settling
+// (pipeline/settle_backgrounds.h, drop_kept false) not on a block something stood on (most of
+// the cameras that see it have two looks over a quarter of its pixels): at a person's feet every
+// camera saw the person, so the check keeps them there; the pass takes the floor when they walk
+// away, and drops every alternative at its end.
 ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vector<const CameraModel*>& cameras,
                                           double plane_height_m, const std::vector<BackgroundModel*>& models,
-                                          int threshold);
+                                          int threshold, bool drop_kept = true);
 
 class BackgroundProtection {
  public:

@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "occmap/detect/background.h"
+#include "occmap/lut/ground_lut.h"
 #include "occmap/site/site_location.h"
 #include "occmap/util/file_util.h"
 #include "occmap/util/hash.h"
@@ -96,6 +97,67 @@ Result<FrameSource*> BackgroundFrames(CameraState& c, const RunOptions& options,
   return opened.get();
 }
 
+// A learned background's cache entry: one PNG per plane, `<prefix>-y.png` last (it marks the
+// set complete); the alternatives' planes too when given, and none left over otherwise.
+fs::path CachePlane(const fs::path& prefix, const char* plane) { return fs::path(prefix.string() + "-" + plane + ".png"); }
+Status CacheAdaptiveBackground(const fs::path& prefix, const YuvImage& background,
+                               const BackgroundLearner::Alternative* alternative) {
+  OCCMAP_RETURN_IF_ERROR(EnsureDirectory(prefix.parent_path()));
+  std::error_code ec;
+  fs::remove(CachePlane(prefix, "y"), ec);
+  const bool chroma = background.has_chroma();
+  if (chroma) {
+    OCCMAP_RETURN_IF_ERROR(WritePng(CachePlane(prefix, "u"), background.u.view()));
+    OCCMAP_RETURN_IF_ERROR(WritePng(CachePlane(prefix, "v"), background.v.view()));
+  }
+  for (const char* plane : {"alt-y", "alt-u", "alt-v", "alt-n"}) fs::remove(CachePlane(prefix, plane), ec);
+  if (alternative) {
+    OCCMAP_RETURN_IF_ERROR(WritePng(CachePlane(prefix, "alt-y"), alternative->levels.y.view()));
+    if (chroma) {
+      OCCMAP_RETURN_IF_ERROR(WritePng(CachePlane(prefix, "alt-u"), alternative->levels.u.view()));
+      OCCMAP_RETURN_IF_ERROR(WritePng(CachePlane(prefix, "alt-v"), alternative->levels.v.view()));
+    }
+    OCCMAP_RETURN_IF_ERROR(WritePng(CachePlane(prefix, "alt-n"), alternative->support.view()));
+  }
+  return WritePng(CachePlane(prefix, "y"), background.y.view());
+}
+
+// The shadow look before the first frame, so that the first frames are tested with it. A file
+// source is run from its start: the look comes from its first seconds (read again), whether the
+// background was learned, settled, reused from the cache or given, so that a run gives the same
+// answer with and without the cache (the samples spread over the learning window carry its
+// whole exposure drift: plaza MODA 0.958 learned against 0.967 reused). A live stream goes on
+// from where learning stopped: it takes the learning samples (`learned_from`), or without them
+// learns the look from its first frames.
+Status WarmUpShadows(const Site& site, const RunOptions& options, const FrameSourceOptions& src_opts, bool chroma,
+                     const BackgroundLearner* learned_from, CameraState& c) {
+  const BackgroundOptions& bo = site.backgrounds;
+  if (!bo.shadows.enabled || !bo.shadows.learn) return Status::Ok();
+  const SiteCamera& cam = *c.cam;
+  const double fps = c.source->fps().value_or(10.0);
+  std::vector<YuvView> samples;
+  std::vector<Frame> first;
+  const bool file = cam.source.kind == FrameSourceSpec::Kind::kVideo || cam.source.kind == FrameSourceSpec::Kind::kImages;
+  if (learned_from && !file) {
+    for (int k = 0; k < learned_from->count(); ++k) samples.push_back(learned_from->Sample(k));
+  } else if (file) {
+    OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> src, OpenFrameSource(cam.source, src_opts));
+    OCCMAP_RETURN_IF_ERROR(src->SkipTo(options.start_frame));
+    const int64_t n = std::min<int64_t>(kShadowWarmUpFrames, std::max<int64_t>(1, std::llround(kShadowWarmUpS * fps)));
+    for (int64_t k = 0; k < n; ++k) {
+      Frame f;
+      OCCMAP_ASSIGN_OR_RETURN(bool got, src->Read(f));
+      if (!got) break;
+      OCCMAP_RETURN_IF_ERROR(CheckFrameSize(c, f).WithContext(fmt::format("camera {}", cam.id)));
+      if (chroma && f.u.empty()) break;  // the run reports the missing colour
+      first.push_back(std::move(f));
+    }
+    for (const Frame& f : first) samples.push_back(FrameYuv(f));
+  }
+  if (!samples.empty()) c.model->WarmUp(samples, site.detection.threshold);
+  return Status::Ok();
+}
+
 // The adaptive model's background of a camera: given (a picture), reused from the cache, or
 // learned from the busy video (site.backgrounds: K frames over learn_s seconds).
 Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bool chroma,
@@ -123,16 +185,27 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
     c.info.background = fmt::format("given: {}", cam.background->string());
     if (auto f = c.source->fps()) fps = *f;
   } else {
-    Hasher h = BackgroundKey("adaptive-background-v4", site, cam, options.start_frame, chroma);
+    // Settled backgrounds depend on every setting of the run (the fusion's, the maintenance's):
+    // their key is the whole site file's, with the camera's source.
+    const bool settles = SettlesLearnedBackgrounds(site, options);
+    Hasher h = BackgroundKey("adaptive-background-v5", site, cam, options.start_frame, chroma);
     h.Add(ToString(bo.learning));
     h.AddPod(bo.learn_s);
     h.AddPod(bo.learn_samples);
     h.AddPod(bo.mode_radius);
+    h.AddPod(settles);
+    if (settles) {
+      h.AddPod(GroundLutKey(site.LutInputs(), site.grid, site.lut));
+      if (!site.file.empty()) {
+        auto text = ReadFileToString(site.file);
+        h.Add(text.ok() ? *text : std::string());
+      }
+    }
     std::error_code ec;
     const fs::path cached = options.cache_dir.empty() ? fs::path()
                                                       : options.cache_dir / "backgrounds" /
                                                             fmt::format("{}-{}-{:016x}", site.name, cam.id, h.Digest());
-    auto plane_path = [&](const char* plane) { return fs::path(cached.string() + "-" + plane + ".png"); };
+    auto plane_path = [&](const char* plane) { return CachePlane(cached, plane); };
     bool reused = false;
     if (!cached.empty() && fs::exists(plane_path("y"), ec)) {
       auto y = ReadGrayImage(plane_path("y"));
@@ -182,21 +255,11 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
       background = learner.Learn(bo.learning, bo.mode_radius, alternative ? &*alternative : nullptr);
       c.info.background = fmt::format("learned: {} of {} frames over {:.1f} s", ToString(bo.learning), learner.count(),
                                       static_cast<double>(std::min(window, learner.count() * step)) / fps);
-      if (!cached.empty()) {
-        OCCMAP_RETURN_IF_ERROR(EnsureDirectory(cached.parent_path()));
-        if (chroma) {
-          OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("u"), background.u.view()));
-          OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("v"), background.v.view()));
-        }
-        if (alternative) {
-          OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("alt-y"), alternative->levels.y.view()));
-          if (chroma) {
-            OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("alt-u"), alternative->levels.u.view()));
-            OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("alt-v"), alternative->levels.v.view()));
-          }
-          OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("alt-n"), alternative->support.view()));
-        }
-        OCCMAP_RETURN_IF_ERROR(WritePng(plane_path("y"), background.y.view()));  // last: marks the set complete
+      if (settles) {  // cached once settled (pipeline/settle_backgrounds.h)
+        c.settles = true;
+        c.learned_cache = cached;
+      } else if (!cached.empty()) {
+        OCCMAP_RETURN_IF_ERROR(CacheAdaptiveBackground(cached, background, alternative ? &*alternative : nullptr));
       }
     }
   }
@@ -206,36 +269,7 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
     c.model->SetAlternative(*alternative, static_cast<int>(std::ceil(bo.alternative_min_share * bo.learn_samples)));
     c.model->PreferLitAlternatives();
   }
-  if (bo.shadows.enabled && bo.shadows.learn) {
-    // The shadow look before the first frame, so that the first frames are tested with it. A
-    // file source is run from its start: the look comes from its first seconds (read again),
-    // whether the background was learned, reused from the cache or given, so that a run gives
-    // the same answer with and without the cache (the samples spread over the learning window
-    // carry its whole exposure drift: plaza MODA 0.958 learned against 0.967 reused). A live
-    // stream goes on from where learning stopped: it takes the learning samples, or without
-    // them learns the look from its first frames.
-    std::vector<YuvView> samples;
-    std::vector<Frame> first;
-    const bool file = cam.source.kind == FrameSourceSpec::Kind::kVideo || cam.source.kind == FrameSourceSpec::Kind::kImages;
-    if (learned_from && !file) {
-      for (int k = 0; k < learned_from->count(); ++k) samples.push_back(learned_from->Sample(k));
-    } else if (file) {
-      OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> src, OpenFrameSource(cam.source, src_opts));
-      OCCMAP_RETURN_IF_ERROR(src->SkipTo(options.start_frame));
-      const int64_t n = std::min<int64_t>(kShadowWarmUpFrames, std::max<int64_t>(1, std::llround(kShadowWarmUpS * fps)));
-      for (int64_t k = 0; k < n; ++k) {
-        Frame f;
-        OCCMAP_ASSIGN_OR_RETURN(bool got, src->Read(f));
-        if (!got) break;
-        OCCMAP_RETURN_IF_ERROR(CheckFrameSize(c, f).WithContext(fmt::format("camera {}", cam.id)));
-        if (chroma && f.u.empty()) break;  // the run reports the missing colour
-        first.push_back(std::move(f));
-      }
-      for (const Frame& f : first) samples.push_back(FrameYuv(f));
-    }
-    if (!samples.empty()) c.model->WarmUp(samples, site.detection.threshold);
-  }
-  return Status::Ok();
+  return WarmUpShadows(site, options, src_opts, chroma, learned_from ? &*learned_from : nullptr, c);
 }
 
 // The background of a camera: given, reused from the cache, or the median of K frames.
@@ -318,6 +352,23 @@ FrameSourceOptions RunSourceOptions(const FusionPlan& plan, int num_threads, int
   o.chroma = plan.chroma;
   o.decoder_threads = DecoderThreadsPerCamera(num_threads, num_cameras);
   return o;
+}
+
+bool SettlesLearnedBackgrounds(const Site& site, const RunOptions& options) {
+  const BackgroundOptions& bo = site.backgrounds;
+  if (!bo.adaptive || !bo.settle || !options.settle_learned_backgrounds) return false;
+  return std::all_of(site.cameras.begin(), site.cameras.end(), [](const SiteCamera& cam) {
+    return cam.source.kind == FrameSourceSpec::Kind::kVideo || cam.source.kind == FrameSourceSpec::Kind::kImages;
+  });
+}
+
+Status RestartAdaptiveModel(const Site& site, const RunOptions& options, const FrameSourceOptions& src_opts,
+                            CameraState& c, const YuvImage& background) {
+  c.model = std::make_unique<BackgroundModel>(site.backgrounds, c.source->fps().value_or(10.0));
+  c.model->Reset(background);
+  OCCMAP_RETURN_IF_ERROR(WarmUpShadows(site, options, src_opts, background.has_chroma(), nullptr, c));
+  if (c.learned_cache.empty()) return Status::Ok();
+  return CacheAdaptiveBackground(c.learned_cache, background, nullptr);
 }
 
 Result<std::vector<CameraState>> OpenCameras(const Site& site, const RunOptions& options, const FusionPlan& plan,

@@ -5,6 +5,7 @@
 //   OCCMAP_ASSIGN_OR_RETURN(std::vector<CameraState> cams, OpenCameras(site, options, plan, ctx));
 #pragma once
 
+#include <filesystem>
 #include <memory>
 #include <vector>
 
@@ -31,6 +32,10 @@ struct CameraState {
   std::vector<uint8_t> dilate_scratch;
   // The adaptive model (site.backgrounds.adaptive): learned or given, kept up to date.
   std::unique_ptr<BackgroundModel> model;
+  // Its model was learned by this run and is settled before it (pipeline/settle_backgrounds.h),
+  // then cached at learned_cache (empty: no cache).
+  bool settles = false;
+  std::filesystem::path learned_cache;
   CameraRunInfo info;
 };
 
@@ -45,6 +50,14 @@ Status WriteYuvPng(const std::filesystem::path& path, const YuvImage& yuv);
 // each camera's share of ctx's threads (the cameras decode side by side).
 FrameSourceOptions RunSourceOptions(const FusionPlan& plan, int num_threads, int num_cameras);
 
+// Whether a run settles the backgrounds it learns: the adaptive model learning them
+// (site.backgrounds.settle), every camera's source a file (video or pictures: the window is read
+// again), and RunOptions::settle_learned_backgrounds.
+bool SettlesLearnedBackgrounds(const Site& site, const RunOptions& options);
+// Starts camera c's adaptive model again from `background` (its alternatives forgotten), the
+// shadow look warmed up as the run's start; caches it at c.learned_cache when that is set.
+Status RestartAdaptiveModel(const Site& site, const RunOptions& options, const FrameSourceOptions& src_opts,
+                            CameraState& c, const YuvImage& background);
 // Every camera's source opened (at options.start_frame) and its background prepared; with
 // `only` (indices into site.cameras, an edge process's cameras) those cameras alone, in that order.
 Result<std::vector<CameraState>> OpenCameras(const Site& site, const RunOptions& options, const FusionPlan& plan,

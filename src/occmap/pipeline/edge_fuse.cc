@@ -245,7 +245,9 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
   }
   // The fuse process fuses change buffers: the edge computes them as a run with them does.
   const FusionPlan plan = ChooseFusionPath(site, /*needs_change_buffer=*/true);
-  OCCMAP_ASSIGN_OR_RETURN(std::vector<CameraState> cams, OpenCameras(site, o.run, plan, ctx, index));
+  RunOptions open_options = o.run;
+  open_options.settle_learned_backgrounds = false;  // settling needs the fused map
+  OCCMAP_ASSIGN_OR_RETURN(std::vector<CameraState> cams, OpenCameras(site, open_options, plan, ctx, index));
   const std::string prefix = Prefix(site, o.topic_prefix);
   const std::string client_id =
       o.client_id.empty() ? fmt::format("occmap-edge-{}-{}", TopicSlug(site.name), TopicSlug(cams[0].cam->id)) : o.client_id;

@@ -17,6 +17,7 @@
 #include "occmap/pipeline/fusion_path.h"
 #include "occmap/pipeline/fusion_stage.h"
 #include "occmap/pipeline/output_files.h"
+#include "occmap/pipeline/settle_backgrounds.h"
 #include "occmap/pipeline/sink_stage.h"
 #include "occmap/pipeline/stage_queue.h"
 #include "occmap/pipeline/summary_file.h"
@@ -72,7 +73,9 @@ void ResolveBackgrounds(const Site& site, const GroundLut& lut, std::vector<Came
   if (!any_alternative) return;
   std::vector<const CameraModel*> cameras;
   for (const auto& c : cams) cameras.push_back(c.cam->camera.get());
-  const ConsensusResult r = ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold);
+  const bool settles = std::any_of(cams.begin(), cams.end(), [](const CameraState& c) { return c.settles; });
+  const ConsensusResult r =
+      ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold, /*drop_kept=*/!settles);
   summary.consensus_pixels_checked = r.pixels_checked;
   summary.consensus_pixels_swapped = r.pixels_swapped;
   summary.consensus_pixels_settled = r.pixels_settled;
@@ -145,6 +148,9 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   const GroundLut& lut = cached.lut;
   if (plan.adaptive) ResolveBackgrounds(site, lut, cams, summary);
   const double fps = cams[0].source->fps().value_or(10.0);
+  OCCMAP_ASSIGN_OR_RETURN(const SettleFigures settled, SettleLearnedBackgrounds(site, options, plan, lut, cams, fps, ctx));
+  summary.settle_frame_sets = settled.frame_sets;
+  summary.settle_s = settled.seconds;
 
   // The stages: reader (frame_reader.h) -> change detection and fusion (fusion_stage.h) ->
   // detections and tracking (detect_track_stage.h) -> the sinks (sink_stage.h).

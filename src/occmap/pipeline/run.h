@@ -85,6 +85,9 @@ struct RunOptions {
   // Every FrameRecord carries each camera's frame and change mask (frames_gray, frames_rgb,
   // change_masks), for a sink that shows them (`occmap serve`). Costs a copy per frame set.
   bool sink_frames = false;
+  // Learned backgrounds of file sources are settled before the run (site.backgrounds.settle,
+  // pipeline/settle_backgrounds.h); an edge process, which has no fused map, does not settle.
+  bool settle_learned_backgrounds = true;
   int background_frames = 25;  // K of the median background, when a camera has none
   int background_step = 4;     // take every n-th frame for the median
   bool track = true;  // run the site's tracker and write tracks.jsonl, tracks_mot.csv, events.jsonl
@@ -143,6 +146,9 @@ struct RunSummary {
   double occluders_s = 0;   // learning static occluders (`people.occluders.learn`; the fusion stage)
   // Learned backgrounds checked across cameras (pipeline/background_maintenance.h).
   int64_t consensus_pixels_checked = 0, consensus_pixels_swapped = 0, consensus_pixels_settled = 0;
+  // The settling pass over the learning window (0: none), and its time.
+  int64_t settle_frame_sets = 0;
+  double settle_s = 0;
   // Frame set arrival (frames decoded) to every sink done (the files written), over the run.
   LatencyFigures latency;
   int max_queued_outputs = 0;  // the most frames whose outputs waited for the writer at once

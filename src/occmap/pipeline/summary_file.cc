@@ -57,7 +57,9 @@ SummaryFile::SummaryFile(std::filesystem::path path, const Site& site, const Run
                                      {"floor_check", bo.shadows.floor_check}}},
                         {"consensus", {{"pixels_checked", summary.consensus_pixels_checked},
                                        {"pixels_swapped", summary.consensus_pixels_swapped},
-                                       {"pixels_settled", summary.consensus_pixels_settled}}}};
+                                       {"pixels_settled", summary.consensus_pixels_settled}}},
+                        {"settle", {{"enabled", bo.settle}, {"frame_sets", summary.settle_frame_sets},
+                                    {"seconds", summary.settle_s}}}};
   }
   s["settings"] = {{"threshold", site.detection.threshold},
                    {"colour", site.detection.colour},

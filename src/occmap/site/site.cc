@@ -366,7 +366,7 @@ Status ParseDetection(const YamlField& f, ChangeDetectionOptions& d) {
 // The `backgrounds:` section (detect/background_model.h); each value checked by Validate(),
 // the message placed at the section.
 Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
-  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"adaptive", "learning", "learn_s", "learn_samples", "mode_radius", "alternative_min_share", "adapt_s",
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"adaptive", "learning", "learn_s", "learn_samples", "mode_radius", "alternative_min_share", "settle", "adapt_s",
                                       "relight_s", "absorb_s", "person_height_m", "chroma_threshold", "grow_steps_px",
                                       "grow_threshold_share", "grow_seed_share", "shadows"}));
   OCCMAP_ASSIGN_OR_RETURN(b.adaptive, f.GetBool("adaptive", b.adaptive));
@@ -380,6 +380,7 @@ Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
   OCCMAP_ASSIGN_OR_RETURN(int64_t radius, f.GetInt("mode_radius", b.mode_radius));
   b.mode_radius = static_cast<int>(std::clamp<int64_t>(radius, -1, 1000));
   OCCMAP_ASSIGN_OR_RETURN(b.alternative_min_share, f.GetDouble("alternative_min_share", b.alternative_min_share));
+  OCCMAP_ASSIGN_OR_RETURN(b.settle, f.GetBool("settle", b.settle));
   OCCMAP_ASSIGN_OR_RETURN(b.adapt_s, f.GetDouble("adapt_s", b.adapt_s));
   OCCMAP_ASSIGN_OR_RETURN(b.relight_s, f.GetDouble("relight_s", b.relight_s));
   OCCMAP_ASSIGN_OR_RETURN(b.absorb_s, f.GetDouble("absorb_s", b.absorb_s));
