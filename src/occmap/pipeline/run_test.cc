@@ -186,6 +186,8 @@ TEST_F(RunFixture, FindsTheWalkerInEveryFrame) {
   const json summary_json = json::parse(*ReadFileToString(dir_ / "out" / "summary.json"));
   EXPECT_EQ(summary_json["frames"], kFrames);
   EXPECT_EQ(summary_json["settings"]["threshold"], 40);
+  EXPECT_EQ(summary_json["settings"]["block_px"], json::array({1, 1}));
+  EXPECT_EQ(summary_json["settings"]["block_rule"], "any");
   EXPECT_EQ(summary_json["cameras"].size(), 4u);
   EXPECT_TRUE(fs::exists(dir_ / "out" / "mosaic.png"));
   EXPECT_TRUE(fs::exists(dir_ / "out" / "backgrounds" / "c0.png"));

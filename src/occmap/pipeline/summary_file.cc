@@ -64,6 +64,8 @@ SummaryFile::SummaryFile(std::filesystem::path path, const Site& site, const Run
   s["settings"] = {{"threshold", site.detection.threshold},
                    {"colour", site.detection.colour},
                    {"tolerance_px", site.detection.tolerance_px},
+                   {"block_px", {site.detection.block_width_px, site.detection.block_height_px}},
+                   {"block_rule", site.detection.block_rule == BlockRule::kHalf ? "half" : "any"},
                    {"fusion", ToString(site.fusion.method)},
                    {"fusion_path", plan.Describe(site)},
                    {"max_free_views", site.fusion.max_free_views},
