@@ -97,6 +97,11 @@ Result<FrameSource*> BackgroundFrames(CameraState& c, const RunOptions& options,
   return opened.get();
 }
 
+// A source read from a file (video or pictures), which can be read again from its start.
+bool FromFile(const FrameSourceSpec& source) {
+  return source.kind == FrameSourceSpec::Kind::kVideo || source.kind == FrameSourceSpec::Kind::kImages;
+}
+
 // A learned background's cache entry: one PNG per plane, `<prefix>-y.png` last (it marks the
 // set complete); the alternatives' planes too when given, and none left over otherwise.
 fs::path CachePlane(const fs::path& prefix, const char* plane) { return fs::path(prefix.string() + "-" + plane + ".png"); }
@@ -137,7 +142,7 @@ Status WarmUpShadows(const Site& site, const RunOptions& options, const FrameSou
   const double fps = c.source->fps().value_or(10.0);
   std::vector<YuvView> samples;
   std::vector<Frame> first;
-  const bool file = cam.source.kind == FrameSourceSpec::Kind::kVideo || cam.source.kind == FrameSourceSpec::Kind::kImages;
+  const bool file = FromFile(cam.source);
   if (learned_from && !file) {
     for (int k = 0; k < learned_from->count(); ++k) samples.push_back(learned_from->Sample(k));
   } else if (file) {
@@ -357,9 +362,7 @@ FrameSourceOptions RunSourceOptions(const FusionPlan& plan, int num_threads, int
 bool SettlesLearnedBackgrounds(const Site& site, const RunOptions& options) {
   const BackgroundOptions& bo = site.backgrounds;
   if (!bo.adaptive || !bo.settle || !options.settle_learned_backgrounds) return false;
-  return std::all_of(site.cameras.begin(), site.cameras.end(), [](const SiteCamera& cam) {
-    return cam.source.kind == FrameSourceSpec::Kind::kVideo || cam.source.kind == FrameSourceSpec::Kind::kImages;
-  });
+  return std::all_of(site.cameras.begin(), site.cameras.end(), [](const SiteCamera& cam) { return FromFile(cam.source); });
 }
 
 Status RestartAdaptiveModel(const Site& site, const RunOptions& options, const FrameSourceOptions& src_opts,

@@ -36,13 +36,10 @@ Result<SettleFigures> SettleLearnedBackgrounds(const Site& site, const RunOption
     OCCMAP_ASSIGN_OR_RETURN(p.source, OpenFrameSource(c.cam->source, src_opts));
     OCCMAP_RETURN_IF_ERROR(p.source->SkipTo(options.start_frame));
   }
-  // Outputs off: the pass keeps nothing but the models.
+  // The window's frame sets, without --change-pngs' pictures: the pass keeps only the models.
   RunOptions pass_options = options;
   pass_options.max_frames = std::max<int64_t>(1, std::llround(site.backgrounds.learn_s * fps));
   pass_options.change_pngs = false;
-  pass_options.mosaic_video = false;
-  pass_options.sink_frames = false;
-  pass_options.sinks.clear();
   OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FusionStage> fusion,
                           FusionStage::Create(site, pass_options, plan, lut, pass, fps, ctx));
   FrameReader reader(pass, pass_options, ctx.num_threads(), src_opts);
