@@ -102,19 +102,21 @@ TEST_F(SiteFixture, LoadsAValidSite) {
   EXPECT_EQ(site->objects.min_support, 0.3);
   EXPECT_EQ(site->objects.support_slack_m, 0.04);
   EXPECT_FALSE(site->backgrounds.adaptive);  // the paper's fixed background unless asked
+  EXPECT_TRUE(site->backgrounds.settle);       // learned backgrounds of files are settled
   EXPECT_FALSE(site->detection.blocks());      // changes per pixel unless asked
 }
 
 TEST_F(SiteFixture, ReadsTheBackgroundsSection) {
   auto site = Parse(Valid() +
                     "backgrounds:\n  adaptive: true\n  learning: knn\n  learn_s: 90\n  learn_samples: 45\n"
-                    "  absorb_s: 12\n  person_height_m: 1.1\n"
+                    "  absorb_s: 12\n  person_height_m: 1.1\n  settle: false\n"
                     "  shadows: {enabled: false, min_ratio: 0.3, learn: false, ratio_window: 0.2, max_channel_spread: 0.05}\n");
   ASSERT_TRUE(site.ok()) << site.status().message();
   EXPECT_TRUE(site->backgrounds.adaptive);
   EXPECT_EQ(site->backgrounds.learning, BackgroundLearning::kKnn);
   EXPECT_EQ(site->backgrounds.learn_s, 90);
   EXPECT_EQ(site->backgrounds.learn_samples, 45);
+  EXPECT_FALSE(site->backgrounds.settle);
   EXPECT_EQ(site->backgrounds.absorb_s, 12);
   EXPECT_EQ(site->backgrounds.person_height_m, 1.1);
   EXPECT_FALSE(site->backgrounds.shadows.enabled);
@@ -259,6 +261,7 @@ INSTANTIATE_TEST_SUITE_P(
                 ":37: tracking.max_speed_mps: expected a number > 0, found -1"},
         BadSite{"background_learning", kAppend, "backgrounds:\n  learning: gmm\n",
                 ":37: backgrounds.learning: expected median, mode, mog2 or knn, found 'gmm'"},
+        BadSite{"background_settle", kAppend, "backgrounds:\n  settle: maybe\n", ":37: backgrounds.settle: expected true or false, found 'maybe'"},
         BadSite{"background_absorb", kAppend, "backgrounds:\n  absorb_s: -3\n",
                 ":37: backgrounds.absorb_s: expected > 0, found -3"},
         BadSite{"shadow_ratio", kAppend,
