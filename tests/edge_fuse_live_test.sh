@@ -58,7 +58,7 @@ wait_frames $((${dead_at:-0} + 15)) && ok || fail "the run stopped without camer
 start_edge cam4
 wait_log "$work/fuse.log" "camera cam4 is back" 30 && ok || fail "camera 4 did not rejoin: $(tail -3 "$work/fuse.log")"
 back_at=$(sed -n 's/.*camera cam4 is back at frame set \([0-9]*\).*/\1/p' "$work/fuse.log" | head -1)
-wait_frames $((${back_at:-0} + 15)) || fail "the fuse stalled after camera 4 came back"
+wait_frames $((${back_at:-0} + 25)) || fail "the fuse stalled after camera 4 came back"
 
 # 3. The broker restarted under them: everyone reconnects, the fuse goes on.
 tl_restart_broker 1
@@ -93,7 +93,9 @@ grey() {  # grey FIRST LAST: the median count of unseen cells in those frame set
 }
 g_before=$(grey $((kill_at - 10)) $((kill_at - 1)))
 g_dead=$(grey $((dead_at + 3)) $((dead_at + 12)))
-g_back=$(grey $((back_at + 3)) $((back_at + 12)))
+# After the restarted edge's start-up (its tables, its decoders: under load the other cameras'
+# messages can miss their budget then, and whole frame sets go grey).
+g_back=$(grey $((back_at + 13)) $((back_at + 22)))
 echo "unseen cells: $g_before before, $g_dead with camera 4's edge dead, $g_back after it came back"
 [ "${g_dead:-0}" -gt "${g_before:-0}" ] && [ "${g_back:-0}" -lt "${g_dead:-0}" ] && [ "$g_back" -gt 0 ] && ok ||
   fail "unseen cells: $g_before before, $g_dead with camera 4 dead, $g_back after"
