@@ -270,9 +270,14 @@ void BackgroundProtection::AddPeople(const std::vector<Eigen::Vector2d>& positio
   }
 }
 
+void BackgroundProtection::AddMissedPeople(const std::vector<Eigen::Vector2d>& positions_m, double radius_m) {
+  for (const Eigen::Vector2d& p : positions_m) Protect(p.x(), p.y(), radius_m + options_.margin_m, BackgroundModel::kObject);
+}
+
 const std::vector<bool>& WalkedPeople::Update(const std::vector<Eigen::Vector2d>& positions_m) {
   pairs_.clear();
   for (size_t a = 0; a < people_.size(); ++a) {
+    if (people_[a].missed >= options_.forget_frames) continue;  // only remembered where last seen
     for (size_t b = 0; b < positions_m.size(); ++b) {
       const double d = (people_[a].last_m - positions_m[b]).norm();
       if (d <= options_.gate_m) pairs_.push_back({d, {static_cast<int>(a), static_cast<int>(b)}});
@@ -289,20 +294,45 @@ const std::vector<bool>& WalkedPeople::Update(const std::vector<Eigen::Vector2d>
   }
   // Missed people age; the forgotten leave (matched ones keep their index until then).
   for (size_t a = 0; a < people_.size(); ++a) people_[a].missed = matched_[a] ? 0 : people_[a].missed + 1;
-  walked_.assign(positions_m.size(), false);
   for (size_t b = 0; b < positions_m.size(); ++b) {
     const int a = person_of_[b];
     if (a < 0) continue;
     Person& p = people_[static_cast<size_t>(a)];
     p.last_m = positions_m[b];
+    if ((p.last_m - p.still_at_m).norm() > options_.still_m) {
+      p.still_at_m = p.last_m;
+      p.still_for = 0;
+    } else {
+      ++p.still_for;
+    }
     p.walked = p.walked || (p.last_m - p.first_m).norm() > options_.walked_m;
-    walked_[b] = p.walked;
   }
-  std::erase_if(people_, [&](const Person& p) { return p.missed >= options_.forget_frames; });
+  walked_.assign(positions_m.size(), false);
   for (size_t b = 0; b < positions_m.size(); ++b) {
-    if (person_of_[b] < 0) people_.push_back({positions_m[b], positions_m[b], false, 0});
+    if (person_of_[b] >= 0) walked_[b] = people_[static_cast<size_t>(person_of_[b])].walked;
+  }
+  std::erase_if(people_, [&](const Person& p) {
+    return p.missed >= std::max(options_.forget_frames, options_.hold_frames);
+  });
+  missed_m_.clear();
+  for (const Person& p : people_) {
+    // Only walkers (a ghost never walked) who stood when last seen (one who walked on is not
+    // where they were).
+    if (p.walked && p.missed > 0 && p.missed < options_.hold_frames && p.still_for >= options_.still_frames) {
+      missed_m_.push_back(p.last_m);
+    }
+  }
+  for (size_t b = 0; b < positions_m.size(); ++b) {
+    if (person_of_[b] >= 0) continue;
+    Person& p = people_.emplace_back();
+    p.first_m = p.last_m = p.still_at_m = positions_m[b];
   }
   return walked_;
+}
+
+int WalkedPeople::followed() const {
+  return static_cast<int>(std::count_if(people_.begin(), people_.end(),
+                                        [&](const Person& p) { return p.missed < options_.forget_frames; }));
 }
 
 void BackgroundProtection::Compute(const OccupancyMap& map, const std::vector<ImageView<const uint8_t>>& changes) {

@@ -87,6 +87,9 @@ class BackgroundProtection {
   // persons, a box of radius_m (plus the margin) around each; walked[k] (when given) marks
   // person k kWalkedPerson (WalkedPeople below).
   void AddPeople(const std::vector<Eigen::Vector2d>& positions_m, double radius_m, const std::vector<bool>& walked = {});
+  // After AddPeople: people the detector missed (WalkedPeople::missed_m), protected as objects
+  // where they were last seen: a standing person missed for a while is not free floor.
+  void AddMissedPeople(const std::vector<Eigen::Vector2d>& positions_m, double radius_m);
 
   // Instead of Compute (+ AddPeople): the images from boxes another process computed (occmap
   // edge: the fuse's, for its own cameras), persons_m the persons' positions it found.
@@ -128,6 +131,10 @@ class BackgroundProtection {
 // are followed from frame to frame by nearest position within gate_m (greedy, closest pairs
 // first); one who has been farther than walked_m from where they were first seen has walked,
 // for as long as they are followed; one missed for forget_frames frames is forgotten.
+// A person who walked in, stood, and whom the detector then misses (in a crowd, behind
+// another) is remembered for hold_frames: missed_m() gives where they were last seen, to be
+// protected as an object (absorbed after absorb_s steady), not as free floor, where a standing
+// person would become background in relight_s. A ghost never walked, so it is not held.
 //
 //   WalkedPeople walked;
 //   protection.AddPeople(positions, radius_m, walked.Update(positions));   // every frame
@@ -135,6 +142,9 @@ struct WalkedPeopleOptions {
   double gate_m = 0.6;      // farthest a person moves between two frames
   double walked_m = 1.0;    // from the first position: has walked
   int forget_frames = 20;   // missed in a row: forgotten
+  double still_m = 0.3;     // moves less than this: stands
+  int still_frames = 20;    // stood this long when last seen: held where they stood
+  int hold_frames = 300;    // missed in a row: no longer remembered where last seen
 };
 
 class WalkedPeople {
@@ -142,17 +152,22 @@ class WalkedPeople {
   explicit WalkedPeople(WalkedPeopleOptions options = {}) : options_(options) {}
   // This frame's people (metres); the result has one flag per position: has walked.
   const std::vector<bool>& Update(const std::vector<Eigen::Vector2d>& positions_m);
-  int followed() const { return static_cast<int>(people_.size()); }
+  int followed() const;
+  // After Update: where the walkers who stood, and are missed this frame, were last seen.
+  const std::vector<Eigen::Vector2d>& missed_m() const { return missed_m_; }
 
  private:
   struct Person {
     Eigen::Vector2d first_m, last_m;
     bool walked = false;
     int missed = 0;
+    Eigen::Vector2d still_at_m;  // where they have stood since still_for frames
+    int still_for = 0;
   };
   WalkedPeopleOptions options_;
   std::vector<Person> people_;
   std::vector<bool> walked_;
+  std::vector<Eigen::Vector2d> missed_m_;
   std::vector<std::pair<double, std::pair<int, int>>> pairs_;  // (distance, (person, position))
   std::vector<int> person_of_;                                 // per position: matched person or -1
   std::vector<uint8_t> matched_;                               // per person

@@ -334,9 +334,12 @@ TEST(BackgroundProtection, BoxesDrawnForSomeCamerasGiveTheirImages) {
   BackgroundProtection fuse(cameras, 0.0, ProtectionOptions{});
   fuse.Compute(map, views);
   fuse.AddPeople({Eigen::Vector2d(2.0, 1.5)}, 0.25, {true});
-  ASSERT_EQ(fuse.boxes().size(), 2u);
+  fuse.AddMissedPeople({Eigen::Vector2d(0.8, 0.8)}, 0.25);
+  ASSERT_EQ(fuse.boxes().size(), 3u);
   EXPECT_EQ(fuse.boxes()[0].value, BackgroundModel::kObject);
   EXPECT_EQ(fuse.boxes()[1].value, BackgroundModel::kWalkedPerson);
+  EXPECT_EQ(fuse.boxes()[2].value, BackgroundModel::kObject);  // a person missed: an object
+  EXPECT_EQ(fuse.persons(), 1);
   BackgroundProtection edge({cameras[1], cameras[3]}, 0.0, ProtectionOptions{});
   edge.Draw(fuse.boxes(), fuse.person_positions());
   EXPECT_EQ(edge.person_positions(), fuse.person_positions());
@@ -378,6 +381,31 @@ TEST(WalkedPeople, OnlyThoseSeenWalkingHaveWalked) {
   const std::vector<bool>& jumped = walked.Update({Eigen::Vector2d(5.0, 5.0), Eigen::Vector2d(4.0, 3.0)});
   EXPECT_FALSE(jumped[0]);
   EXPECT_FALSE(jumped[1]);
+}
+
+// A walker who stops and is then missed (behind others in a crowd) is remembered where they
+// stood, for hold_frames; someone who never walked (a ghost), and a walker missed while still
+// walking, are not.
+TEST(WalkedPeople, AWalkerWhoStoodIsHeldWhereLastSeen) {
+  WalkedPeople walked(WalkedPeopleOptions{.hold_frames = 50});
+  const Eigen::Vector2d ghost(5.0, 5.0);
+  Eigen::Vector2d stander(1.0, 1.0), passer(8.0, 0.5);
+  for (int f = 0; f < 60; ++f) {  // the stander walks 2 m and stands; the passer walks on
+    stander = Eigen::Vector2d(1.0 + 0.1 * std::min(f, 20), 1.0);
+    passer = Eigen::Vector2d(8.0, 0.5 + 0.1 * f);
+    walked.Update({stander, ghost, passer});
+    EXPECT_TRUE(walked.missed_m().empty()) << "frame " << f;
+  }
+  for (int f = 0; f < 60; ++f) {  // all three missed
+    walked.Update({});
+    if (f < 49) {
+      ASSERT_EQ(walked.missed_m().size(), 1u) << "missed frame " << f;
+      EXPECT_EQ(walked.missed_m()[0], stander);
+    } else {
+      EXPECT_TRUE(walked.missed_m().empty()) << "missed frame " << f;
+    }
+  }
+  EXPECT_EQ(walked.followed(), 0);
 }
 
 // The small room's tables, and the floor a cast shadow covers in the shadow tests.

@@ -33,6 +33,7 @@ FusionStage::FusionStage(const Site& site, const RunOptions& options, const Fusi
       protection_changes_(cams.size()),
       check_classes_(cams.size()),
       check_changes_(cams.size()),
+      walked_people_(WalkedPeopleOptions{.hold_frames = std::max(1, static_cast<int>(std::lround(site.backgrounds.absorb_s * fps)))}),
       teacher_classes_(cams.size()),
       teacher_ratios_(cams.size()),
       last_frame_index_(options.start_frame),
@@ -217,6 +218,7 @@ void FusionStage::UpdateBackgrounds(FrameSet& set, Context& ctx) {
     people_positions_.clear();
     for (const ExplainedPerson& p : set.people) people_positions_.emplace_back(p.x_m, p.y_m);
     protection_->AddPeople(people_positions_, site_.tracking.person_radius_m(), walked_people_.Update(people_positions_));
+    protection_->AddMissedPeople(walked_people_.missed_m(), site_.tracking.person_radius_m());
   }
   // Without models (occmap fuse: the edges keep them) only the protection is wanted.
   const bool any_model = std::any_of(cams_.begin(), cams_.end(), [](const CameraState& c) { return c.model != nullptr; });

@@ -102,7 +102,7 @@ class FusionStage {
   std::optional<ShadowCheck> shadow_check_;
   std::vector<ImageView<const uint8_t>> check_classes_;
   std::vector<ImageView<uint8_t>> check_changes_;
-  WalkedPeople walked_people_;  // people seen walking in stay people where they stop
+  WalkedPeople walked_people_;  // people seen walking in stay people where they stop; missed ones objects
   std::vector<Eigen::Vector2d> people_positions_;
   std::vector<ImageView<const uint8_t>> teacher_classes_, teacher_ratios_;
   int64_t last_frame_index_ = 0;
