@@ -1154,6 +1154,11 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
       const int steady = std::abs(level - prev) <= steady_levels ? steady_frames_[i] + 1 : 0;
       steady_frames_[i] = static_cast<uint16_t>(std::min(steady, 65535));
       if (steady >= (prot[x] == kFree ? relight : absorb)) {
+        // The look it replaces becomes the alternative: what was absorbed (a person the map
+        // lost, a box) shows it again when it leaves, and is swapped out in relight_s.
+        alt_y_[i] = static_cast<uint8_t>(std::min(255, (by_[i] + 128) >> 8));
+        alt_valid_[i] = 1;
+        alt_frames_[i] = 0;
         by_[i] = static_cast<uint16_t>(inv_y[static_cast<size_t>(level)]);
         if (chroma_here) {
           bu_[c] = static_cast<uint16_t>(inv_c[fu[x >> 1]]);

@@ -26,6 +26,9 @@
 //      - protected by an object that is not a person, changed and steady for absorb_s: taken
 //        as background (a chair pushed and left);
 //      - protected by a person: never updated (a person standing still stays a person).
+//    What is taken as background keeps the look it replaced as the pixel's alternative (below),
+//    so that what was absorbed and leaves (a person the map lost while they stood) is swapped
+//    out again in relight_s, like the ghost of a learned-in person.
 //
 // The shadow test (Cucchiara et al. 2003, Horprasert et al. 1999, in Y'CbCr; the texture test
 // as in Sanin et al. 2012): a changed pixel is a cast shadow when it is darker than the
@@ -218,7 +221,8 @@ class BackgroundModel {
   // a person who stood through the learning window and then left is background again (otherwise
   // their ghost would stand as a person for ever), while a person seen walking in to stand where
   // the learner took them for the floor stays a person. Alternatives with fewer than
-  // min_support samples are ignored.
+  // min_support samples are ignored. Update also keeps, as a pixel's alternative, the look that
+  // each absorption replaces.
   void SetAlternative(const BackgroundLearner::Alternative& alternative, int min_support);
   // Pixel (x, y)'s background luma (8-bit), and its alternative's or -1 when it has none.
   int BackgroundLevel(int x, int y) const { return std::min(255, (by_[Index(x, y)] + 128) >> 8); }
