@@ -600,7 +600,7 @@ void BackgroundModel::SwapWithAlternative(int x, int y) {
   const uint8_t old = static_cast<uint8_t>(std::min(255, (by_[i] + 128) >> 8));
   by_[i] = static_cast<uint16_t>(alt_y_[i] << 8);
   alt_y_[i] = old;
-  if (chroma_ && x % 2 == 0 && y % 2 == 0) {
+  if (chroma_ && !alt_u_.empty() && x % 2 == 0 && y % 2 == 0) {
     const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
     const uint8_t old_u = static_cast<uint8_t>(std::min(255, (bu_[c] + 128) >> 8));
     const uint8_t old_v = static_cast<uint8_t>(std::min(255, (bv_[c] + 128) >> 8));
@@ -1119,6 +1119,10 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
           if (++alt_frames_[i] >= relight) {
             const uint8_t old = static_cast<uint8_t>(std::min(255, (by_[i] + 128) >> 8));
             by_[i] = static_cast<uint16_t>(inv_y[static_cast<size_t>(level)]);
+            if (chroma_here && !alt_u_.empty()) {
+              alt_u_[c] = static_cast<uint8_t>(std::min(255, (bu_[c] + 128) >> 8));
+              alt_v_[c] = static_cast<uint8_t>(std::min(255, (bv_[c] + 128) >> 8));
+            }
             if (chroma_here) {
               bu_[c] = static_cast<uint16_t>(inv_c[fu[x >> 1]]);
               bv_[c] = static_cast<uint16_t>(inv_c[fv[x >> 1]]);
@@ -1159,6 +1163,10 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
         alt_y_[i] = static_cast<uint8_t>(std::min(255, (by_[i] + 128) >> 8));
         alt_valid_[i] = 1;
         alt_frames_[i] = 0;
+        if (chroma_here && !alt_u_.empty()) {
+          alt_u_[c] = static_cast<uint8_t>(std::min(255, (bu_[c] + 128) >> 8));
+          alt_v_[c] = static_cast<uint8_t>(std::min(255, (bv_[c] + 128) >> 8));
+        }
         by_[i] = static_cast<uint16_t>(inv_y[static_cast<size_t>(level)]);
         if (chroma_here) {
           bu_[c] = static_cast<uint16_t>(inv_c[fu[x >> 1]]);

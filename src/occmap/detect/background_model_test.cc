@@ -205,6 +205,13 @@ TEST(BackgroundModel, WhatIsAbsorbedKeepsTheLookItReplaced) {
   EXPECT_GE(cleared_at, 10);
   EXPECT_LE(cleared_at, 11);
   EXPECT_EQ(model.AlternativeLevel(3, 3), 250);
+  // A model started from a given background has no alternative chroma: swapping a kept look
+  // exchanges luma alone.
+  ASSERT_TRUE(truth.has_chroma());
+  const int floor_level = model.BackgroundLevel(2, 2);
+  model.SwapWithAlternative(2, 2);
+  EXPECT_EQ(model.BackgroundLevel(2, 2), 250);
+  EXPECT_EQ(model.AlternativeLevel(2, 2), floor_level);
 }
 
 TEST(BackgroundLearner, NormalisesExposureDriftBetweenSamples) {
