@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <thread>
 
 #include "occmap/detect/background.h"
 #include "occmap/lut/ground_lut.h"
@@ -401,11 +402,30 @@ Result<std::vector<CameraState>> OpenCameras(const Site& site, const RunOptions&
     }
     c.source = std::move(src).value();
     c.info.source = c.source->Describe();
-    const Status background = plan.adaptive && !c.is_mask
-                                  ? PrepareAdaptiveBackground(site, options, plan.chroma, background_opts, c)
-                                  : PrepareBackground(site, options, plan.colour, background_opts, c);
-    if (!background.ok()) {
-      return background.WithContext(SiteCameraLocation(site, n, c.cam->background ? "background" : "source"));
+  }
+  // Backgrounds: a live stream's are read from the stream as it goes (learn_s of it when
+  // adaptive), so the streams are read at once, a thread each: an edge box of 3 cameras that
+  // reboots learns in learn_s, not 3 learn_s. Files are read one after the other.
+  std::vector<Status> backgrounds(cams.size());
+  auto prepare = [&](size_t k) {
+    CameraState& c = cams[k];
+    backgrounds[k] = plan.adaptive && !c.is_mask ? PrepareAdaptiveBackground(site, options, plan.chroma, background_opts, c)
+                                                 : PrepareBackground(site, options, plan.colour, background_opts, c);
+  };
+  std::vector<std::thread> readers;
+  for (size_t k = 0; k < cams.size(); ++k) {
+    if (cams[k].cam->source.kind == FrameSourceSpec::Kind::kStream) {
+      readers.emplace_back(prepare, k);
+    } else {
+      prepare(k);
+    }
+  }
+  for (std::thread& t : readers) t.join();
+  for (size_t k = 0; k < cams.size(); ++k) {
+    const size_t n = index[k];
+    CameraState& c = cams[k];
+    if (!backgrounds[k].ok()) {
+      return backgrounds[k].WithContext(SiteCameraLocation(site, n, c.cam->background ? "background" : "source"));
     }
     if (options.start_frame > 0) {
       if (Status s = c.source->SkipTo(options.start_frame); !s.ok()) {

@@ -60,6 +60,8 @@ Status RestartAdaptiveModel(const Site& site, const RunOptions& options, const F
                             CameraState& c, const YuvImage& background);
 // Every camera's source opened (at options.start_frame) and its background prepared; with
 // `only` (indices into site.cameras, an edge process's cameras) those cameras alone, in that order.
+// Live streams' backgrounds (estimated or learned from the stream as it goes) are prepared at
+// once, a thread each: learning takes learn_s however many streams; files' one after the other.
 Result<std::vector<CameraState>> OpenCameras(const Site& site, const RunOptions& options, const FusionPlan& plan,
                                              Context& ctx, const std::vector<size_t>& only = {});
 
