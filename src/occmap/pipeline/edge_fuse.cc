@@ -303,6 +303,7 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
   bool away = false;
   bool waiting = true;  // for the fuse's protections (files); false after a wait gave up, until one arrives
   int64_t received_when_given_up = 0;
+  int64_t connects_seen = link->connects();  // connections to the broker by the last frame's end
   Clock::time_point away_since;
   int64_t lost_while_away = 0;
   // While the broker is away, files wait for it (nothing is lost); live streams go on and the
@@ -366,13 +367,20 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
       }
       if (!any_live && waiting && !backgrounds->Ready(set.frame_index)) {
         const auto t0 = Clock::now();
+        // A broker that went away since the last frame may have lost the due protection (the
+        // fuse waits for this edge's next frame then): a reconnection ends the wait.
+        bool reconnected = false;
         while (!backgrounds->Ready(set.frame_index) && !stop_requested() && Since(t0) < o.protection_wait_s) {
           if (auto r = link->Pop(std::chrono::milliseconds(50))) backgrounds->Receive(*r);
+          if ((reconnected = link->connects() != connects_seen && link->connected())) break;
         }
         if (!backgrounds->Ready(set.frame_index) && !stop_requested()) {
-          std::fputs(fmt::format("occmap edge: no protection from the fuse for frame {} after {:.0f} s: changed pixels "
-                                 "protected until one arrives\n",
-                                 set.frame_index, o.protection_wait_s)
+          std::fputs((reconnected ? fmt::format("occmap edge: the broker is back; the protection for frame {} lost with "
+                                                "it: changed pixels protected until one arrives\n",
+                                                set.frame_index)
+                                  : fmt::format("occmap edge: no protection from the fuse for frame {} after {:.0f} s: "
+                                                "changed pixels protected until one arrives\n",
+                                                set.frame_index, o.protection_wait_s))
                          .c_str(),
                      stderr);
           waiting = false;
@@ -380,6 +388,7 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
         }
       }
       if (!waiting && backgrounds->received() > received_when_given_up) waiting = true;
+      connects_seen = link->connects();
       backgrounds->Update(set, ctx);
     }
   }

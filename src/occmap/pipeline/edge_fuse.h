@@ -51,8 +51,9 @@ struct EdgeOptions {
   std::string topic_prefix;          // empty: occmap/<site slug>
   std::string client_id;             // empty: occmap-edge-<site slug>-<first camera>
   // Adaptive backgrounds: frame t is updated with the fuse's protection of frame t - lag at the
-  // oldest; over files the edge waits up to protection_wait_s for it (then goes on with changed
-  // pixels protected, without waiting again until one arrives); over live streams the latest
+  // oldest; over files the edge waits up to protection_wait_s for it, or until the broker is
+  // back from an outage that may have lost it (then goes on with changed pixels protected,
+  // without waiting again until one arrives); over live streams the latest
   // protection is applied while younger than protection_stale_s.
   int protection_lag_frames = 1;
   double protection_wait_s = 30;
