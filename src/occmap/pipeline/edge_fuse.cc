@@ -273,6 +273,12 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
     summary.consensus_pixels_checked = r.pixels_checked;
     summary.consensus_pixels_swapped = r.pixels_swapped;
   }
+  // What a restarted edge did before it can publish (learned again, or reused from the cache).
+  std::string backgrounds_said;
+  for (const CameraState& c : cams) backgrounds_said += fmt::format("{}{}: {}", backgrounds_said.empty() ? "" : "; ", c.cam->id, c.info.background);
+  summary.startup_s = Since(t_start);
+  std::fputs(fmt::format("occmap edge: cameras ready after {:.1f} s; backgrounds: {}\n", summary.startup_s, backgrounds_said).c_str(),
+             stderr);
   FrameSet set;
   set.frames.resize(cams.size());
   set.active.assign(cams.size(), false);

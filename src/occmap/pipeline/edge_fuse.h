@@ -69,6 +69,9 @@ struct EdgeSummary {
   // do and lose nothing), and messages the broker had not acknowledged when the edge stopped.
   int64_t lost = 0;
   double seconds = 0;
+  // From the start to the first frame: the sources opened, the backgrounds given, reused from
+  // the cache or learned (a live camera's: learn_s of its stream, every camera at once).
+  double startup_s = 0;
   std::string stop_reason;
   // Adaptive backgrounds: the fuse's protections received, the frame sets updated without one
   // (changed pixels protected), and the learned backgrounds' check over this edge's cameras.
