@@ -5,7 +5,11 @@
 #     `occmap synth --video`: one `occmap edge` reads every camera; `occmap edge-sim --record`
 #     keeps its messages. Bytes per camera-frame against the video's own (its files' bytes per
 #     camera-frame), and the edge's CPU per camera-frame after its first message (decoding
-#     included; the start-up apart).
+#     included; the start-up apart). plaza-learned: the plaza with the backgrounds its edge learns
+#     (backgrounds.adaptive, not settled), so with a fuse sending the edge its protections: also
+#     the fuse's CPU per frame set and its latency (from the edge's read of a frame set to its
+#     outputs written, summary.json's latency_ms; over files the edge waits for the protection of
+#     the frame before, so edge and fuse go in step).
 #  2. Per count in CAMERAS (4 16 64): a site repeating the WILDTRACK scene's 7 cameras that many
 #     times; `occmap fuse` on it, and edges simulated by `occmap edge-sim --replay` (4 cameras per
 #     process: 1, 4, 16 processes) sending the recorded messages again at RATE frame sets/s for
@@ -14,7 +18,7 @@
 #     sent at) to the frame set's outputs written (summary.json's latency_ms).
 #
 #   scripts/bench-edge-fuse.sh build/release/occmap [WORK_DIR]
-#   PEOPLE=off FRAMES=100 RATE=10 SECONDS_PER_RUN=30 CAMERAS="4 16 64" SCENES="lab wildtrack plaza" scripts/bench-edge-fuse.sh ...
+#   PEOPLE=off FRAMES=100 RATE=10 SECONDS_PER_RUN=30 CAMERAS="4 16 64" SCENES="lab wildtrack plaza plaza-learned" scripts/bench-edge-fuse.sh ...
 # BLOCK_PX=2 (or "[1, 2]"): the sites' changes in blocks (detection.block_px), as the edges send
 # them; BLOCK_RULE=half: a block changed when half its pixels are (detection.block_rule).
 set -euo pipefail
@@ -24,7 +28,7 @@ frames=${FRAMES:-100}
 rate=${RATE:-10}
 seconds=${SECONDS_PER_RUN:-30}
 counts=${CAMERAS:-4 16 64}
-scenes=${SCENES:-lab wildtrack plaza}
+scenes=${SCENES:-lab wildtrack plaza plaza-learned}
 per_process=${CAMERAS_PER_EDGE:-4}
 # PEOPLE=off: the fuse runs the floor AND alone (the site's people: section left out); else the scene's own
 # people detector (WILDTRACK: explain).
@@ -64,19 +68,31 @@ echo "mosquitto on $broker ($(/usr/sbin/mosquitto -h 2>/dev/null | head -1))"
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
 
 # --- 1. Bytes per camera-frame and the edge's CPU, per scene.
-printf '\n%-10s %8s %12s %12s %8s %14s\n' scene cameras "video B/f" "message B/f" "ratio" "edge CPU ms/f"
+printf '\n%-13s %8s %12s %12s %8s %14s %14s %16s\n' scene cameras "video B/f" "message B/f" "ratio" "edge CPU ms/f" \
+  "fuse CPU ms/set" "p50/p99 ms"
 for scene in $scenes; do
   dir="$work/$scene"
   scale=()
   [ "$scene" != lab ] && scale=(--scale 0.5)
+  learned=false
+  [ "$scene" = plaza-learned ] && learned=true
   # Given backgrounds: the edge runs here without a fuse, and adaptive ones (the plaza's default)
-  # are updated from the fuse's protections (an edge alone would wait for them).
+  # are updated from the fuse's protections (an edge alone would wait for them). plaza-learned:
+  # no given backgrounds, and a fuse.
+  given=(--site-backgrounds)
+  $learned && given=()
   if [ ! -f "$dir/site.yaml" ]; then
-    nice "$occmap" synth --scene "$scene" "${scale[@]}" --site-backgrounds --frames "$frames" --video --no-change-masks --out "$dir" \
-      >"$work/synth-$scene.log" 2>&1
+    nice "$occmap" synth --scene "${scene%-learned}" "${scale[@]}" "${given[@]}" --frames "$frames" --video --no-change-masks \
+      --out "$dir" >"$work/synth-$scene.log" 2>&1
   fi
-  # Not the adaptive backgrounds (the plaza's): the scene's given ones instead (see above).
-  sed 's/^\(  adaptive:\) true/\1 false/' "$dir/site.yaml" >"$dir/site-edge.yaml"
+  if $learned; then
+    # Learned and kept up at the edge; not settled (that needs the fused map while it learns).
+    sed 's/^  adaptive: true$/  adaptive: true\n  settle: false/' "$dir/site.yaml" >"$dir/site-edge.yaml"
+    grep -q 'settle: false' "$dir/site-edge.yaml" || { echo "$scene: the site is not adaptive" >&2; exit 1; }
+  else
+    # Not the adaptive backgrounds (the plaza's): the scene's given ones instead (see above).
+    sed 's/^\(  adaptive:\) true/\1 false/' "$dir/site.yaml" >"$dir/site-edge.yaml"
+  fi
   if [ "$block_px" != 1 ]; then
     if grep -q '^detection:$' "$dir/site-edge.yaml"; then
       sed -i "s/^detection:\$/detection:\n  block_px: $block_px\n  block_rule: $block_rule/" "$dir/site-edge.yaml"
@@ -89,6 +105,17 @@ for scene in $scenes; do
   record_pid=$!
   pids+=("$record_pid")
   wait_for "$work/record-$scene.log" "subscribed" 10
+  fuse_pid=""
+  if $learned; then
+    rm -rf "$dir/fuse"
+    /usr/bin/time -f "%U %S" -o "$work/fuse-$scene.time" "$occmap" fuse "$dir/site-edge.yaml" --broker "$broker" \
+      --out "$dir/fuse" --no-video --latency-budget-s 60 --dead-after-s 60 --start-wait-s 600 --no-cache \
+      >"$work/fuse-$scene.log" 2>&1 &
+    fuse_time_pid=$!
+    fuse_pid=$(child_of $fuse_time_pid)
+    pids+=("$fuse_pid")
+    wait_for "$work/fuse-$scene.log" "subscribed to" 120
+  fi
   # The edge's first message marks the end of its start-up.
   mosquitto_sub -h 127.0.0.1 -p "$port" -t "occmap/+/edge/+" -C 1 >/dev/null 2>&1 &
   first_pid=$!
@@ -99,26 +126,37 @@ for scene in $scenes; do
   # The edge's first message (or its failure) ends the wait.
   while kill -0 $first_pid 2>/dev/null && kill -0 $time_pid 2>/dev/null; do sleep 0.01; done
   cpu_start=$(cpu_of "$edge_pid" 2>/dev/null || echo 0)
+  fuse_cpu_start=0
+  [ -n "$fuse_pid" ] && fuse_cpu_start=$(cpu_of "$fuse_pid" 2>/dev/null || echo 0)
   wait $time_pid || { echo "occmap edge failed on $scene: $(tail -2 "$work/edge-$scene.log")" >&2; exit 1; }
   kill $first_pid 2>/dev/null || true
   wait $record_pid
+  [ -n "$fuse_pid" ] && { wait $fuse_time_pid || { echo "occmap fuse failed on $scene: $(tail -2 "$work/fuse-$scene.log")" >&2; exit 1; }; }
   cams=$(grep -c '^  - id:' "$dir/site.yaml")
   video=$(cat "$dir"/frames/*.mp4 | wc -c)
-  python3 - "$work" "$scene" "$cams" "$frames" "$video" "$cpu_start" <<'PY'
-import re, sys
+  python3 - "$work" "$scene" "$cams" "$frames" "$video" "$cpu_start" "$fuse_cpu_start" "$dir" <<'PY'
+import json, os, re, sys
 work, scene, cams, frames, video, cpu_start = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5]), float(sys.argv[6])
+fuse_cpu_start, scene_dir = float(sys.argv[7]), sys.argv[8]
 rec = open(f"{work}/record-{scene}.log").read()
 m = re.search(r"all: (\d+) messages, ([\d.]+) bytes per message \(([\d.]+) payload\)", rec)
 messages, per_message = int(m.group(1)), float(m.group(2))
 user, system = map(float, open(f"{work}/edge-{scene}.time").read().split()[-2:])
 video_per_frame = video / (cams * frames)
 steady_frames = max(1, messages - cams)
-print(f"{scene:<10} {cams:>8} {video_per_frame:>12.0f} {per_message:>12.0f} {100 * per_message / video_per_frame:>7.1f}% "
-      f"{1e3 * (user + system - cpu_start) / steady_frames:>14.2f}")
+fuse = ""
+if os.path.exists(f"{work}/fuse-{scene}.time") and os.path.exists(f"{scene_dir}/fuse/summary.json"):
+    s = json.load(open(f"{scene_dir}/fuse/summary.json"))
+    fuse_user, fuse_system = map(float, open(f"{work}/fuse-{scene}.time").read().split()[-2:])
+    lat = s["latency_ms"]
+    fuse = f" {1e3 * (fuse_user + fuse_system - fuse_cpu_start) / max(1, s['frames'] - 1):>14.1f} {lat['p50']:>7.1f} /{lat['p99']:>7.1f}"
+print(f"{scene:<13} {cams:>8} {video_per_frame:>12.0f} {per_message:>12.0f} {100 * per_message / video_per_frame:>7.1f}% "
+      f"{1e3 * (user + system - cpu_start) / steady_frames:>14.2f}{fuse}")
 PY
 done
 
 # --- 2. One fuse, simulated edges: 4, 16, 64 cameras of the WILDTRACK scene.
+[ -z "${counts// /}" ] && exit 0
 wt="$work/wildtrack"
 [ -d "$wt/recorded" ] || { echo "the WILDTRACK scene's recording is missing (SCENES must include wildtrack)" >&2; exit 1; }
 printf '\n%8s %6s %8s %8s %12s %16s %16s %9s %6s %8s\n' cameras edges "sets" "sets/s" "fuse CPU ms" "p50/p99 ms" "all: p50/p99" "left out" "late" "peak MB"
