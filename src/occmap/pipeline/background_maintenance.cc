@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include <opencv2/imgproc.hpp>
+
 #include "occmap/detect/background_model.h"
 #include "occmap/util/status.h"
 
@@ -222,11 +224,14 @@ void BackgroundProtection::ProtectChanges(const std::vector<ImageView<const uint
 
 void BackgroundProtection::Protect(double cx, double cy, double radius, uint8_t value) {
   boxes_.push_back({cx, cy, radius, value});
-  // The box's projection: its bounding rectangle in each camera.
+  // The box's projection in each camera: the outline of its two rings' points (the whole image
+  // when it reaches behind the camera). Not their bounding rectangle: in a low camera the box of
+  // someone standing near covers far more than them that way, and holds what lies behind.
   for (size_t n = 0; n < cameras_.size(); ++n) {
     const ImageSize size = cameras_[n]->image_size();
     double u0 = 1e18, v0 = 1e18, u1 = -1e18, v1 = -1e18;
     bool all = true;
+    points_.clear();
     for (int k = 0; k < kRingPoints && all; ++k) {
       const double a = 2 * std::numbers::pi * k / kRingPoints;
       for (double z : {0.0, options_.height_m}) {
@@ -239,6 +244,7 @@ void BackgroundProtection::Protect(double cx, double cy, double radius, uint8_t 
         u1 = std::max(u1, px->x());
         v0 = std::min(v0, px->y());
         v1 = std::max(v1, px->y());
+        points_.emplace_back(static_cast<float>(px->x()), static_cast<float>(px->y()));
       }
     }
     if (!all) {
@@ -250,10 +256,29 @@ void BackgroundProtection::Protect(double cx, double cy, double radius, uint8_t 
     const int c1 = std::clamp(static_cast<int>(std::ceil(u1)) + 1, 0, size.width);
     const int r0 = std::clamp(static_cast<int>(std::floor(v0)), 0, size.height);
     const int r1 = std::clamp(static_cast<int>(std::ceil(v1)) + 1, 0, size.height);
+    if (c0 >= c1 || r0 >= r1) continue;
     Image<uint8_t>& im = images_[n];
+    if (!all) {
+      for (int y = r0; y < r1; ++y) {
+        uint8_t* row = im.row(y);
+        for (int x = c0; x < c1; ++x) row[x] = std::max(row[x], value);
+      }
+      continue;
+    }
+    cv::convexHull(points_, hull_f_);
+    hull_.clear();
+    for (const cv::Point2f& q : hull_f_) {
+      hull_.emplace_back(static_cast<int>(std::lround(q.x)) - c0, static_cast<int>(std::lround(q.y)) - r0);
+    }
+    outline_.create(r1 - r0, c1 - c0, CV_8UC1);
+    outline_.setTo(cv::Scalar(0));
+    cv::fillConvexPoly(outline_, hull_, cv::Scalar(1));
     for (int y = r0; y < r1; ++y) {
       uint8_t* row = im.row(y);
-      for (int x = c0; x < c1; ++x) row[x] = std::max(row[x], value);
+      const uint8_t* inside = outline_.ptr<uint8_t>(y - r0);
+      for (int x = c0; x < c1; ++x) {
+        if (inside[x - c0]) row[x] = std::max(row[x], value);
+      }
     }
   }
 }

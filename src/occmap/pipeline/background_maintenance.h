@@ -18,6 +18,8 @@
 #include <cstdint>
 #include <vector>
 
+#include <opencv2/core.hpp>
+
 #include "occmap/fusion/blobs.h"
 #include "occmap/fusion/occupancy_map.h"
 #include "occmap/geometry/camera_model.h"
@@ -121,6 +123,9 @@ class BackgroundProtection {
   BlobFinder finder_;
   int objects_ = 0, persons_ = 0;
   std::vector<Eigen::Vector2d> person_positions_;
+  std::vector<cv::Point2f> points_, hull_f_;  // a box's projected points, their outline
+  std::vector<cv::Point> hull_;
+  cv::Mat outline_;                            // the outline filled, over its bounding rectangle
 };
 
 // Which of the frame's people the run has seen walk. A learned background takes a person who

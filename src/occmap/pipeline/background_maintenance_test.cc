@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 #include <nlohmann/json.hpp>
 
 #include "occmap/detect/background_model.h"
@@ -313,6 +314,40 @@ TEST(BackgroundProtection, PeopleFromAnotherDetectorAreProtectedAsPersons) {
       EXPECT_EQ(protection.image(n)(0, 0), BackgroundModel::kFree);
     }
   }
+}
+
+// A box protects its projected outline, not the outline's bounding rectangle: in a camera that
+// sees it from the side and above, the rectangle's corners beside the box's top and foot show
+// what lies around and behind it, and stay free.
+TEST(BackgroundProtection, ABoxProtectsItsOutlineNotItsBoundingRectangle) {
+  testing::SmallRoom room(160, 120);
+  std::vector<const CameraModel*> cameras;
+  for (const auto& c : room.cameras) cameras.push_back(&c);
+  BackgroundProtection protection(cameras, 0.0, ProtectionOptions{});
+  protection.ProtectChanges({{}, {}, {}, {}});
+  protection.AddMissedPeople({Eigen::Vector2d(2.0, 1.5)}, 0.25);
+  const double radius = 0.25 + ProtectionOptions{}.margin_m, height = ProtectionOptions{}.height_m;
+  int corners_free = 0;
+  for (size_t n = 0; n < 4; ++n) {
+    double u0 = 1e9, v0 = 1e9, u1 = -1e9, v1 = -1e9;
+    for (int k = 0; k < 12; ++k) {
+      const double a = 2 * std::numbers::pi * k / 12;
+      for (double z : {0.0, height}) {
+        const auto p = room.cameras[n].Project({2.0 + radius * std::cos(a), 1.5 + radius * std::sin(a), z});
+        ASSERT_TRUE(p);
+        u0 = std::min(u0, p->x()), u1 = std::max(u1, p->x()), v0 = std::min(v0, p->y()), v1 = std::max(v1, p->y());
+      }
+    }
+    const auto mid = room.cameras[n].Project({2.0, 1.5, 0.5 * height});
+    ASSERT_TRUE(mid);
+    EXPECT_EQ(protection.image(n)(static_cast<int>(std::lround(mid->x())), static_cast<int>(std::lround(mid->y()))),
+              BackgroundModel::kObject) << "camera " << n;
+    for (const auto& [u, v] : {std::pair{u0, v0}, {u1, v0}, {u0, v1}, {u1, v1}}) {
+      const int x = std::clamp(static_cast<int>(std::lround(u)), 0, 159), y = std::clamp(static_cast<int>(std::lround(v)), 0, 119);
+      corners_free += protection.image(n)(x, y) == BackgroundModel::kFree;
+    }
+  }
+  EXPECT_GE(corners_free, 8) << "of the 16 corners of the four cameras' rectangles";
 }
 
 // An edge draws the fuse's boxes into its own cameras (occmap edge, protection_message.h): the
