@@ -14,12 +14,9 @@ set -uo pipefail
 occmap=$(realpath "${1:?usage: edge_fuse_adaptive_test.sh OCCMAP_BINARY [FRAMES]}")
 frames=${2:-150}
 source "$(dirname "$0")/test_lib.sh"
-for tool in /usr/sbin/mosquitto mosquitto_pub; do
-  command -v "$tool" >/dev/null || { echo "SKIP: no $tool (scripts/install-deps.sh installs it)"; exit 0; }
-done
+tl_need_mosquitto
 tl_init
-"$occmap" synth --scene plaza --scale 0.25 --frames "$frames" --out "$work/plaza" >"$work/synth.log" 2>&1 ||
-  { echo "FAIL synth --scene plaza: $(tail -2 "$work/synth.log")"; exit 1; }
+tl_synth_small_plaza "$occmap" "$work/plaza" "$frames"
 grep -q "adaptive: true" "$work/plaza/site.yaml" || { echo "FAIL the plaza's site is not adaptive"; exit 1; }
 # Edges do not settle their learned backgrounds (that needs the fused map while they learn):
 # the run they are compared with does not either.

@@ -10,9 +10,7 @@ set -uo pipefail
 occmap=$(realpath "${1:?usage: edge_fuse_live_test.sh OCCMAP_BINARY}")
 source "$(dirname "$0")/test_lib.sh"
 tl_require_ffmpeg
-for tool in /usr/sbin/mosquitto mosquitto_pub; do
-  command -v "$tool" >/dev/null || { echo "SKIP: no $tool (scripts/install-deps.sh installs it)"; exit 0; }
-done
+tl_need_mosquitto
 tl_init
 tl_synth_lab "$occmap" "$work/lab" --video --frames 100
 read -r -a ports <<<"$(tl_free_ports udp 4)"

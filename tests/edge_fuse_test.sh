@@ -9,9 +9,7 @@
 set -uo pipefail
 occmap=$(realpath "${1:?usage: edge_fuse_test.sh OCCMAP_BINARY}")
 source "$(dirname "$0")/test_lib.sh"
-for tool in /usr/sbin/mosquitto mosquitto_pub; do
-  command -v "$tool" >/dev/null || { echo "SKIP: no $tool (scripts/install-deps.sh installs it)"; exit 0; }
-done
+tl_need_mosquitto
 tl_init
 tl_synth_lab "$occmap" "$work/lab" --video --frames 60
 tl_broker

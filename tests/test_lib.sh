@@ -52,6 +52,21 @@ tl_finish() {
 }
 
 # tl_synth_lab OCCMAP DIR [synth options...]: the lab scene rendered into DIR (exits on failure).
+# Exits 0 with SKIP when the MQTT broker or its client is missing.
+tl_need_mosquitto() {
+  local tool
+  for tool in /usr/sbin/mosquitto mosquitto_pub; do
+    command -v "$tool" >/dev/null || { echo "SKIP: no $tool (scripts/install-deps.sh installs it)"; exit 0; }
+  done
+}
+
+# The plaza at a quarter of its size, FRAMES frames, into DIR (backgrounds learned).
+tl_synth_small_plaza() {
+  local occmap=$1 dir=$2 frames=$3
+  "$occmap" synth --scene plaza --scale 0.25 --frames "$frames" --out "$dir" >"$dir.synth.log" 2>&1 ||
+    { echo "FAIL synth --scene plaza: $(tail -2 "$dir.synth.log")"; exit 1; }
+}
+
 tl_synth_lab() {
   local occmap=$1 dir=$2
   shift 2
