@@ -270,12 +270,13 @@ void BackgroundProtection::Protect(double cx, double cy, double radius, uint8_t 
     for (const cv::Point2f& q : hull_f_) {
       hull_.emplace_back(static_cast<int>(std::lround(q.x)) - c0, static_cast<int>(std::lround(q.y)) - r0);
     }
-    outline_.create(r1 - r0, c1 - c0, CV_8UC1);
-    outline_.setTo(cv::Scalar(0));
-    cv::fillConvexPoly(outline_, hull_, cv::Scalar(1));
+    outline_.create(size.height, size.width, CV_8UC1);  // reallocated only for another image size
+    cv::Mat roi = outline_(cv::Rect(c0, r0, c1 - c0, r1 - r0));
+    roi.setTo(cv::Scalar(0));
+    cv::fillConvexPoly(roi, hull_, cv::Scalar(1));
     for (int y = r0; y < r1; ++y) {
       uint8_t* row = im.row(y);
-      const uint8_t* inside = outline_.ptr<uint8_t>(y - r0);
+      const uint8_t* inside = roi.ptr<uint8_t>(y - r0);
       for (int x = c0; x < c1; ++x) {
         if (inside[x - c0]) row[x] = std::max(row[x], value);
       }

@@ -125,7 +125,7 @@ class BackgroundProtection {
   std::vector<Eigen::Vector2d> person_positions_;
   std::vector<cv::Point2f> points_, hull_f_;  // a box's projected points, their outline
   std::vector<cv::Point> hull_;
-  cv::Mat outline_;                            // the outline filled, over its bounding rectangle
+  cv::Mat outline_;                            // the outline filled, at a camera's image size
 };
 
 // Which of the frame's people the run has seen walk. A learned background takes a person who
