@@ -594,6 +594,18 @@ void BackgroundModel::SetAlternative(const BackgroundLearner::Alternative& alter
   }
 }
 
+std::array<int, 2> BackgroundModel::BackgroundChroma(int x, int y) const {
+  if (!chroma_) return {128, 128};
+  const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+  return {std::min(255, (bu_[c] + 128) >> 8), std::min(255, (bv_[c] + 128) >> 8)};
+}
+
+std::array<int, 2> BackgroundModel::AlternativeChroma(int x, int y) const {
+  if (!chroma_ || alt_u_.empty()) return {128, 128};
+  const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
+  return {alt_u_[c], alt_v_[c]};
+}
+
 void BackgroundModel::SwapWithAlternative(int x, int y) {
   const size_t i = static_cast<size_t>(y) * width_ + x;
   if (!alt_valid_[i]) return;

@@ -227,6 +227,11 @@ class BackgroundModel {
   // Pixel (x, y)'s background luma (8-bit), and its alternative's or -1 when it has none.
   int BackgroundLevel(int x, int y) const { return std::min(255, (by_[Index(x, y)] + 128) >> 8); }
   int AlternativeLevel(int x, int y) const { return alt_valid_[Index(x, y)] ? alt_y_[Index(x, y)] : -1; }
+  // Pixel (x, y)'s background chroma (Cb, Cr, 8-bit, its 2 x 2 block's), and its alternative's;
+  // 128, 128 without chroma.
+  std::array<int, 2> BackgroundChroma(int x, int y) const;
+  std::array<int, 2> AlternativeChroma(int x, int y) const;
+  bool has_chroma() const { return chroma_; }
   // Exchanges (x, y)'s background and alternative (its chroma block's too when (x, y) is the
   // block's top-left pixel). No-op without an alternative.
   void SwapWithAlternative(int x, int y);

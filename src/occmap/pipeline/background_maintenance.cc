@@ -35,7 +35,7 @@ bool Inside(const Eigen::Vector2d& px, ImageSize size) {
 
 ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vector<const CameraModel*>& cameras,
                                           double plane_height_m, const std::vector<BackgroundModel*>& models,
-                                          int threshold, bool drop_kept) {
+                                          int threshold, int chroma_threshold, bool drop_kept) {
   OCCMAP_CHECK(static_cast<int>(models.size()) == lut.num_cameras(), "consensus: one model (or null) per camera");
   OCCMAP_CHECK(cameras.empty() || cameras.size() == models.size(), "consensus: no cameras or one per model");
   const size_t cams = models.size();
@@ -74,8 +74,14 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
       pixel_block[n][p] = j * bx + i;
     }
   }
-  // Mean background luma per (block, camera), and the pixels with two looks far apart.
+  // Chroma, where every model has it: a look whose Cb or Cr is a change (chroma_threshold) away
+  // from what the other cameras see is not the floor, however close its luma.
+  const bool use_chroma = chroma_threshold > 0 && std::all_of(models.begin(), models.end(), [](const BackgroundModel* m) {
+                            return m == nullptr || m->empty() || m->has_chroma();
+                          });
+  // Mean background luma (and chroma) per (block, camera), and the pixels with two looks far apart.
   std::vector<float> sum(cells * cams, 0.0f);
+  std::vector<float> sum_u(use_chroma ? cells * cams : 0, 0.0f), sum_v(sum_u.size(), 0.0f);
   std::vector<uint16_t> count(cells * cams, 0), two_looks(cells * cams, 0);
   for (size_t n = 0; n < cams; ++n) {
     const BackgroundModel* m = models[n];
@@ -88,6 +94,11 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
       if (count[k] == 65535) continue;
       const int level = m->BackgroundLevel(x, y), alt = m->AlternativeLevel(x, y);
       sum[k] += static_cast<float>(level);
+      if (use_chroma) {
+        const std::array<int, 2> uv = m->BackgroundChroma(x, y);
+        sum_u[k] += static_cast<float>(uv[0]);
+        sum_v[k] += static_cast<float>(uv[1]);
+      }
       ++count[k];
       if (alt >= 0 && std::abs(alt - level) > threshold) ++two_looks[k];
     }
@@ -129,20 +140,44 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
     std::nth_element(ratios.begin(), ratios.begin() + static_cast<ptrdiff_t>(ratios.size() / 2), ratios.end());
     gain[n] = ratios[ratios.size() / 2];
   }
-  // The consensus per cell, in the reference camera's exposure (-1: fewer than three views).
-  std::vector<float> consensus(cells, -1.0f);
-  std::vector<float> values;
   auto median = [&](std::vector<float>& v) {
     std::nth_element(v.begin(), v.begin() + static_cast<ptrdiff_t>(v.size() / 2), v.end());
     return v[v.size() / 2];
   };
+  // Each camera's white balance: its chroma's offset from the reference camera's.
+  std::vector<float> offset_u(cams, 0.0f), offset_v(cams, 0.0f);
+  std::vector<float> values, values_v;
+  for (size_t n = 0; use_chroma && n < cams; ++n) {
+    values.clear();
+    values_v.clear();
+    for (size_t c = 0; c < cells; ++c) {
+      if (count[c * cams + n] == 0 || count[c * cams + ref] == 0) continue;
+      values.push_back(mean(sum_u, c, n) - mean(sum_u, c, ref));
+      values_v.push_back(mean(sum_v, c, n) - mean(sum_v, c, ref));
+    }
+    if (values.size() < 100) continue;
+    offset_u[n] = median(values);
+    offset_v[n] = median(values_v);
+  }
+  // The consensus per cell, in the reference camera's exposure (-1: fewer than three views).
+  std::vector<float> consensus(cells, -1.0f), consensus_u(use_chroma ? cells : 0), consensus_v(consensus_u.size());
   for (size_t c = 0; c < cells; ++c) {
     values.clear();
+    values_v.clear();
     for (size_t n = 0; n < cams; ++n) {
       if (count[c * cams + n]) values.push_back(mean(sum, c, n) / gain[n]);
     }
     if (values.size() < 3) continue;
     consensus[c] = median(values);
+    if (!use_chroma) continue;
+    values.clear();
+    for (size_t n = 0; n < cams; ++n) {
+      if (count[c * cams + n] == 0) continue;
+      values.push_back(mean(sum_u, c, n) - offset_u[n]);
+      values_v.push_back(mean(sum_v, c, n) - offset_v[n]);
+    }
+    consensus_u[c] = median(values);
+    consensus_v[c] = median(values_v);
   }
   // A pixel far from its cell's consensus takes its alternative when that is close. (Taking
   // the consensus itself where there is no alternative was measured worse on the plaza: the
@@ -164,6 +199,16 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
       // The alternative is much closer to what the other cameras see there (the block's mean:
       // no texture, hence a comparison, not a tolerance).
       const float d_alt = std::abs(static_cast<float>(alt) - expected);
+      // The background is kept for good only when its chroma agrees too: a person whose luma
+      // matches the floor's by chance (or a pixel of a kiosk whose ray meets the floor behind
+      // it) keeps the alternative, which the settling pass swaps in when they leave. Swaps stay
+      // decided on luma: guarded too, they lost a person who stood through half the window.
+      auto chroma_far = [&](std::array<int, 2> uv) {
+        if (!use_chroma) return false;
+        const size_t bb = static_cast<size_t>(b);
+        return std::abs(static_cast<float>(uv[0]) - consensus_u[bb] - offset_u[n]) > static_cast<float>(chroma_threshold) ||
+               std::abs(static_cast<float>(uv[1]) - consensus_v[bb] - offset_v[n]) > static_cast<float>(chroma_threshold);
+      };
       // Decided either way, the pixel keeps no alternative: the other cluster is someone who
       // stood there, and swapping it in later (BackgroundModel::Update) would hide them when
       // they stand there again.
@@ -172,7 +217,8 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
         m->DropAlternative(x, y);
         ++result.pixels_swapped;
         ++result.pixels_settled;
-      } else if ((drop_kept || !stood_on[static_cast<size_t>(b)]) && d_bg + static_cast<float>(threshold) < d_alt) {
+      } else if ((drop_kept || !stood_on[static_cast<size_t>(b)]) && d_bg + static_cast<float>(threshold) < d_alt &&
+                 !chroma_far(m->BackgroundChroma(x, y))) {
         m->DropAlternative(x, y);
         ++result.pixels_settled;
       }

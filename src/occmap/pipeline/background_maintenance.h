@@ -67,6 +67,9 @@ struct ConsensusResult {
   int64_t pixels_settled = 0;  // decided either way: their alternative is dropped
 };
 // cameras: at the models' image size, to carry the check beyond the grid (empty: the grid only).
+// chroma_threshold (0: luma alone; the models' chroma otherwise, each camera's white balance
+// matched to the reference camera's): a pixel keeps its background for good only when its Cb
+// and Cr are also within it of the block's consensus.
 // drop_kept: a pixel that keeps its background drops its alternative. Before settling
 // (pipeline/settle_backgrounds.h, drop_kept false) not on a block something stood on (most of
 // the cameras that see it have two looks over a quarter of its pixels): at a person's feet every
@@ -74,7 +77,7 @@ struct ConsensusResult {
 // away, and drops every alternative at its end.
 ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vector<const CameraModel*>& cameras,
                                           double plane_height_m, const std::vector<BackgroundModel*>& models,
-                                          int threshold, bool drop_kept = true);
+                                          int threshold, int chroma_threshold, bool drop_kept = true);
 
 class BackgroundProtection {
  public:

@@ -199,7 +199,7 @@ TEST(ResolveLearnedBackgrounds, APersonLearnedInOneViewTakesTheFloorTheOthersSee
     models.back()->SetAlternative(alt, 3);
     pointers.push_back(models.back().get());
   }
-  const ConsensusResult r = ResolveLearnedBackgrounds(*lut, {}, 0.0, pointers, 20);
+  const ConsensusResult r = ResolveLearnedBackgrounds(*lut, {}, 0.0, pointers, 20, 0);
   EXPECT_GT(floor_pixels_first, 400);
   // Every pixel of the first rectangle that sees the floor takes the floor (its cell seen by at
   // least three cameras), the second keeps the person (no alternative), nothing else moves.
@@ -216,6 +216,62 @@ TEST(ResolveLearnedBackgrounds, APersonLearnedInOneViewTakesTheFloorTheOthersSee
 // The same room with a grid over its first 2 x 1.5 m only: camera 0 has a person learned in
 // where it sees the floor at (3.0, 2.2) m, off the grid. Only with the cameras does the check
 // reach that floor, take it, and settle the pixels (their alternative, the person, dropped).
+// A look whose luma is the floor's but whose colour is not (an orange shirt on grey paving, or
+// the ray of a kiosk's pixel meeting the floor behind it) is not kept for good in colour: its
+// alternative stays, for the settling pass to swap in when the look leaves. A look of the floor's
+// luma and colour is kept, as in grey.
+TEST(ResolveLearnedBackgrounds, ALookOfTheFloorsLumaButNotItsColourKeepsItsAlternative) {
+  testing::SmallRoom room;
+  std::vector<LutCameraInput> inputs;
+  for (const auto& c : room.cameras) inputs.push_back({&c, {}});
+  Context ctx(2);
+  auto lut = BuildGroundLut(inputs, room.grid, LutOptions{}, ctx);
+  ASSERT_TRUE(lut.ok()) << lut.status().message();
+  // Camera 0: over the first rectangle a look of the floor's luma in orange, over the second one
+  // of its luma and colour; both with a dark alternative (the person's shade, a kiosk).
+  const int x0 = 60, x1 = 80, y0 = 60, y1 = 90, x2 = 100, x3 = 120;
+  auto run = [&](int chroma_threshold) {
+    std::vector<std::unique_ptr<BackgroundModel>> models;
+    std::vector<BackgroundModel*> pointers;
+    for (size_t n = 0; n < room.cameras.size(); ++n) {
+      YuvImage b;
+      b.y = Image<uint8_t>(160, 120, 0);
+      b.u = Image<uint8_t>(80, 60, 128);
+      b.v = Image<uint8_t>(80, 60, 128);
+      BackgroundLearner::Alternative alt{{Image<uint8_t>(160, 120, 20), Image<uint8_t>(80, 60, 128), Image<uint8_t>(80, 60, 128)},
+                                         Image<uint8_t>(160, 120, 0)};
+      for (int y = 0; y < 120; ++y) {
+        for (int x = 0; x < 160; ++x) {
+          const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
+          b.y(x, y) = static_cast<uint8_t>(p ? FloorLevel(*p) : 0);
+          const bool first = x >= x0 && x < x1, second = x >= x2 && x < x3;
+          if (n == 0 && y >= y0 && y < y1 && (first || second)) {
+            alt.support(x, y) = 10;
+            if (first) {
+              b.u(x / 2, y / 2) = 80;
+              b.v(x / 2, y / 2) = 180;
+            }
+          }
+        }
+      }
+      models.push_back(std::make_unique<BackgroundModel>(BackgroundOptions{}, 10.0));
+      models.back()->Reset(b);
+      models.back()->SetAlternative(alt, 3);
+      pointers.push_back(models.back().get());
+    }
+    ResolveLearnedBackgrounds(*lut, {}, 0.0, pointers, 20, chroma_threshold);
+    return std::pair{models[0]->AlternativeLevel(x0 + 5, y0 + 5), models[0]->AlternativeLevel(x2 + 5, y0 + 5)};
+  };
+  ASSERT_TRUE(room.cameras[0].PixelToPlane(Eigen::Vector2d(x0 + 5, y0 + 5), 0.0).has_value());
+  ASSERT_TRUE(room.cameras[0].PixelToPlane(Eigen::Vector2d(x2 + 5, y0 + 5), 0.0).has_value());
+  const auto [orange, grey] = run(16);
+  EXPECT_EQ(orange, 20);  // undecided: the alternative stays
+  EXPECT_EQ(grey, -1);    // kept for good
+  const auto [orange_luma, grey_luma] = run(0);
+  EXPECT_EQ(orange_luma, -1);  // luma alone takes the orange for the floor
+  EXPECT_EQ(grey_luma, -1);
+}
+
 TEST(ResolveLearnedBackgrounds, BeyondTheGridWithTheCameras) {
   testing::SmallRoom room;
   const FloorGrid small{.origin_x_m = 0, .origin_y_m = 0, .cells_x = 40, .cells_y = 30, .cell_size_m = 0.05};
@@ -259,9 +315,9 @@ TEST(ResolveLearnedBackgrounds, BeyondTheGridWithTheCameras) {
   std::vector<BackgroundModel*> grid_only_p, beyond_p;
   make(grid_only, grid_only_p);
   make(beyond, beyond_p);
-  ResolveLearnedBackgrounds(*lut, {}, 0.0, grid_only_p, 20);
+  ResolveLearnedBackgrounds(*lut, {}, 0.0, grid_only_p, 20, 0);
   EXPECT_EQ(grid_only[0]->BackgroundLevel(cx, cy), 250);
-  const ConsensusResult r = ResolveLearnedBackgrounds(*lut, cameras, 0.0, beyond_p, 20);
+  const ConsensusResult r = ResolveLearnedBackgrounds(*lut, cameras, 0.0, beyond_p, 20, 0);
   const auto seen = room.cameras[0].PixelToPlane(Eigen::Vector2d(cx, cy), 0.0);
   ASSERT_TRUE(seen.has_value());
   EXPECT_EQ(beyond[0]->BackgroundLevel(cx, cy), FloorLevel(*seen));

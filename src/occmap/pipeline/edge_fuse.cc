@@ -201,7 +201,8 @@ ConsensusResult ResolveAtEdge(const Site& site, const GroundLut& lut, std::vecto
   if (!any_alternative) return {};
   std::vector<const CameraModel*> cameras;
   for (const SiteCamera& c : site.cameras) cameras.push_back(c.camera.get());
-  return ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold);
+  return ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold,
+                                   site.backgrounds.chroma_threshold);
 }
 
 }  // namespace

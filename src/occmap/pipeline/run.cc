@@ -75,7 +75,8 @@ void ResolveBackgrounds(const Site& site, const GroundLut& lut, std::vector<Came
   for (const auto& c : cams) cameras.push_back(c.cam->camera.get());
   const bool settles = std::any_of(cams.begin(), cams.end(), [](const CameraState& c) { return c.settles; });
   const ConsensusResult r =
-      ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold, /*drop_kept=*/!settles);
+      ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold,
+                                site.backgrounds.chroma_threshold, /*drop_kept=*/!settles);
   summary.consensus_pixels_checked = r.pixels_checked;
   summary.consensus_pixels_swapped = r.pixels_swapped;
   summary.consensus_pixels_settled = r.pixels_settled;
