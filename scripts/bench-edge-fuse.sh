@@ -159,7 +159,8 @@ done
 [ -z "${counts// /}" ] && exit 0
 wt="$work/wildtrack"
 [ -d "$wt/recorded" ] || { echo "the WILDTRACK scene's recording is missing (SCENES must include wildtrack)" >&2; exit 1; }
-printf '\n%8s %6s %8s %8s %12s %16s %16s %9s %6s %8s\n' cameras edges "sets" "sets/s" "fuse CPU ms" "p50/p99 ms" "all: p50/p99" "left out" "late" "peak MB"
+printf '\n%8s %6s %8s %8s %12s %16s %16s %9s %9s %9s %6s %8s\n' cameras edges "sets" "sets/s" "fuse CPU ms" "p50/p99 ms" "all: p50/p99" \
+  "1st ms" "late to s" "left out" "late" "peak MB"
 for n in $counts; do
   site="$wt/site-$n.yaml"
   python3 - "$wt/site-edge.yaml" "$site" "$n" "$people" <<'PY'
@@ -193,11 +194,13 @@ PY
   # The latency in the steady state, from outside: each frame set's line appearing in the fuse's
   # tracks.jsonl (written with one write() per frame set) against its t_unix, the tick its
   # frames were sent at; frame sets of the first WARMUP_S seconds (the fuse's stages are made
-  # on its first message) left out. Polled every 2 ms.
+  # on its first message) left out. Polled every 2 ms. Every frame set's (tick after the first,
+  # latency) also goes to latency-N-all.txt: the start-up as a user sees it.
   python3 - "$out/tracks.jsonl" "$work/latency-$n.txt" "$start" "$warmup" "$fuse_pid" <<'PY' &
 import json, os, sys, time
 path, dst, start, warmup, pid = sys.argv[1], sys.argv[2], float(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5])
 seen, buf, lat, lines_seen, steady_cpu = 0, b"", [], 0, None
+every = open(dst.replace(".txt", "-all.txt"), "w")
 hz = os.sysconf("SC_CLK_TCK")
 while True:
     alive = os.path.exists(f"/proc/{pid}")
@@ -219,6 +222,7 @@ while True:
                 steady_cpu = ((int(stat[11]) + int(stat[12])) / hz, lines_seen)
             lat.append(now - t)
         lines_seen += 1
+        every.write(f"{t - start:.3f} {now - t:.4f}\n")
     if not alive:
         break
     time.sleep(0.002)
@@ -253,9 +257,14 @@ lat = s["latency_ms"]
 head, body = open(f"{work}/latency-{n}.txt").read().split("\n", 1)
 steady_cpu, sets_before = float(head.split()[0]), int(head.split()[1])
 steady = sorted(float(v) for v in body.split())
+# The start-up: the first frame set's latency, and the tick (s after the first) of the last frame set
+# over 200 ms (0: none).
+every = [tuple(map(float, l.split())) for l in open(f"{work}/latency-{n}-all.txt")]
+first_ms = 1e3 * every[0][1] if every else float("nan")
+late_to = max((t - every[0][0] for t, v in every if v > 0.2), default=0.0)
 pct = lambda q: 1e3 * steady[min(len(steady) - 1, max(0, int(-(-q * len(steady) // 1)) - 1))] if steady else float("nan")
 print(f"{n:>8} {edges:>6} {sets:>8} {sets / seconds:>8.2f} {1e3 * (user + system - steady_cpu) / max(sets - sets_before, 1):>12.1f} "
-      f"{pct(0.5):>7.1f} /{pct(0.99):>7.1f} {lat['p50']:>7.1f} /{lat['p99']:>7.1f} {left_out:>9} {late:>6} {int(rss_kb) / 1024:>8.0f}"
+      f"{pct(0.5):>7.1f} /{pct(0.99):>7.1f} {lat['p50']:>7.1f} /{lat['p99']:>7.1f} {first_ms:>9.0f} {late_to:>9.1f} {left_out:>9} {late:>6} {int(rss_kb) / 1024:>8.0f}"
       + (f"  ({late_ticks} replay ticks late)" if late_ticks else ""))
 PY
 done

@@ -105,11 +105,12 @@ class ElevatedCheck {
   std::vector<const Image<uint8_t>*> masks_;
   // The projections (SupportPixel), kNotProjected until first used.
   static constexpr int32_t kNotProjected = -2;
-  static constexpr int64_t kTileCells = 4096;
+  static constexpr int64_t kTileSide = 8;  // cells; a tile is 8 x 8 cells (17 kB at 64 cameras)
   std::optional<FloorGrid> support_grid_;
+  size_t support_tiles_x_ = 0;               // tiles per row of the grid
   size_t support_tiles_ = 0;                 // tiles of the grid
   std::vector<int64_t> support_tile_start_;  // [height * tiles + tile]: its start in support_pixel_, -1 none yet
-  std::vector<int32_t> support_pixel_;       // per tile: [cell in tile * (cameras + 1) + camera or memo]
+  std::vector<int32_t> support_pixel_;       // per tile: [cell in tile (row-major) * (cameras + 1) + camera or memo]
   int32_t support_generation_ = 0;           // Apply calls that test, the memos' stamp
   bool frame_begun_ = false;                 // BeginFrame called since the last Apply
   std::vector<size_t> active_cameras_;       // this frame's active cameras, in order
