@@ -60,6 +60,11 @@ CLI::App* AddEdgeCommand(CLI::App& app, EdgeCommand& cmd) {
                 "adaptive backgrounds over live streams: apply the latest protection while younger than this")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  c->add_option("--follow-fuse-s", cmd.options.follow_fuse_s,
+                "files: start after the last frame set of a fuse already fusing (its progress younger than this; 0: "
+                "never, start at --start)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   return c;
 }
 

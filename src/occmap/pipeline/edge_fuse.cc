@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -12,6 +13,7 @@
 #include <set>
 #include <span>
 #include <string>
+#include <string_view>
 #include <thread>
 
 #include "occmap/pipeline/camera_changes.h"
@@ -43,6 +45,33 @@ double UnixNow() {
 
 std::string Prefix(const Site& site, const std::string& given) {
   return given.empty() ? "occmap/" + TopicSlug(site.name) : given;
+}
+
+// The fuse's progress message (docs/formats.md): {"schema":1,"frame":F,"t_unix":T}, F the last
+// frame set fused (frame index), T when it was said (wall clock).
+struct FuseProgress {
+  int64_t frame = 0;
+  double t_unix = 0;
+};
+
+std::string EncodeProgress(const FuseProgress& p) {
+  return fmt::format("{{\"schema\":1,\"frame\":{},\"t_unix\":{:.3f}}}", p.frame, p.t_unix);
+}
+
+// Empty (cleared), another schema or a malformed payload: none.
+std::optional<FuseProgress> DecodeProgress(const std::string& payload) {
+  auto field = [&](std::string_view name, auto& value) {
+    const size_t at = payload.find(fmt::format("\"{}\":", name));
+    if (at == std::string::npos) return false;
+    const char* first = payload.data() + at + name.size() + 3;
+    const char* last = payload.data() + payload.size();
+    auto [end, ec] = std::from_chars(first, last, value);
+    return ec == std::errc() && end != first;
+  };
+  int schema = 0;
+  FuseProgress p;
+  if (!field("schema", schema) || schema != 1 || !field("frame", p.frame) || !field("t_unix", p.t_unix)) return std::nullopt;
+  return p;
 }
 
 // Adaptive backgrounds at an edge (edge_fuse.h): the shadows' floor check and teachers over
@@ -213,7 +242,10 @@ std::string EdgeTopic(const std::string& prefix, const std::string& camera_id) {
 
 std::string ProtectionTopic(const std::string& prefix) { return prefix + "/protection"; }
 
-Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx) {
+std::string ProgressTopic(const std::string& prefix) { return prefix + "/fuse/progress"; }
+
+Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& given, Context& ctx) {
+  EdgeOptions o = given;  // start_frame moves up to the fuse's progress
   OCCMAP_RETURN_IF_ERROR(o.run.Validate());
   OCCMAP_RETURN_IF_ERROR(site.detection.Validate());
   if (site.backgrounds.adaptive) OCCMAP_RETURN_IF_ERROR(site.backgrounds.Validate());
@@ -226,6 +258,7 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
   if (!(o.protection_stale_s > 0)) {
     return InvalidInput(fmt::format("--protection-stale-s: expected > 0, found {}", o.protection_stale_s));
   }
+  if (!(o.follow_fuse_s >= 0)) return InvalidInput(fmt::format("--follow-fuse-s: expected >= 0, found {}", o.follow_fuse_s));
   const auto t_start = Clock::now();
   std::vector<size_t> index;
   for (const std::string& id : o.cameras) {
@@ -246,16 +279,67 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
   }
   // The fuse process fuses change buffers: the edge computes them as a run with them does.
   const FusionPlan plan = ChooseFusionPath(site, /*needs_change_buffer=*/true);
+  const std::string prefix = Prefix(site, o.topic_prefix);
+  const std::string client_id = o.client_id.empty() ? fmt::format("occmap-edge-{}-{}", TopicSlug(site.name),
+                                                                  TopicSlug(site.cameras[index[0]].id))
+                                                     : o.client_id;
+  const std::string protection_topic = ProtectionTopic(prefix);
+  const std::string progress_topic = ProgressTopic(prefix);
+  const bool over_files = std::none_of(index.begin(), index.end(), [&](size_t n) {
+    return site.cameras[n].source.kind == FrameSourceSpec::Kind::kStream;
+  });
+  const bool follow_fuse = over_files && o.follow_fuse_s > 0;
+  std::vector<std::string> subscriptions;
+  if (plan.adaptive) subscriptions.push_back(protection_topic);
+  if (follow_fuse) subscriptions.push_back(progress_topic);
+  OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<MqttLink> link, MqttLink::Start(o.broker, client_id, subscriptions));
+  // Over files, a fuse already fusing (its retained progress, sent right after the subscription)
+  // is joined at its next frame set: frames before it would only be dropped as late.
+  std::vector<MqttReceived> early;  // protections that came meanwhile
+  std::optional<FuseProgress> progress;
+  if (follow_fuse) {
+    const auto t0 = Clock::now();
+    while (!link->subscribed() && Since(t0) < 5 && !(o.run.stop != nullptr && o.run.stop->load())) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    const auto t1 = Clock::now();
+    while (link->subscribed() && !progress && Since(t1) < 0.3) {
+      auto r = link->Pop(std::chrono::milliseconds(20));
+      if (!r) continue;
+      if (r->topic == progress_topic) {
+        progress = DecodeProgress(r->payload);
+      } else {
+        early.push_back(std::move(*r));
+      }
+    }
+    if (progress && !(std::abs(UnixNow() - progress->t_unix) <= o.follow_fuse_s && progress->frame + 1 > o.run.start_frame)) {
+      progress.reset();  // an old one (a fuse killed), or behind --start
+    }
+  }
   RunOptions open_options = o.run;
   open_options.settle_learned_backgrounds = false;  // settling needs the fused map
   OCCMAP_ASSIGN_OR_RETURN(std::vector<CameraState> cams, OpenCameras(site, open_options, plan, ctx, index));
-  const std::string prefix = Prefix(site, o.topic_prefix);
-  const std::string client_id =
-      o.client_id.empty() ? fmt::format("occmap-edge-{}-{}", TopicSlug(site.name), TopicSlug(cams[0].cam->id)) : o.client_id;
-  const std::string protection_topic = ProtectionTopic(prefix);
-  OCCMAP_ASSIGN_OR_RETURN(
-      std::unique_ptr<MqttLink> link,
-      MqttLink::Start(o.broker, client_id, plan.adaptive ? std::vector<std::string>{protection_topic} : std::vector<std::string>{}));
+  // Opened (backgrounds learned or reused) from --start as on the first start; then skipped to
+  // the fuse's latest progress (it went on while the cameras opened).
+  if (progress) {
+    for (auto r = link->Pop(std::chrono::milliseconds(0)); r; r = link->Pop(std::chrono::milliseconds(0))) {
+      if (r->topic != progress_topic) {
+        early.push_back(std::move(*r));
+      } else if (auto later = DecodeProgress(r->payload); later && later->frame > progress->frame) {
+        progress = later;
+      }
+    }
+    for (size_t k = 0; k < cams.size(); ++k) {
+      if (Status s = cams[k].source->SkipTo(progress->frame + 1); !s.ok()) {
+        return s.WithContext(fmt::format("camera {}: skipping to the fuse's frame set {}", cams[k].cam->id, progress->frame + 1));
+      }
+    }
+    std::fputs(fmt::format("occmap edge: the fuse has fused frame set {}: starting at frame {}\n", progress->frame,
+                           progress->frame + 1)
+                   .c_str(),
+               stderr);
+    o.run.start_frame = progress->frame + 1;
+  }
   // Asked before the reader takes the live streams' sources.
   std::vector<double> fps;
   for (const CameraState& c : cams) fps.push_back(c.source->fps().value_or(0.0));
@@ -368,9 +452,15 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
       OCCMAP_RETURN_IF_ERROR(link->Publish(topics[k], bytes));
       ++summary.messages;
     }
+    if (!backgrounds) {  // the fuse's progress, read at the start only
+      while (link->Pop(std::chrono::milliseconds(0))) {
+      }
+    }
     if (backgrounds) {  // the fuse's protection: over files, the one due for this frame is waited for
+      for (const MqttReceived& r : early) backgrounds->Receive(r);
+      early.clear();
       for (auto r = link->Pop(std::chrono::milliseconds(0)); r; r = link->Pop(std::chrono::milliseconds(0))) {
-        backgrounds->Receive(*r);
+        if (r->topic == protection_topic) backgrounds->Receive(*r);
       }
       if (!any_live && waiting && !backgrounds->Ready(set.frame_index)) {
         const auto t0 = Clock::now();
@@ -378,7 +468,7 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& o, Context& ctx
         // fuse waits for this edge's next frame then): a reconnection ends the wait.
         bool reconnected = false;
         while (!backgrounds->Ready(set.frame_index) && !stop_requested() && Since(t0) < o.protection_wait_s) {
-          if (auto r = link->Pop(std::chrono::milliseconds(50))) backgrounds->Receive(*r);
+          if (auto r = link->Pop(std::chrono::milliseconds(50)); r && r->topic == protection_topic) backgrounds->Receive(*r);
           if ((reconnected = link->connects() != connects_seen && link->connected())) break;
         }
         if (!backgrounds->Ready(set.frame_index) && !stop_requested()) {
@@ -471,6 +561,9 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   while (!link->subscribed() && !stop_requested()) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   std::fputs(fmt::format("occmap fuse: subscribed to {}/edge/+ on mqtt://{}:{}\n", prefix, o.broker.host, o.broker.port).c_str(),
              stderr);
+  // A progress left by an earlier fuse that did not end (killed) must not move a starting edge.
+  const std::string progress_topic = ProgressTopic(prefix);
+  OCCMAP_RETURN_IF_ERROR(link->Publish(progress_topic, "", /*retain=*/true));
   std::map<std::string, size_t> camera_of_topic;
   for (size_t n = 0; n < n_cams; ++n) camera_of_topic[EdgeTopic(prefix, site.cameras[n].id)] = n;
 
@@ -559,6 +652,15 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   protection.table_key = EdgeTableKey(site);
   protection.settings_key = EdgeSettingsKey(site);
   Status failure;
+  // By frame index (files): the last frame set fused, retained, for edges that start late.
+  const bool say_progress = align.sync == FrameSync::kIndex;
+  std::optional<FuseProgress> progress_said;
+  Clock::time_point progress_said_at;
+  auto say = [&](int64_t frame) -> Status {
+    progress_said = FuseProgress{frame, UnixNow()};
+    progress_said_at = Clock::now();
+    return link->Publish(progress_topic, EncodeProgress(*progress_said), /*retain=*/true);
+  };
   auto emit = [&](AlignedSet& a) -> Status {
     if (!t_first_set) t_first_set = Clock::now();
     set.frame_index = a.frame;
@@ -605,6 +707,7 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
     FrameRecord record;
     OCCMAP_RETURN_IF_ERROR(post->Process(set, record));
     OCCMAP_RETURN_IF_ERROR(sink_stage.Consume(record));
+    if (say_progress) OCCMAP_RETURN_IF_ERROR(say(set.frame_index));
     ++summary.frames;
     if (progress) progress({summary.frames, std::nullopt, Since(t_start)});
     return Status::Ok();
@@ -630,7 +733,16 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
       if (!a) break;
       failure = emit(*a);
     }
+    // Said again while waiting: an edge takes only a young progress (an old one may be a killed fuse's).
+    if (failure.ok() && progress_said && Clock::now() - progress_said_at > std::chrono::seconds(1)) {
+      failure = say(progress_said->frame);
+    }
     if (aligner.all_ended() && aligner.idle()) break;
+  }
+  if (say_progress) {  // ended: no progress for the next run's edges
+    const Status cleared = link->Publish(progress_topic, "", /*retain=*/true);
+    if (failure.ok()) failure = cleared;
+    link->WaitPublished(std::chrono::seconds(2));
   }
   const RunStats& stats = sink_stage.stats();
   summary.stop_reason = !failure.ok()                                                      ? failure.message()

@@ -5,7 +5,8 @@
 // detect_track_stage.h, sink_stage.h) with run's outputs. On the same inputs the outputs equal
 // `occmap run`'s (a test with a real broker).
 //
-// Topics: <prefix>/edge/<camera id> (and <prefix>/protection), prefix occmap/<site slug> by default.
+// Topics: <prefix>/edge/<camera id> (and <prefix>/protection, <prefix>/fuse/progress), prefix
+// occmap/<site slug> by default.
 // Alignment (edge_align.h): by frame index over files (edges of one site file start at the same
 // frame), by timestamp within a tolerance over live streams (each edge stamps a live frame with
 // its arrival on the edge's wall clock, which NTP keeps in step across hosts). A frame set is
@@ -16,7 +17,10 @@
 // rejoins without a restart of the fuse). Over files, where edges run as fast as they decode, a
 // budget longer than the slowest edge's lag keeps every frame set whole (the outputs then equal
 // `occmap run`'s); over live streams the budget bounds the latency. When every camera has
-// reported the end of its source, the fuse finishes.
+// reported the end of its source, the fuse finishes. Aligning by frame index, the fuse keeps its
+// last frame set fused as a retained message (<prefix>/fuse/progress, refreshed every second,
+// cleared when it ends): an edge over files that starts after the fuse began (a restart) begins
+// at the frame after it rather than sending frames the fuse would drop as late.
 //
 // Adaptive backgrounds (site backgrounds.adaptive): each edge learns and keeps its cameras'
 // backgrounds; their update needs the fused map, so the fuse publishes per frame set the
@@ -58,6 +62,10 @@ struct EdgeOptions {
   int protection_lag_frames = 1;
   double protection_wait_s = 30;
   double protection_stale_s = 2;
+  // Over files: an edge that starts (or restarts) while a fuse is fusing begins at the frame
+  // after the fuse's last frame set (its progress, younger than this on the wall clock) instead
+  // of start_frame, so that it sends nothing the fuse would drop as late. 0: never.
+  double follow_fuse_s = 10;
 };
 
 struct EdgeSummary {
@@ -107,5 +115,8 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& options, Context
 std::string EdgeTopic(const std::string& prefix, const std::string& camera_id);
 // <prefix>/protection: the fuse's protections for the edges' adaptive backgrounds
 std::string ProtectionTopic(const std::string& prefix);
+// <prefix>/fuse/progress: the fuse's last frame set fused (frame index alignment), retained,
+// read by an edge over files when it starts (docs/formats.md).
+std::string ProgressTopic(const std::string& prefix);
 
 }  // namespace occmap

@@ -87,10 +87,10 @@ bool MqttLink::WaitConnected(std::chrono::milliseconds timeout) const {
   return connected_.load();
 }
 
-Status MqttLink::Publish(const std::string& topic, const std::string& payload) {
+Status MqttLink::Publish(const std::string& topic, const std::string& payload, bool retain) {
   ++unacked_;
   const int rc = mosquitto_publish(mosq_, nullptr, topic.c_str(), static_cast<int>(payload.size()), payload.data(),
-                                   /*qos=*/1, /*retain=*/false);
+                                   /*qos=*/1, retain);
   if (rc != MOSQ_ERR_SUCCESS && rc != MOSQ_ERR_NO_CONN) {
     --unacked_;
     return InvalidInput(fmt::format("mqtt: topic '{}': {}", topic, mosquitto_strerror(rc)));

@@ -49,7 +49,9 @@ class MqttLink {
   // Waits up to `timeout` for a connection.
   bool WaitConnected(std::chrono::milliseconds timeout) const;
   // QoS 1; queued by libmosquitto while the broker is away. An error only for bad arguments.
-  Status Publish(const std::string& topic, const std::string& payload);
+  // retain: the broker keeps it as the topic's last message for later subscribers (an empty
+  // retained payload clears it).
+  Status Publish(const std::string& topic, const std::string& payload, bool retain = false);
   // Waits until every publish is acknowledged (false: some still are not after `timeout`).
   bool WaitPublished(std::chrono::milliseconds timeout) const;
   std::optional<MqttReceived> Pop(std::chrono::milliseconds timeout);
