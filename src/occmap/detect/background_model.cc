@@ -30,7 +30,8 @@ constexpr int64_t kWarmUpLookLessons = 3;  // lessons without shadows that drop 
 constexpr double kWarmUpLookMinMass = kLookMinMass / 4;  // when they taught fewer pixels than this
 
 // One row of the luma test: cls = out = 1 where |frame - expected| > threshold or the chroma
-// test said so (cc), expected = clamp((gq b + cq) >> 16); returns the count. Compiled again
+// test said so (cc), expected = clamp((gq b + cq) >> 16) (halfway to the clip where b is
+// clipped: ExpectedLuma); returns the count. Compiled again
 // for AVX2 (32-bit multiplies: the baseline x86-64 has none in SIMD), chosen by the kernel set
 // (util/simd.h); the same values on any path.
 [[gnu::always_inline]] inline int LumaTestRowBody(const uint8_t* frame, const uint8_t* background, const uint8_t* cc,
@@ -40,6 +41,8 @@ constexpr double kWarmUpLookMinMass = kLookMinMass / 4;  // when they taught few
   for (int x = 0; x < width; ++x) {
     int p = (gq * static_cast<int32_t>(background[x]) + cq) >> 16;
     p = p < 0 ? 0 : (p > 255 ? 255 : p);
+    // BackgroundModel::ExpectedLuma's clipped backgrounds.
+    p = background[x] >= BackgroundModel::kClippedWhite ? (p + 256) >> 1 : (background[x] <= BackgroundModel::kClippedBlack ? p >> 1 : p);
     const int d = frame[x] - p;
     const uint8_t c = static_cast<uint8_t>((d > threshold) | (d < -threshold) | cc[x]);
     cls[x] = c;

@@ -212,6 +212,8 @@ class BackgroundModel {
   // kPerson: never updated. kWalkedPerson: a person the run saw walk in, so the floor under
   // them is known; never updated and never swapped with the alternative either.
   static constexpr uint8_t kFree = 0, kObject = 1, kPerson = 2, kWalkedPerson = 3;
+  // Background levels taken as clipped at white or black (ExpectedLuma below).
+  static constexpr int kClippedWhite = 250, kClippedBlack = 3;
 
   BackgroundModel(const BackgroundOptions& options, double fps);
   // Starts from a background (chroma optional; the frames must then have it too).
@@ -347,7 +349,15 @@ class BackgroundModel {
   // The transfer in 16.16 fixed point (the offset with the rounding half added): the expected
   // luma of a background level, the same in the fast and the reference test.
   int32_t gain_q16_ = 65536, offset_q16_ = 32768;
-  int ExpectedLuma(int level) const { return std::clamp((gain_q16_ * level + offset_q16_) >> 16, 0, 255); }
+  // A background clipped at white (or black) hides how bright the scene is there: an exposure
+  // turned down may leave it clipped, or bring it under. Expected: halfway between the transfer's
+  // value and the clip, so that either is within a threshold of it (a white wall in the sun).
+  int ExpectedLuma(int level) const {
+    const int e = std::clamp((gain_q16_ * level + offset_q16_) >> 16, 0, 255);
+    if (level >= kClippedWhite) return (e + 256) >> 1;
+    if (level <= kClippedBlack) return e >> 1;
+    return e;
+  }
   std::vector<uint8_t> chroma_changed_;  // per pixel of the current chroma row
   Image<uint8_t> grow_seeds_, grow_band_;  // GrowChanges: the changes that grow, dilated by a pixel
   Image<int32_t> grow_labels_;             // and their connected components

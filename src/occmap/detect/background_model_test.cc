@@ -522,6 +522,33 @@ TEST(BackgroundModel, AGlobalStepOfFortyLevelsIsFollowedAtOnce) {
   EXPECT_NEAR(model.transfer().offset, 40, 3);
 }
 
+// A wall in the sun is clipped at white in the background: when the exposure drops by a tenth,
+// the wall may stay clipped (it is brighter than the sensor shows) or come under the clip. Neither
+// is a change; a person in front of it is. The fast test and its reference agree.
+TEST(BackgroundModel, AWallClippedAtWhiteIsNoChangeWhenTheExposureDrops) {
+  YuvImage b = TexturedBackground(160, 120, 5);
+  Paint(b, 100, 0, 160, 60, 255, 128, 128);
+  for (bool stays_clipped : {true, false}) {
+    YuvImage f = Seen(b, 0.9, 0, 6);  // the wall at 229-230: under the clip
+    if (stays_clipped) Paint(f, 100, 0, 160, 60, 255, 128, 128);
+    Paint(f, 120, 20, 130, 50, 120, 128, 128);  // someone in front of the wall
+    BackgroundModel model(BackgroundOptions{}, 10);
+    model.Reset(b);
+    Image<uint8_t> fast(160, 120), reference(160, 120);
+    model.DetectChanges(f.view(), 20, fast.view());
+    model.DetectChangesReference(f.view(), 20, reference.view());
+    EXPECT_TRUE(fast == reference) << "stays clipped " << stays_clipped;
+    EXPECT_NEAR(model.transfer().gain, 0.9, 0.03);
+    int wall_changed = 0;
+    for (int y = 0; y < 60; ++y) {
+      // Away from the person and the hysteresis' band around them.
+      for (int x = 100; x < 160; ++x) wall_changed += fast(x, y) != 0 && (x < 116 || x >= 134 || y < 16 || y >= 54);
+    }
+    EXPECT_EQ(wall_changed, 0) << "stays clipped " << stays_clipped;
+    EXPECT_EQ(fast(125, 35), 1);
+  }
+}
+
 // Frames of a background with one steady block changed; the block's protection as given.
 struct UpdateRun {
   BackgroundModel model;
