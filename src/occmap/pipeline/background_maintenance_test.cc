@@ -156,6 +156,14 @@ TEST_F(StillScene, KeepsThePersonAbsorbsTheBoxAndFollowsTheLights) {
   }
 }
 
+// The small room's tables.
+Result<GroundLut> SmallRoomLut(const testing::SmallRoom& room) {
+  std::vector<LutCameraInput> inputs;
+  for (const auto& c : room.cameras) inputs.push_back({&c, {}});
+  Context ctx(1);
+  return BuildGroundLut(inputs, room.grid, LutOptions{}, ctx);
+}
+
 // The floor of the small room: 50 cm squares of two greys.
 int FloorLevel(const Eigen::Vector2d& p) {
   return ((static_cast<int>(std::floor(p.x() / 0.5)) + static_cast<int>(std::floor(p.y() / 0.5))) % 2) ? 160 : 60;
@@ -163,10 +171,7 @@ int FloorLevel(const Eigen::Vector2d& p) {
 
 TEST(ResolveLearnedBackgrounds, APersonLearnedInOneViewTakesTheFloorTheOthersSee) {
   testing::SmallRoom room;
-  std::vector<LutCameraInput> inputs;
-  for (const auto& c : room.cameras) inputs.push_back({&c, {}});
-  Context ctx(2);
-  auto lut = BuildGroundLut(inputs, room.grid, LutOptions{}, ctx);
+  auto lut = SmallRoomLut(room);
   ASSERT_TRUE(lut.ok()) << lut.status().message();
   // Each camera's background is the floor at its own exposure (gain 1 + 0.1 n); camera 0 has a
   // person learned in over two rectangles, the floor as alternative on the first only.
@@ -222,10 +227,7 @@ TEST(ResolveLearnedBackgrounds, APersonLearnedInOneViewTakesTheFloorTheOthersSee
 // luma and colour is kept, as in grey.
 TEST(ResolveLearnedBackgrounds, ALookOfTheFloorsLumaButNotItsColourKeepsItsAlternative) {
   testing::SmallRoom room;
-  std::vector<LutCameraInput> inputs;
-  for (const auto& c : room.cameras) inputs.push_back({&c, {}});
-  Context ctx(2);
-  auto lut = BuildGroundLut(inputs, room.grid, LutOptions{}, ctx);
+  auto lut = SmallRoomLut(room);
   ASSERT_TRUE(lut.ok()) << lut.status().message();
   // Camera 0: over the first rectangle a look of the floor's luma in orange, over the second one
   // of its luma and colour; both with a dark alternative (the person's shade, a kiosk).
@@ -499,13 +501,7 @@ TEST(WalkedPeople, AWalkerWhoStoodIsHeldWhereLastSeen) {
   EXPECT_EQ(walked.followed(), 0);
 }
 
-// The small room's tables, and the floor a cast shadow covers in the shadow tests.
-Result<GroundLut> SmallRoomLut(const testing::SmallRoom& room) {
-  std::vector<LutCameraInput> inputs;
-  for (const auto& c : room.cameras) inputs.push_back({&c, {}});
-  Context ctx(1);
-  return BuildGroundLut(inputs, room.grid, LutOptions{}, ctx);
-}
+// The floor a cast shadow covers in the shadow tests.
 bool InCastShadow(const Eigen::Vector2d& p) { return p.x() >= 1.0 && p.x() < 2.0 && p.y() >= 1.0 && p.y() < 1.6; }
 
 // A cast shadow on the floor is dark in every view; clothing that camera 0 takes for a shadow
