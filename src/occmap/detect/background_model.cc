@@ -200,6 +200,9 @@ Status BackgroundOptions::Validate() const {
   if (!(alternative_min_share >= 0 && alternative_min_share <= 1)) {
     return InvalidInput(fmt::format("backgrounds.alternative_min_share: expected 0..1, found {}", alternative_min_share));
   }
+  if (!(refresh_cache_s >= 0)) {
+    return InvalidInput(fmt::format("backgrounds.refresh_cache_s: expected >= 0 (0: never), found {}", refresh_cache_s));
+  }
   if (!(adapt_s > 0)) return InvalidInput(fmt::format("backgrounds.adapt_s: expected > 0, found {}", adapt_s));
   if (!(relight_s > 0)) return InvalidInput(fmt::format("backgrounds.relight_s: expected > 0, found {}", relight_s));
   if (!(absorb_s > 0)) return InvalidInput(fmt::format("backgrounds.absorb_s: expected > 0, found {}", absorb_s));
@@ -640,6 +643,31 @@ YuvImage BackgroundModel::Current() const {
         const size_t i = static_cast<size_t>(y) * cw_ + x;
         out.u(x, y) = static_cast<uint8_t>(std::min(255, (bu_[i] + 128) >> 8));
         out.v(x, y) = static_cast<uint8_t>(std::min(255, (bv_[i] + 128) >> 8));
+      }
+    }
+  }
+  return out;
+}
+
+BackgroundLearner::Alternative BackgroundModel::CurrentAlternative(uint8_t support) const {
+  BackgroundLearner::Alternative out;
+  out.levels.y = Image<uint8_t>(width_, height_);
+  out.support = Image<uint8_t>(width_, height_);
+  for (int y = 0; y < height_; ++y) {
+    for (int x = 0; x < width_; ++x) {
+      const size_t i = static_cast<size_t>(y) * width_ + x;
+      out.levels.y(x, y) = alt_y_[i];
+      out.support(x, y) = alt_valid_[i] ? support : 0;
+    }
+  }
+  if (chroma_) {
+    out.levels.u = Image<uint8_t>(cw_, ch_);
+    out.levels.v = Image<uint8_t>(cw_, ch_);
+    for (int y = 0; y < ch_; ++y) {
+      for (int x = 0; x < cw_; ++x) {
+        const size_t c = static_cast<size_t>(y) * cw_ + x;
+        out.levels.u(x, y) = alt_u_.empty() ? 128 : alt_u_[c];
+        out.levels.v(x, y) = alt_v_.empty() ? 128 : alt_v_[c];
       }
     }
   }

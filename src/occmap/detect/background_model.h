@@ -113,6 +113,10 @@ struct BackgroundOptions {
   // Learning, when the site gives no background.
   BackgroundLearning learning = BackgroundLearning::kMode;
   double learn_s = 60;         // the window read at start-up
+  // A live stream's learned background (with its alternatives) is written back to its cache
+  // entry this often, and at a clean stop, so that a restart takes it as the scene is now
+  // (pipeline/camera_inputs.h, BackgroundCacheRefresh); 0: never. Files' entries stay as learned.
+  double refresh_cache_s = 300;
   int learn_samples = 60;      // frames sampled evenly over it (at most 255)
   int mode_radius = 6;         // kMode: half-width of a cluster, grey levels (after normalising)
   // kMode: a pixel's second cluster with at least this share of the samples is kept as its
@@ -256,6 +260,10 @@ class BackgroundModel {
 
   // The background now, 8-bit (for pictures and saving).
   YuvImage Current() const;
+  // The alternatives now (after SetAlternative), as the learner gives them: each pixel's level
+  // (its chroma block's), with `support` where the pixel has one and 0 where it has none, so
+  // that SetAlternative(CurrentAlternative(s), m) with m <= s restores them.
+  BackgroundLearner::Alternative CurrentAlternative(uint8_t support) const;
 
   // Runs the change test over frames without keeping their changes: the shadow look (and the
   // transfer) learned from them before the first frame of a run.

@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <optional>
 #include <thread>
@@ -106,26 +107,49 @@ bool FromFile(const FrameSourceSpec& source) {
 // A learned background's cache entry: one PNG per plane, `<prefix>-y.png` last (it marks the
 // set complete); the alternatives' planes too when given, and none left over otherwise.
 fs::path CachePlane(const fs::path& prefix, const char* plane) { return fs::path(prefix.string() + "-" + plane + ".png"); }
+// Every plane is written beside its place first (the slow part), then the set is swapped in:
+// `-y` removed, the others renamed, `-y` renamed last. A run killed meanwhile leaves either the
+// old set, or no `-y` (learned again), never a `-y` over planes of another time.
 Status CacheAdaptiveBackground(const fs::path& prefix, const YuvImage& background,
                                const BackgroundLearner::Alternative* alternative) {
   OCCMAP_RETURN_IF_ERROR(EnsureDirectory(prefix.parent_path()));
+  const bool chroma = background.has_chroma();
+  std::vector<std::pair<const char*, ImageView<const uint8_t>>> planes;
+  if (chroma) {
+    planes.emplace_back("u", background.u.view());
+    planes.emplace_back("v", background.v.view());
+  }
+  if (alternative) {
+    planes.emplace_back("alt-y", alternative->levels.y.view());
+    if (chroma) {
+      planes.emplace_back("alt-u", alternative->levels.u.view());
+      planes.emplace_back("alt-v", alternative->levels.v.view());
+    }
+    planes.emplace_back("alt-n", alternative->support.view());
+  }
+  planes.emplace_back("y", background.y.view());  // last: it marks the set complete
+  auto fresh = [&](const char* plane) { return fs::path(CachePlane(prefix, plane).string() + ".new"); };
+  for (const auto& [plane, image] : planes) OCCMAP_RETURN_IF_ERROR(WritePng(fresh(plane), image));
   std::error_code ec;
   fs::remove(CachePlane(prefix, "y"), ec);
-  const bool chroma = background.has_chroma();
-  if (chroma) {
-    OCCMAP_RETURN_IF_ERROR(WritePng(CachePlane(prefix, "u"), background.u.view()));
-    OCCMAP_RETURN_IF_ERROR(WritePng(CachePlane(prefix, "v"), background.v.view()));
-  }
   for (const char* plane : {"alt-y", "alt-u", "alt-v", "alt-n"}) fs::remove(CachePlane(prefix, plane), ec);
-  if (alternative) {
-    OCCMAP_RETURN_IF_ERROR(WritePng(CachePlane(prefix, "alt-y"), alternative->levels.y.view()));
-    if (chroma) {
-      OCCMAP_RETURN_IF_ERROR(WritePng(CachePlane(prefix, "alt-u"), alternative->levels.u.view()));
-      OCCMAP_RETURN_IF_ERROR(WritePng(CachePlane(prefix, "alt-v"), alternative->levels.v.view()));
-    }
-    OCCMAP_RETURN_IF_ERROR(WritePng(CachePlane(prefix, "alt-n"), alternative->support.view()));
+  for (const auto& [plane, image] : planes) {
+    fs::rename(fresh(plane), CachePlane(prefix, plane), ec);
+    if (ec) return IoError(fmt::format("'{}': could not rename it into place: {}", fresh(plane).string(), ec.message()));
   }
-  return WritePng(CachePlane(prefix, "y"), background.y.view());
+  return Status::Ok();
+}
+
+// "3 min ago" for a file's modification time; empty when it has none.
+std::string AgeOf(const fs::path& path) {
+  std::error_code ec;
+  const auto mtime = fs::last_write_time(path, ec);
+  if (ec) return {};
+  const double s = std::max(0.0, std::chrono::duration<double>(fs::file_time_type::clock::now() - mtime).count());
+  if (s < 120) return fmt::format("{:.0f} s ago", s);
+  if (s < 7200) return fmt::format("{:.0f} min ago", s / 60);
+  if (s < 2 * 86400) return fmt::format("{:.1f} h ago", s / 3600);
+  return fmt::format("{:.0f} days ago", s / 86400);
 }
 
 // The shadow look before the first frame, so that the first frames are tested with it. A file
@@ -236,8 +260,13 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
           alternative->support = std::move(alt_n).value();
         }
         reused = true;
-        c.info.background = fmt::format("reused: {}", plane_path("y").string());
+        c.info.background = fmt::format("reused: {} (saved {})", plane_path("y").string(), AgeOf(plane_path("y")));
       }
+    }
+    // A live stream's entry follows the scene (BackgroundCacheRefresh); a file's stays as
+    // learned, so that a run over it is reproduced from the cache.
+    if (!cached.empty() && !settles && cam.source.kind == FrameSourceSpec::Kind::kStream && bo.refresh_cache_s > 0) {
+      c.refresh_cache = cached;
     }
     std::unique_ptr<FrameSource> opened;
     OCCMAP_ASSIGN_OR_RETURN(FrameSource* src, BackgroundFrames(c, options, src_opts, opened));
@@ -373,6 +402,39 @@ Status RestartAdaptiveModel(const Site& site, const RunOptions& options, const F
   OCCMAP_RETURN_IF_ERROR(WarmUpShadows(site, options, src_opts, background.has_chroma(), nullptr, c));
   if (c.learned_cache.empty()) return Status::Ok();
   return CacheAdaptiveBackground(c.learned_cache, background, nullptr);
+}
+
+Status RefreshCachedBackground(const CameraState& c, const BackgroundOptions& bo) {
+  if (c.refresh_cache.empty() || !c.model) return Status::Ok();
+  const int min_support = static_cast<int>(std::ceil(bo.alternative_min_share * bo.learn_samples));
+  const BackgroundLearner::Alternative alternative =
+      c.model->CurrentAlternative(static_cast<uint8_t>(std::clamp(min_support, 1, 255)));
+  return CacheAdaptiveBackground(c.refresh_cache, c.model->Current(), &alternative)
+      .WithContext(fmt::format("camera {}: refreshing its cached background", c.cam->id));
+}
+
+BackgroundCacheRefresh::BackgroundCacheRefresh(const BackgroundOptions& bo, double fps)
+    : options_(bo), period_frames_(bo.refresh_cache_s > 0 && fps > 0 ? std::max<int64_t>(1, std::llround(bo.refresh_cache_s * fps)) : 0) {}
+
+Status BackgroundCacheRefresh::After(int64_t frame_index, const std::vector<CameraState>& cams) {
+  if (period_frames_ == 0) return Status::Ok();
+  if (!next_frame_) next_frame_ = frame_index + period_frames_;
+  if (frame_index < *next_frame_) return Status::Ok();
+  next_frame_ = frame_index + period_frames_;
+  return Now(cams);
+}
+
+Status BackgroundCacheRefresh::Now(const std::vector<CameraState>& cams) {
+  Status first = Status::Ok();
+  for (const CameraState& c : cams) {
+    Status s = RefreshCachedBackground(c, options_);
+    if (s.ok()) {
+      if (!c.refresh_cache.empty() && c.model) ++written_;
+    } else if (first.ok()) {
+      first = std::move(s);
+    }
+  }
+  return first;
 }
 
 Result<std::vector<CameraState>> OpenCameras(const Site& site, const RunOptions& options, const FusionPlan& plan,

@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "occmap/detect/background_model.h"
@@ -36,6 +37,9 @@ struct CameraState {
   // then cached at learned_cache (empty: no cache).
   bool settles = false;
   std::filesystem::path learned_cache;
+  // A live stream's adaptive model: its cache entry, written back as the scene goes on
+  // (BackgroundCacheRefresh); empty for files, given backgrounds, or without a cache.
+  std::filesystem::path refresh_cache;
   CameraRunInfo info;
 };
 
@@ -58,6 +62,33 @@ bool SettlesLearnedBackgrounds(const Site& site, const RunOptions& options);
 // shadow look warmed up as the run's start; caches it at c.learned_cache when that is set.
 Status RestartAdaptiveModel(const Site& site, const RunOptions& options, const FrameSourceOptions& src_opts,
                             CameraState& c, const YuvImage& background);
+// Writes camera c's adaptive model as it is now (background, alternatives, chroma) over its
+// cache entry c.refresh_cache, the planes swapped in together; nothing without one.
+Status RefreshCachedBackground(const CameraState& c, const BackgroundOptions& bo);
+
+// The live cameras' cached backgrounds kept up with the scene (site.backgrounds.refresh_cache_s),
+// by whoever updates their models (the run's fusion stage, an edge): After() each frame set
+// writes them every refresh_cache_s of frames, Now() at a clean stop. A restart then takes the
+// background as the scene was when it stopped, not as it was first learned.
+//
+//   BackgroundCacheRefresh refresh(site.backgrounds, fps);
+//   (void)refresh.After(set.frame_index, cams);  // per set, after the models' Update
+//   OCCMAP_RETURN_IF_ERROR(refresh.Now(cams));   // at the end
+class BackgroundCacheRefresh {
+ public:
+  BackgroundCacheRefresh(const BackgroundOptions& bo, double fps);
+  // The first camera's error, the others written anyway.
+  Status After(int64_t frame_index, const std::vector<CameraState>& cams);
+  Status Now(const std::vector<CameraState>& cams);
+  int64_t written() const { return written_; }  // camera backgrounds written so far
+
+ private:
+  BackgroundOptions options_;
+  int64_t period_frames_;  // 0: never
+  std::optional<int64_t> next_frame_;
+  int64_t written_ = 0;
+};
+
 // Every camera's source opened (at options.start_frame) and its background prepared; with
 // `only` (indices into site.cameras, an edge process's cameras) those cameras alone, in that order.
 // Live streams' backgrounds (estimated or learned from the stream as it goes) are prepared at

@@ -62,6 +62,9 @@ class FusionStage {
   // With `people: {occluders: {learn: true}}`: writes the learned occluders to out/occluders.txt
   // and to the cache (the next run starts from them); the paths written are appended.
   Status SaveLearnedOccluders(const std::filesystem::path& out, std::vector<std::string>& written) const;
+  // Live cameras' adaptive backgrounds written back to their cache entries now (at a clean stop;
+  // the stage writes them every backgrounds.refresh_cache_s meanwhile): the first error, if any.
+  Status RefreshCachedBackgrounds() { return refresh_.Now(cams_); }
   // The last frame whose backgrounds were updated (options.start_frame before any).
   int64_t last_frame_index() const { return last_frame_index_; }
   // Adaptive backgrounds: the protection of the last frame set (null without them). The fuse
@@ -109,6 +112,7 @@ class FusionStage {
   int64_t next_age_frame_ = 0;
   SharedFigure detect_s_, fuse_s_, people_s_, occluders_s_, background_s_;
   std::vector<SharedFigure> background_age_s_;
+  BackgroundCacheRefresh refresh_;  // live cameras' cached backgrounds
 };
 
 }  // namespace occmap

@@ -289,6 +289,9 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
     post_worker.Push(*slot);  // when it has failed, the slot goes straight back to the reader
   }
   reader.join();  // it has closed filled_slots: the sources, flags and infos are ours again
+  // Live cameras' backgrounds as they are now, for the next start (a best effort, as the
+  // periodic writes: the cache is no output of the run).
+  (void)fusion->RefreshCachedBackgrounds();
   const Status post_status = post_worker.Finish();
   const Status writer_status = writer.Finish();
   const RunStats& stats = sink_stage.stats();

@@ -366,7 +366,7 @@ Status ParseDetection(const YamlField& f, ChangeDetectionOptions& d) {
 // The `backgrounds:` section (detect/background_model.h); each value checked by Validate(),
 // the message placed at the section.
 Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
-  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"adaptive", "learning", "learn_s", "learn_samples", "mode_radius", "alternative_min_share", "settle", "adapt_s",
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"adaptive", "learning", "learn_s", "learn_samples", "refresh_cache_s", "mode_radius", "alternative_min_share", "settle", "adapt_s",
                                       "relight_s", "absorb_s", "person_height_m", "chroma_threshold", "grow_steps_px",
                                       "grow_threshold_share", "grow_seed_share", "shadows"}));
   OCCMAP_ASSIGN_OR_RETURN(b.adaptive, f.GetBool("adaptive", b.adaptive));
@@ -375,6 +375,7 @@ Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
   if (!method.ok()) return f.Find("learning")->Error(method.status().message());
   b.learning = *method;
   OCCMAP_ASSIGN_OR_RETURN(b.learn_s, f.GetDouble("learn_s", b.learn_s));
+  OCCMAP_ASSIGN_OR_RETURN(b.refresh_cache_s, f.GetDouble("refresh_cache_s", b.refresh_cache_s));
   OCCMAP_ASSIGN_OR_RETURN(int64_t samples, f.GetInt("learn_samples", b.learn_samples));
   b.learn_samples = static_cast<int>(std::clamp<int64_t>(samples, -1, 1000));
   OCCMAP_ASSIGN_OR_RETURN(int64_t radius, f.GetInt("mode_radius", b.mode_radius));
