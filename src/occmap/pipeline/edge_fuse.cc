@@ -1,9 +1,9 @@
 #include "occmap/pipeline/edge_fuse.h"
 
 #include <fmt/core.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -13,7 +13,6 @@
 #include <set>
 #include <span>
 #include <string>
-#include <string_view>
 #include <thread>
 
 #include "occmap/pipeline/camera_changes.h"
@@ -55,23 +54,17 @@ struct FuseProgress {
 };
 
 std::string EncodeProgress(const FuseProgress& p) {
-  return fmt::format("{{\"schema\":1,\"frame\":{},\"t_unix\":{:.3f}}}", p.frame, p.t_unix);
+  return nlohmann::ordered_json{{"schema", 1}, {"frame", p.frame}, {"t_unix", std::round(p.t_unix * 1000) / 1000}}.dump();
 }
 
 // Empty (cleared), another schema or a malformed payload: none.
 std::optional<FuseProgress> DecodeProgress(const std::string& payload) {
-  auto field = [&](std::string_view name, auto& value) {
-    const size_t at = payload.find(fmt::format("\"{}\":", name));
-    if (at == std::string::npos) return false;
-    const char* first = payload.data() + at + name.size() + 3;
-    const char* last = payload.data() + payload.size();
-    auto [end, ec] = std::from_chars(first, last, value);
-    return ec == std::errc() && end != first;
-  };
-  int schema = 0;
-  FuseProgress p;
-  if (!field("schema", schema) || schema != 1 || !field("frame", p.frame) || !field("t_unix", p.t_unix)) return std::nullopt;
-  return p;
+  const nlohmann::json j = nlohmann::json::parse(payload, nullptr, /*allow_exceptions=*/false);
+  auto number = [&](const char* key) { return j.is_object() && j.contains(key) && j[key].is_number(); };
+  if (!number("schema") || j["schema"] != 1 || !number("frame") || !j["frame"].is_number_integer() || !number("t_unix")) {
+    return std::nullopt;
+  }
+  return FuseProgress{j["frame"].get<int64_t>(), j["t_unix"].get<double>()};
 }
 
 // Adaptive backgrounds at an edge (edge_fuse.h): the shadows' floor check and teachers over
