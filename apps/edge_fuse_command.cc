@@ -190,6 +190,7 @@ Status RunEdgeCommand(EdgeCommand cmd, int threads, const std::string& data_root
   }
   StopOnSignals signals(cmd.options.run.out_dir);
   cmd.options.run.stop = signals.stop();
+  cmd.options.run.warning = PrintWarnings("occmap edge");
   Context ctx(threads);
   OCCMAP_ASSIGN_OR_RETURN(EdgeSummary s, RunEdge(site, cmd.options, ctx));
   std::fputs(fmt::format("{} frame sets, {} messages, {:.1f} kB ({:.0f} bytes per message) in {:.2f} s: {}; "
@@ -203,6 +204,13 @@ Status RunEdgeCommand(EdgeCommand cmd, int threads, const std::string& data_root
     std::fputs(fmt::format("adaptive backgrounds: {} protections from the fuse, {} frame sets updated without one; "
                            "learned backgrounds checked over this edge's cameras: {} pixels, {} swapped\n",
                            s.protections, s.unprotected_updates, s.consensus_pixels_checked, s.consensus_pixels_swapped)
+                   .c_str(),
+               stdout);
+  }
+  for (const auto& [id, f] : s.background_cache) {
+    std::fputs(fmt::format("cached background of {}: {} refreshes{}, {} failed{}\n", id, f.refreshes,
+                           f.last_refresh_frame ? fmt::format(" (the last at frame {})", *f.last_refresh_frame) : "",
+                           f.failures, f.last_error.empty() ? "" : fmt::format("; failing: {}", f.last_error))
                    .c_str(),
                stdout);
   }

@@ -260,6 +260,7 @@ Status RunRun(const CommonOptions& common, RunCommand cmd) {
   o.output_mode = cmd.atomic_outputs ? OutputMode::kAtomic : OutputMode::kLive;
   o.wall_clock_times = !cmd.no_wall_clock;
   o.stop = signals.stop();
+  o.warning = PrintWarnings("occmap run");
   ProgressBar bar;
   auto summary = RunSite(site, o, ctx, [&](const RunProgress& p) { bar.Update(p); });
   bar.Finish();

@@ -1,5 +1,5 @@
-// What `occmap run` and `occmap serve` share: the default cache folder and the stop on SIGINT
-// and SIGTERM.
+// What `occmap run`, `occmap serve` and `occmap edge` share: the default cache folder, the stop
+// on SIGINT and SIGTERM, and the run's warnings on stderr.
 #pragma once
 
 #include <fmt/core.h>
@@ -11,7 +11,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <string>
 #include <thread>
+#include <utility>
+
+#include "occmap/pipeline/run.h"
 
 namespace occmap {
 
@@ -20,6 +24,15 @@ inline std::filesystem::path DefaultCacheDir() {
   if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg != nullptr && *xdg != '\0') return std::filesystem::path(xdg) / "occmap";
   if (const char* home = std::getenv("HOME"); home != nullptr && *home != '\0') return std::filesystem::path(home) / ".cache" / "occmap";
   return ".occmap-cache";
+}
+
+// RunOptions::warning of a command: "<program>: warning: <line>" on stderr; on a terminal the
+// progress bar's line is cleared first (the bar is drawn again below at its next update).
+inline WarningCallback PrintWarnings(std::string program) {
+  const bool terminal = ::isatty(STDERR_FILENO) == 1;
+  return [program = std::move(program), terminal](const std::string& line) {
+    std::fputs(fmt::format("{}{}: warning: {}\n", terminal ? "\r\033[K" : "", program, line).c_str(), stderr);
+  };
 }
 
 // SIGINT and SIGTERM during `occmap run` and `occmap serve`: blocked in every thread (from before the run starts

@@ -89,6 +89,7 @@ Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_ro
   o.wall_clock_times = !cmd.no_wall_clock;
   o.summary_every_s = cmd.summary_every_s;
   o.background_frames = cmd.background_frames;
+  o.warning = PrintWarnings("occmap serve");
   OCCMAP_RETURN_IF_ERROR(o.Validate());
   // MQTT and ROS maps as `occmap run` gives them, from the site as it is now (a site saved from
   // the page keeps these sinks). A site that does not load is the session's to report, unless

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <optional>
 #include <thread>
+#include <utility>
 
 #include "occmap/detect/background.h"
 #include "occmap/lut/ground_lut.h"
@@ -129,8 +130,15 @@ Status CacheAdaptiveBackground(const fs::path& prefix, const YuvImage& backgroun
   }
   planes.emplace_back("y", background.y.view());  // last: it marks the set complete
   auto fresh = [&](const char* plane) { return fs::path(CachePlane(prefix, plane).string() + ".new"); };
-  for (const auto& [plane, image] : planes) OCCMAP_RETURN_IF_ERROR(WritePng(fresh(plane), image));
   std::error_code ec;
+  for (size_t k = 0; k < planes.size(); ++k) {
+    if (Status s = WritePng(fresh(planes[k].first), planes[k].second); !s.ok()) {
+      // The entry stays as it was; what this attempt wrote beside it goes (a full disk that
+      // fails every period must not fill up with halves).
+      for (size_t j = 0; j < k; ++j) fs::remove(fresh(planes[j].first), ec);
+      return s;
+    }
+  }
   fs::remove(CachePlane(prefix, "y"), ec);
   for (const char* plane : {"alt-y", "alt-u", "alt-v", "alt-n"}) fs::remove(CachePlane(prefix, plane), ec);
   for (const auto& [plane, image] : planes) {
@@ -413,28 +421,66 @@ Status RefreshCachedBackground(const CameraState& c, const BackgroundOptions& bo
       .WithContext(fmt::format("camera {}: refreshing its cached background", c.cam->id));
 }
 
-BackgroundCacheRefresh::BackgroundCacheRefresh(const BackgroundOptions& bo, double fps)
-    : options_(bo), period_frames_(bo.refresh_cache_s > 0 && fps > 0 ? std::max<int64_t>(1, std::llround(bo.refresh_cache_s * fps)) : 0) {}
+BackgroundCacheRefresh::BackgroundCacheRefresh(const BackgroundOptions& bo, double fps, WarningCallback warning)
+    : options_(bo),
+      period_frames_(bo.refresh_cache_s > 0 && fps > 0 ? std::max<int64_t>(1, std::llround(bo.refresh_cache_s * fps)) : 0),
+      warning_(std::move(warning)) {}
 
-Status BackgroundCacheRefresh::After(int64_t frame_index, const std::vector<CameraState>& cams) {
-  if (period_frames_ == 0) return Status::Ok();
+void BackgroundCacheRefresh::After(int64_t frame_index, const std::vector<CameraState>& cams) {
+  if (period_frames_ == 0) return;
   if (!next_frame_) next_frame_ = frame_index + period_frames_;
-  if (frame_index < *next_frame_) return Status::Ok();
+  if (frame_index < *next_frame_) return;
   next_frame_ = frame_index + period_frames_;
-  return Now(cams);
+  Now(frame_index, cams);
 }
 
-Status BackgroundCacheRefresh::Now(const std::vector<CameraState>& cams) {
-  Status first = Status::Ok();
-  for (const CameraState& c : cams) {
-    Status s = RefreshCachedBackground(c, options_);
-    if (s.ok()) {
-      if (!c.refresh_cache.empty() && c.model) ++written_;
-    } else if (first.ok()) {
-      first = std::move(s);
+void BackgroundCacheRefresh::Now(int64_t frame_index, const std::vector<CameraState>& cams) {
+  for (size_t k = 0; k < cams.size(); ++k) {
+    const CameraState& c = cams[k];
+    if (c.refresh_cache.empty() || !c.model) continue;
+    // Written outside the lock (the slow part); the figures' readers wait for no disk.
+    const Status s = RefreshCachedBackground(c, options_);
+    std::string said;
+    {
+      std::lock_guard lock(mutex_);
+      if (figures_.size() < cams.size()) figures_.resize(cams.size());
+      if (!figures_[k]) {
+        figures_[k].emplace();
+        figures_[k]->entry = CachePlane(c.refresh_cache, "y").string();
+      }
+      BackgroundCacheFigures& f = *figures_[k];
+      if (s.ok()) {
+        if (!f.last_error.empty()) {
+          said = fmt::format("camera {}: its cached background is written again ({}; {} writes failed so far)",
+                             c.cam->id, f.entry, f.failures);
+        }
+        ++f.refreshes;
+        f.last_refresh_frame = frame_index;
+        f.last_error.clear();
+      } else {
+        // Once per failing spell: a disk that stays full would say it every period otherwise.
+        if (f.last_error.empty()) {
+          said = fmt::format("{} (the entry is left as it was and the run goes on; said again once a write works)",
+                             s.message());
+        }
+        ++f.failures;
+        f.last_error = s.message();
+      }
     }
+    if (!said.empty() && warning_) warning_(said);
   }
-  return first;
+}
+
+std::optional<BackgroundCacheFigures> BackgroundCacheRefresh::figures(size_t k) const {
+  std::lock_guard lock(mutex_);
+  return k < figures_.size() ? figures_[k] : std::nullopt;
+}
+
+int64_t BackgroundCacheRefresh::written() const {
+  std::lock_guard lock(mutex_);
+  int64_t n = 0;
+  for (const auto& f : figures_) n += f ? f->refreshes : 0;
+  return n;
 }
 
 Result<std::vector<CameraState>> OpenCameras(const Site& site, const RunOptions& options, const FusionPlan& plan,

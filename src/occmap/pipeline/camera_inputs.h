@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <vector>
 
@@ -69,24 +70,34 @@ Status RefreshCachedBackground(const CameraState& c, const BackgroundOptions& bo
 // The live cameras' cached backgrounds kept up with the scene (site.backgrounds.refresh_cache_s),
 // by whoever updates their models (the run's fusion stage, an edge): After() each frame set
 // writes them every refresh_cache_s of frames, Now() at a clean stop. A restart then takes the
-// background as the scene was when it stopped, not as it was first learned.
+// background as the scene was when it stopped, not as it was first learned. A write that fails
+// (a full disk, the folder gone read-only) leaves the entry as it was and never stops the run:
+// it is counted per camera, and `warning` is told once (the camera, the path, the system's
+// error), then once more when a write works again, not every period.
 //
-//   BackgroundCacheRefresh refresh(site.backgrounds, fps);
-//   (void)refresh.After(set.frame_index, cams);  // per set, after the models' Update
-//   OCCMAP_RETURN_IF_ERROR(refresh.Now(cams));   // at the end
+//   BackgroundCacheRefresh refresh(site.backgrounds, fps, options.warning);
+//   refresh.After(set.frame_index, cams);  // per set, after the models' Update
+//   refresh.Now(last_frame_index, cams);   // at the end
+//   refresh.figures(k);                    // camera k's, from any thread
 class BackgroundCacheRefresh {
  public:
-  BackgroundCacheRefresh(const BackgroundOptions& bo, double fps);
-  // The first camera's error, the others written anyway.
-  Status After(int64_t frame_index, const std::vector<CameraState>& cams);
-  Status Now(const std::vector<CameraState>& cams);
-  int64_t written() const { return written_; }  // camera backgrounds written so far
+  BackgroundCacheRefresh(const BackgroundOptions& bo, double fps, WarningCallback warning = {});
+  // frame_index: the frame set whose update the models just took.
+  void After(int64_t frame_index, const std::vector<CameraState>& cams);
+  // frame_index: the last frame set the models took (the stop's).
+  void Now(int64_t frame_index, const std::vector<CameraState>& cams);
+  // What camera k's refreshes did so far; none for a camera whose entry is not refreshed (files,
+  // given backgrounds, no cache) or before the first write. Any thread.
+  std::optional<BackgroundCacheFigures> figures(size_t k) const;
+  int64_t written() const;  // camera backgrounds written so far
 
  private:
   BackgroundOptions options_;
   int64_t period_frames_;  // 0: never
+  WarningCallback warning_;
   std::optional<int64_t> next_frame_;
-  int64_t written_ = 0;
+  mutable std::mutex mutex_;  // figures_, for readers on other threads (summary.json)
+  std::vector<std::optional<BackgroundCacheFigures>> figures_;
 };
 
 // Every camera's source opened (at options.start_frame) and its background prepared; with

@@ -346,7 +346,7 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& given, Context&
   std::optional<EdgeBackgrounds> backgrounds;
   // The live cameras' cached backgrounds follow their models (camera_inputs.h); a best effort:
   // the cache is a head start for a restart, not an output.
-  BackgroundCacheRefresh refresh(site.backgrounds, fps.empty() || fps[0] <= 0 ? 10.0 : fps[0]);
+  BackgroundCacheRefresh refresh(site.backgrounds, fps.empty() || fps[0] <= 0 ? 10.0 : fps[0], o.run.warning);
   if (plan.adaptive) {
     OCCMAP_ASSIGN_OR_RETURN(CachedLut cached, LoadOrBuildSiteLut(site, o.run.cache_dir, ctx));
     lut.emplace(std::move(cached));
@@ -483,10 +483,13 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& given, Context&
       if (!waiting && backgrounds->received() > received_when_given_up) waiting = true;
       connects_seen = link->connects();
       backgrounds->Update(set, ctx);
-      (void)refresh.After(set.frame_index, cams);
+      refresh.After(set.frame_index, cams);
     }
   }
-  (void)refresh.Now(cams);  // the models as they are at the stop, for the next start
+  refresh.Now(next_frame - 1, cams);  // the models as they are at the stop, for the next start
+  for (size_t k = 0; k < cams.size(); ++k) {
+    if (auto f = refresh.figures(k)) summary.background_cache.emplace_back(cams[k].cam->id, std::move(*f));
+  }
   // The end of every source (not on a stop request: a restarted edge goes on where it was).
   if (!stop_requested()) {
     while (!link->connected() && !stop_requested()) link->WaitConnected(std::chrono::milliseconds(100));

@@ -41,6 +41,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "occmap/pipeline/run.h"
@@ -86,6 +87,9 @@ struct EdgeSummary {
   int64_t protections = 0;
   int64_t unprotected_updates = 0;
   int64_t consensus_pixels_checked = 0, consensus_pixels_swapped = 0;
+  // Per live camera whose cached background is refreshed (backgrounds.refresh_cache_s): its id
+  // and what the refreshes did, the stop's included. Failures are told to run.warning once.
+  std::vector<std::pair<std::string, BackgroundCacheFigures>> background_cache{};
 };
 
 Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& options, Context& ctx);

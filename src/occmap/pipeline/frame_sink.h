@@ -24,6 +24,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -51,6 +52,18 @@ struct SinkStart {
   bool wall_clock_times = true;       // lines carry "t_unix" (RunOptions::wall_clock_times)
 };
 
+// What refreshing a live camera's cached background did (pipeline/camera_inputs.h,
+// BackgroundCacheRefresh): summary.json's cameras[].background_cache, the edge's last lines.
+// A write that fails leaves the entry as it was and never stops the run (a cache is a head
+// start for the next one, not an output).
+struct BackgroundCacheFigures {
+  std::string entry;        // the entry's `-y` plane
+  int64_t refreshes = 0;    // writes of the entry that worked (every refresh_cache_s, the stop)
+  int64_t failures = 0;     // writes that failed
+  std::optional<int64_t> last_refresh_frame{};  // the frame set of the last write that worked
+  std::string last_error;   // why the last write failed; empty once one works again
+};
+
 // One camera's running figures.
 struct CameraStats {
   std::string id;
@@ -63,6 +76,8 @@ struct CameraStats {
   // as it updates (sampled about once a second), a fixed one (given or estimated at the start)
   // ages with the run. NaN for a camera that gives masks.
   double background_age_s = std::numeric_limits<double>::quiet_NaN();
+  // A live camera whose cached background is refreshed (none for the others).
+  std::optional<BackgroundCacheFigures> background_cache{};
 };
 
 // Seconds spent inside each stage so far (as RunSummary's, pipeline/run.h; the stages overlap,

@@ -38,7 +38,7 @@ FusionStage::FusionStage(const Site& site, const RunOptions& options, const Fusi
       teacher_ratios_(cams.size()),
       last_frame_index_(options.start_frame),
       background_age_s_(cams.size()),
-      refresh_(site.backgrounds, fps) {
+      refresh_(site.backgrounds, fps, options.warning) {
   for (auto& a : background_age_s_) a.Set(std::numeric_limits<double>::quiet_NaN());
 }
 
@@ -247,8 +247,9 @@ void FusionStage::UpdateBackgrounds(FrameSet& set, Context& ctx) {
     next_age_frame_ = set.frame_index + std::max<int64_t>(1, std::lround(fps_));
   }
   // The cache is a head start for a restart, not an output: a failed write leaves the entry as
-  // it was (the planes are swapped in together), and the next period or the stop tries again.
-  (void)refresh_.After(set.frame_index, cams_);
+  // it was (the planes are swapped in together), is counted and said once, and the next period
+  // or the stop tries again.
+  refresh_.After(set.frame_index, cams_);
   background_s_.Add(Since(t0));
 }
 

@@ -63,8 +63,11 @@ class FusionStage {
   // and to the cache (the next run starts from them); the paths written are appended.
   Status SaveLearnedOccluders(const std::filesystem::path& out, std::vector<std::string>& written) const;
   // Live cameras' adaptive backgrounds written back to their cache entries now (at a clean stop;
-  // the stage writes them every backgrounds.refresh_cache_s meanwhile): the first error, if any.
-  Status RefreshCachedBackgrounds() { return refresh_.Now(cams_); }
+  // the stage writes them every backgrounds.refresh_cache_s meanwhile). A failure is counted and
+  // told to RunOptions::warning, never returned: the cache is no output of the run.
+  void RefreshCachedBackgrounds() { refresh_.Now(last_frame_index_, cams_); }
+  // What camera n's refreshes did (none: its entry is not refreshed). Any thread.
+  std::optional<BackgroundCacheFigures> background_cache(size_t n) const { return refresh_.figures(n); }
   // The last frame whose backgrounds were updated (options.start_frame before any).
   int64_t last_frame_index() const { return last_frame_index_; }
   // Adaptive backgrounds: the protection of the last frame set (null without them). The fuse

@@ -191,6 +191,7 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
       } else {
         cs.active = r.active[n];
       }
+      cs.background_cache = fusion->background_cache(n);
       cs.background_age_s = cams[n].is_mask ? std::numeric_limits<double>::quiet_NaN()
                             : cams[n].model ? fusion->background_age_s(n)
                                             : static_cast<double>(r.frame - options.start_frame) / fps;
@@ -290,8 +291,8 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   }
   reader.join();  // it has closed filled_slots: the sources, flags and infos are ours again
   // Live cameras' backgrounds as they are now, for the next start (a best effort, as the
-  // periodic writes: the cache is no output of the run).
-  (void)fusion->RefreshCachedBackgrounds();
+  // periodic writes: the cache is no output of the run; summary.json tells how it went).
+  fusion->RefreshCachedBackgrounds();
   const Status post_status = post_worker.Finish();
   const Status writer_status = writer.Finish();
   const RunStats& stats = sink_stage.stats();
@@ -342,7 +343,10 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   if (!output_failure.ok()) summary.stop_reason = output_failure.message();
   summary.seconds = Since(t_start);
   summary.frames_per_second = summary.seconds > 0 ? static_cast<double>(summary.frames) / summary.seconds : 0;
-  for (const auto& c : cams) summary.cameras.push_back(c.info);
+  for (size_t n = 0; n < cams.size(); ++n) {
+    summary.cameras.push_back(cams[n].info);
+    summary.cameras.back().background_cache = fusion->background_cache(n);
+  }
   summary.blobs_total = sink_stage.blobs_total();
   summary.blobs_max_per_frame = sink_stage.blobs_max_per_frame();
   summary.outputs.push_back(summary_file.path().string());

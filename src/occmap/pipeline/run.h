@@ -58,6 +58,11 @@ namespace occmap {
 enum class FrameSync { kIndex, kTimestamp };
 enum class OnCameraFailure { kStop, kContinue };
 
+// A line for whoever watches the run (the command line prints it on stderr): something went
+// wrong that does not stop the run, and is said once, not per frame set. Called on a stage's
+// thread.
+using WarningCallback = std::function<void(const std::string& line)>;
+
 struct RunOptions {
   std::filesystem::path out_dir = "occmap-out";
   std::filesystem::path cache_dir;  // lookup tables and estimated backgrounds; empty: none
@@ -104,6 +109,9 @@ struct RunOptions {
   // output is closed, and RunSite returns the summary (stop_reason "stop requested"). Set it
   // from a signal handler (`occmap run` does, for SIGINT and SIGTERM).
   const std::atomic<bool>* stop = nullptr;
+  // Warnings (a live camera's cached background that cannot be written, and when it can
+  // again); empty: said to nobody (summary.json counts them all the same).
+  WarningCallback warning;
   Status Validate() const;
 };
 
@@ -123,6 +131,8 @@ struct CameraRunInfo {
   // occmap fuse: frame sets fused without this camera (late, lost or silent), and its messages
   // that came after their frame set was fused (dropped).
   std::optional<int64_t> left_out, late_messages;
+  // A live camera whose cached background is refreshed: what the refreshes did, the stop's too.
+  std::optional<BackgroundCacheFigures> background_cache{};
 };
 
 struct RunSummary {

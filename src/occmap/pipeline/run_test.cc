@@ -312,6 +312,100 @@ TEST_F(RunFixture, RefreshWritesTheModelNow) {
   EXPECT_EQ((*ReadGrayImage(y))(10, 10), 200);
 }
 
+// A refresh that cannot be written (its last plane's place taken by a folder, then the cache
+// folder by a file: either stops root as well as anyone) is counted and said once however many
+// periods it fails, leaves the entry as it was with nothing of its own beside it, and the next
+// write that works is counted, clears the error and says so.
+TEST_F(RunFixture, FailedRefreshIsCountedSaidOnceAndLeavesTheEntry) {
+  const Site site = LoadSiteText(SiteText(/*with_backgrounds=*/false));
+  BackgroundOptions bo;
+  bo.adaptive = true;
+  bo.refresh_cache_s = 1;  // every 10 frame sets at 10 fps
+  std::vector<CameraState> cams(2);
+  cams[0].cam = &site.cameras[0];  // no entry to refresh (a file's, or no cache): never counted
+  cams[1].cam = &site.cameras[1];
+  const fs::path folder = dir_ / "cache" / "backgrounds";
+  cams[1].refresh_cache = folder / "walk-c1-test";
+  YuvImage look;
+  look.y = Image<uint8_t>(160, 120, 80);
+  for (CameraState& c : cams) {
+    c.model = std::make_unique<BackgroundModel>(bo, 10.0);
+    c.model->Reset(look);
+  }
+  std::vector<std::string> said;
+  BackgroundCacheRefresh refresh(bo, 10.0, [&](const std::string& line) { said.push_back(line); });
+  const fs::path y = folder / "walk-c1-test-y.png";
+  refresh.After(0, cams);  // the first period starts
+  EXPECT_FALSE(refresh.figures(1).has_value());
+  refresh.After(10, cams);
+  ASSERT_TRUE(refresh.figures(1).has_value());
+  EXPECT_FALSE(refresh.figures(0).has_value());
+  EXPECT_EQ(refresh.figures(1)->entry, y.string());
+  EXPECT_EQ(refresh.figures(1)->refreshes, 1);
+  EXPECT_EQ(refresh.figures(1)->last_refresh_frame.value_or(-1), 10);
+  EXPECT_EQ((*ReadGrayImage(y))(10, 10), 80);
+
+  // The model moves on while `-y`'s new plane cannot be written: a folder holds its place (with
+  // a file in it, so that nothing removes it by chance).
+  look.y = Image<uint8_t>(160, 120, 200);
+  cams[1].model->Reset(look);
+  const fs::path blocker = folder / "walk-c1-test-y.png.new";
+  fs::create_directories(blocker);
+  testing::WriteText(blocker / "keep", "x");
+  refresh.After(20, cams);
+  refresh.After(30, cams);
+  refresh.Now(35, cams);  // the stop
+  BackgroundCacheFigures f = *refresh.figures(1);
+  EXPECT_EQ(f.refreshes, 1);
+  EXPECT_EQ(f.failures, 3);
+  EXPECT_EQ(f.last_refresh_frame.value_or(-1), 10);
+  EXPECT_NE(f.last_error.find(blocker.string()), std::string::npos) << f.last_error;
+  EXPECT_NE(f.last_error.find("Is a directory"), std::string::npos) << f.last_error;  // the system's
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_EQ(said[0].rfind("camera c1: ", 0), 0u) << said[0];
+  EXPECT_NE(said[0].find(blocker.string()), std::string::npos) << said[0];
+  EXPECT_NE(said[0].find("Is a directory"), std::string::npos) << said[0];
+  // The entry as it was (the planes are swapped in only once all are written), and none of the
+  // failed writes' planes or temporaries left beside it.
+  EXPECT_EQ((*ReadGrayImage(y))(10, 10), 80);
+  EXPECT_TRUE(fs::exists(folder / "walk-c1-test-alt-n.png"));
+  for (const auto& e : fs::directory_iterator(folder)) {
+    const std::string name = e.path().filename().string();
+    if (e.path() == blocker) continue;
+    EXPECT_FALSE(name.ends_with(".new") || name.starts_with(".tmp-")) << name;
+  }
+
+  // Free again: the next period writes the model as it is now, and says so.
+  fs::remove_all(blocker);
+  refresh.After(40, cams);
+  f = *refresh.figures(1);
+  EXPECT_EQ(f.refreshes, 2);
+  EXPECT_EQ(f.failures, 3);
+  EXPECT_EQ(f.last_refresh_frame.value_or(-1), 40);
+  EXPECT_EQ(f.last_error, "");
+  ASSERT_EQ(said.size(), 2u);
+  EXPECT_EQ(said[1].rfind("camera c1: ", 0), 0u) << said[1];
+  EXPECT_NE(said[1].find("written again"), std::string::npos) << said[1];
+  EXPECT_EQ((*ReadGrayImage(y))(10, 10), 200);
+
+  // The cache folder replaced by a file: a new spell, said once more, naming the folder.
+  fs::rename(folder, dir_ / "cache" / "away");
+  testing::WriteText(folder, "not a folder");
+  refresh.After(50, cams);
+  refresh.After(60, cams);
+  f = *refresh.figures(1);
+  EXPECT_EQ(f.failures, 5);
+  ASSERT_EQ(said.size(), 3u);
+  EXPECT_NE(said[2].find(folder.string()), std::string::npos) << said[2];
+  fs::remove(folder);
+  fs::rename(dir_ / "cache" / "away", folder);
+  refresh.Now(65, cams);
+  EXPECT_EQ(refresh.figures(1)->refreshes, 3);
+  EXPECT_EQ(refresh.figures(1)->last_error, "");
+  EXPECT_EQ(said.size(), 4u);
+  EXPECT_EQ(refresh.written(), 3);
+}
+
 // A live camera's learned background follows the scene into the cache (backgrounds.
 // refresh_cache_s, and at the stop): a restart takes the scene as it was when the run stopped,
 // not as first learned. The streams are video files opened as streams; camera c0's floor gets a

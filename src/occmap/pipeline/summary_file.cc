@@ -26,6 +26,15 @@ json LatencyJson(const LatencyFigures& f) {
           {"max", ms(f.max_ms)}};
 }
 
+// cameras[].background_cache: what refreshing a live camera's cached background did.
+json BackgroundCacheJson(const BackgroundCacheFigures& f) {
+  return {{"entry", f.entry},
+          {"refreshes", f.refreshes},
+          {"failures", f.failures},
+          {"last_refresh_frame", f.last_refresh_frame ? json(*f.last_refresh_frame) : json(nullptr)},
+          {"last_error", f.last_error.empty() ? json(nullptr) : json(f.last_error)}};
+}
+
 }  // namespace
 
 SummaryFile::SummaryFile(std::filesystem::path path, const Site& site, const RunOptions& options,
@@ -46,7 +55,7 @@ SummaryFile::SummaryFile(std::filesystem::path path, const Site& site, const Run
   if (plan.adaptive) {
     const BackgroundOptions& bo = site.backgrounds;
     s["backgrounds"] = {{"adaptive", true}, {"learning", ToString(bo.learning)}, {"learn_s", bo.learn_s},
-                        {"learn_samples", bo.learn_samples}, {"adapt_s", bo.adapt_s}, {"relight_s", bo.relight_s},
+                        {"learn_samples", bo.learn_samples}, {"refresh_cache_s", bo.refresh_cache_s}, {"adapt_s", bo.adapt_s}, {"relight_s", bo.relight_s},
                         {"absorb_s", bo.absorb_s}, {"person_height_m", bo.person_height_m},
                         {"chroma", plan.chroma}, {"chroma_threshold", bo.chroma_threshold},
                         {"grow", {{"steps_px", bo.grow_steps_px}, {"threshold_share", bo.grow_threshold_share},
@@ -105,6 +114,7 @@ Status SummaryFile::WriteRunning(const RunStats& stats) const {
     e["frames"] = stats.cameras[n].frames;
     e["dropped_frames"] = stats.cameras[n].dropped;
     e["reconnects"] = stats.cameras[n].reconnects;
+    if (const auto& cache = stats.cameras[n].background_cache) e["background_cache"] = BackgroundCacheJson(*cache);
     cj.push_back(std::move(e));
   }
   j["cameras"] = std::move(cj);
@@ -151,6 +161,7 @@ Status SummaryFile::WriteFinal(const RunSummary& summary, const RunStats& stats,
     if (!c.end_reason.empty()) e["end_reason"] = c.end_reason;
     if (c.left_out) e["left_out"] = *c.left_out;
     if (c.late_messages) e["late_messages"] = *c.late_messages;
+    if (c.background_cache) e["background_cache"] = BackgroundCacheJson(*c.background_cache);
     e["frames"] = stats.cameras[n].frames;
     e["dropped_frames"] = stats.cameras[n].dropped;
     e["reconnects"] = stats.cameras[n].reconnects;
