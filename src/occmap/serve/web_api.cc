@@ -275,6 +275,14 @@ json StateJson(const LiveSnapshot& s, bool running, double uptime_s, bool starti
     cams.push_back({{"id", c.id}, {"active", c.active}, {"connected", c.connected}, {"fps", Num(fps)},
                     {"frames", c.frames}, {"dropped", c.dropped}, {"reconnects", c.reconnects},
                     {"background_age_s", Num(c.background_age_s)}});
+    if (c.background_cache) {  // a live camera whose cached background is refreshed
+      const BackgroundCacheFigures& f = *c.background_cache;
+      cams.back()["background_cache"] = {
+          {"refreshes", f.refreshes},
+          {"failures", f.failures},
+          {"last_refresh_frame", f.last_refresh_frame ? json(*f.last_refresh_frame) : json(nullptr)},
+          {"last_error", f.last_error.empty() ? json(nullptr) : json(f.last_error)}};
+    }
   }
   const LatencyFigures& l = s.stats.latency;
   return {{"frame", s.frame},
@@ -399,6 +407,18 @@ std::string MetricsText(const LiveSnapshot& s, bool running) {
   for (const CameraStats& c : s.stats.cameras) {
     if (std::isfinite(c.background_age_s)) {
       o += fmt::format("occmap_camera_background_age_seconds{{camera=\"{}\"}} {:g}\n", Label(c.id), c.background_age_s);
+    }
+  }
+  head("occmap_background_cache_refreshes_total", "counter", "a live camera's cached background written from its model");
+  for (const CameraStats& c : s.stats.cameras) {
+    if (c.background_cache) {
+      o += fmt::format("occmap_background_cache_refreshes_total{{camera=\"{}\"}} {}\n", Label(c.id), c.background_cache->refreshes);
+    }
+  }
+  head("occmap_background_cache_failures_total", "counter", "writes of a live camera's cached background that failed");
+  for (const CameraStats& c : s.stats.cameras) {
+    if (c.background_cache) {
+      o += fmt::format("occmap_background_cache_failures_total{{camera=\"{}\"}} {}\n", Label(c.id), c.background_cache->failures);
     }
   }
   head("occmap_stage_seconds_total", "counter", "time spent inside each stage of the run");

@@ -145,6 +145,7 @@ LiveSnapshot TestSnapshot() {
   s.stats.cameras = {CameraStats{"c1", true, true, 13, 2, 1}, CameraStats{"c2", true, false, 10, 0, 3}};
   s.stats.latency = {13, 20, 40, 50, 60};
   s.stats.cameras[0].background_age_s = 42.5;  // c2 gives masks: no background (NaN)
+  s.stats.cameras[0].background_cache = BackgroundCacheFigures{"/cache/c1-y.png", 4, 2, 30, "disk full"};  // a live camera
   s.stats.stages.decode = 1.5;
   s.stats.stages.fuse = 0.25;
   s.stats.stages.tables = 3;
@@ -176,6 +177,9 @@ TEST(WebApi, FrameAndStateJson) {
   EXPECT_EQ(st["latency_ms"]["p95"], 40);
   EXPECT_EQ(st["cameras"][0]["background_age_s"], 42.5);
   EXPECT_TRUE(st["cameras"][1]["background_age_s"].is_null());
+  EXPECT_EQ(st["cameras"][0]["background_cache"],
+            (json{{"refreshes", 4}, {"failures", 2}, {"last_refresh_frame", 30}, {"last_error", "disk full"}}));
+  EXPECT_FALSE(st["cameras"][1].contains("background_cache"));
   EXPECT_EQ(st["stages_s"]["decode"], 1.5);
   EXPECT_EQ(st["stages_s"]["fuse"], 0.25);
   EXPECT_EQ(st["stages_s"]["tables"], 3);
@@ -193,10 +197,13 @@ TEST(WebApi, MetricsText) {
         "occmap_line_crossings_total{line=\"gate\",direction=\"in\"} 4\n",
         "occmap_line_crossings_total{line=\"gate\",direction=\"out\"} 1\n",
         "occmap_camera_background_age_seconds{camera=\"c1\"} 42.5\n", "occmap_stage_seconds_total{stage=\"decode\"} 1.5\n",
-        "occmap_stage_seconds_total{stage=\"tables\"} 3\n", "# TYPE occmap_latency_seconds summary\n"}) {
+        "occmap_stage_seconds_total{stage=\"tables\"} 3\n", "# TYPE occmap_latency_seconds summary\n",
+        "occmap_background_cache_refreshes_total{camera=\"c1\"} 4\n",
+        "occmap_background_cache_failures_total{camera=\"c1\"} 2\n"}) {
     EXPECT_NE(m.find(line), std::string::npos) << line << "\n" << m;
   }
   EXPECT_EQ(m.find("occmap_camera_background_age_seconds{camera=\"c2\"}"), std::string::npos) << "no background: no sample";
+  EXPECT_EQ(m.find("occmap_background_cache_failures_total{camera=\"c2\"}"), std::string::npos) << "no cache refreshed";
   // Every sample line: name{labels} value.
   size_t start = 0;
   while (start < m.size()) {
