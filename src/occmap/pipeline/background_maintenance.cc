@@ -35,8 +35,10 @@ bool Inside(const Eigen::Vector2d& px, ImageSize size) {
 
 ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vector<const CameraModel*>& cameras,
                                           double plane_height_m, const std::vector<BackgroundModel*>& models,
-                                          int threshold, int chroma_threshold, bool drop_kept) {
+                                          int threshold, int chroma_threshold, bool drop_kept,
+                                          const std::vector<bool>& keep) {
   OCCMAP_CHECK(static_cast<int>(models.size()) == lut.num_cameras(), "consensus: one model (or null) per camera");
+  OCCMAP_CHECK(keep.empty() || keep.size() == models.size(), "consensus: no keep flags or one per model");
   OCCMAP_CHECK(cameras.empty() || cameras.size() == models.size(), "consensus: no cameras or one per model");
   const size_t cams = models.size();
   // Blocks of kConsensusBlock x kConsensusBlock cells: a far cell is hit by few pixels' rays,
@@ -185,7 +187,7 @@ ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vecto
   ConsensusResult result;
   for (size_t n = 0; n < cams; ++n) {
     BackgroundModel* m = models[n];
-    if (m == nullptr || m->empty()) continue;
+    if (m == nullptr || m->empty() || (!keep.empty() && keep[n])) continue;
     const int w = m->width();
     for (size_t p = 0; p < pixel_block[n].size(); ++p) {
       const int32_t b = pixel_block[n][p];

@@ -70,6 +70,10 @@ struct ConsensusResult {
 // chroma_threshold (0: luma alone; the models' chroma otherwise, each camera's white balance
 // matched to the reference camera's): a pixel keeps its background for good only when its Cb
 // and Cr are also within it of the block's consensus.
+// keep (empty: none): cameras whose models vote but are left as they are (backgrounds and
+// alternatives), their pixels not counted: a background reused from an entry its running model
+// wrote (CameraState::background_from_model) was checked when first learned, and holds what
+// the model has taken in since, a change one camera sees alone among them.
 // drop_kept: a pixel that keeps its background drops its alternative. Before settling
 // (pipeline/settle_backgrounds.h, drop_kept false) not on a block something stood on (most of
 // the cameras that see it have two looks over a quarter of its pixels): at a person's feet every
@@ -77,7 +81,8 @@ struct ConsensusResult {
 // away, and drops every alternative at its end.
 ConsensusResult ResolveLearnedBackgrounds(const GroundLut& lut, const std::vector<const CameraModel*>& cameras,
                                           double plane_height_m, const std::vector<BackgroundModel*>& models,
-                                          int threshold, int chroma_threshold, bool drop_kept = true);
+                                          int threshold, int chroma_threshold, bool drop_kept = true,
+                                          const std::vector<bool>& keep = {});
 
 class BackgroundProtection {
  public:

@@ -3,7 +3,9 @@
 #include <fmt/core.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <functional>
 #include <numbers>
 #include <nlohmann/json.hpp>
 
@@ -169,18 +171,15 @@ int FloorLevel(const Eigen::Vector2d& p) {
   return ((static_cast<int>(std::floor(p.x() / 0.5)) + static_cast<int>(std::floor(p.y() / 0.5))) % 2) ? 160 : 60;
 }
 
-TEST(ResolveLearnedBackgrounds, APersonLearnedInOneViewTakesTheFloorTheOthersSee) {
-  testing::SmallRoom room;
-  auto lut = SmallRoomLut(room);
-  ASSERT_TRUE(lut.ok()) << lut.status().message();
-  // Each camera's background is the floor at its own exposure (gain 1 + 0.1 n); camera 0 has a
-  // person learned in over two rectangles, the floor as alternative on the first only.
+// The small room's learned backgrounds: camera n's is the floor at exposure 1 + gain_step n, but
+// where learned_in(n, x, y) a person was learned in (250), with the floor as the pixel's
+// alternative where also floor_kept(n, x, y).
+using PixelTest = std::function<bool(size_t n, int x, int y)>;
+std::vector<std::unique_ptr<BackgroundModel>> LearnedRoom(const testing::SmallRoom& room, double gain_step,
+                                                          const PixelTest& learned_in, const PixelTest& floor_kept) {
   std::vector<std::unique_ptr<BackgroundModel>> models;
-  std::vector<BackgroundModel*> pointers;
-  const int x0 = 60, x1 = 80, y0 = 60, y1 = 90, x2 = 100, x3 = 120;
-  int64_t floor_pixels_first = 0;
   for (size_t n = 0; n < room.cameras.size(); ++n) {
-    const double gain = 1 + 0.1 * static_cast<double>(n);
+    const double gain = 1 + gain_step * static_cast<double>(n);
     YuvImage b;
     b.y = Image<uint8_t>(160, 120, 0);
     BackgroundLearner::Alternative alt{{Image<uint8_t>(160, 120, 0), {}, {}}, Image<uint8_t>(160, 120, 0)};
@@ -189,20 +188,42 @@ TEST(ResolveLearnedBackgrounds, APersonLearnedInOneViewTakesTheFloorTheOthersSee
         const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
         const int floor = p ? static_cast<int>(std::lround(gain * FloorLevel(*p))) : 0;
         b.y(x, y) = static_cast<uint8_t>(floor);
-        if (n == 0 && y >= y0 && y < y1 && ((x >= x0 && x < x1) || (x >= x2 && x < x3))) {
-          b.y(x, y) = 250;
-          if (x < x1) {
-            alt.levels.y(x, y) = static_cast<uint8_t>(floor);
-            alt.support(x, y) = 10;
-            floor_pixels_first += lut->l1(0)[static_cast<size_t>(y) * 160 + x] != lut->sentinel();
-          }
+        if (!learned_in(n, x, y)) continue;
+        b.y(x, y) = 250;
+        if (floor_kept(n, x, y)) {
+          alt.levels.y(x, y) = static_cast<uint8_t>(floor);
+          alt.support(x, y) = 10;
         }
       }
     }
     models.push_back(std::make_unique<BackgroundModel>(BackgroundOptions{}, 10.0));
     models.back()->Reset(b);
     models.back()->SetAlternative(alt, 3);
-    pointers.push_back(models.back().get());
+  }
+  return models;
+}
+
+std::vector<BackgroundModel*> Pointers(const std::vector<std::unique_ptr<BackgroundModel>>& models) {
+  std::vector<BackgroundModel*> p;
+  for (const auto& m : models) p.push_back(m.get());
+  return p;
+}
+
+TEST(ResolveLearnedBackgrounds, APersonLearnedInOneViewTakesTheFloorTheOthersSee) {
+  testing::SmallRoom room;
+  auto lut = SmallRoomLut(room);
+  ASSERT_TRUE(lut.ok()) << lut.status().message();
+  // Each camera's background is the floor at its own exposure (gain 1 + 0.1 n); camera 0 has a
+  // person learned in over two rectangles, the floor as alternative on the first only.
+  const int x0 = 60, x1 = 80, y0 = 60, y1 = 90, x2 = 100, x3 = 120;
+  const auto models = LearnedRoom(
+      room, 0.1,
+      [&](size_t n, int x, int y) { return n == 0 && y >= y0 && y < y1 && ((x >= x0 && x < x1) || (x >= x2 && x < x3)); },
+      [&](size_t, int x, int) { return x < x1; });
+  const std::vector<BackgroundModel*> pointers = Pointers(models);
+  int64_t floor_pixels_first = 0;
+  for (int y = y0; y < y1; ++y) {
+    for (int x = x0; x < x1; ++x) floor_pixels_first += lut->l1(0)[static_cast<size_t>(y) * 160 + x] != lut->sentinel();
   }
   const ConsensusResult r = ResolveLearnedBackgrounds(*lut, {}, 0.0, pointers, 20, 0);
   EXPECT_GT(floor_pixels_first, 400);
@@ -216,6 +237,43 @@ TEST(ResolveLearnedBackgrounds, APersonLearnedInOneViewTakesTheFloorTheOthersSee
   EXPECT_EQ(models[0]->AlternativeLevel(x0 + 5, y0 + 5), -1);  // decided: the person is never swapped back in
   EXPECT_EQ(models[0]->BackgroundLevel(x2 + 5, y0 + 5), 250);
   EXPECT_EQ(models[1]->AlternativeLevel(5, 5), -1);
+}
+
+// Cameras 0 and 1 each have a person learned in over a rectangle, the floor as alternative;
+// camera 0's background was reused from an entry its running model wrote (kept): it votes, but
+// keeps its look and its alternative (what its model took in since it was checked, a change it
+// alone sees), while camera 1 takes the floor the others see.
+TEST(ResolveLearnedBackgrounds, AKeptCameraIsLeftAsItIs) {
+  testing::SmallRoom room;
+  auto lut = SmallRoomLut(room);
+  ASSERT_TRUE(lut.ok()) << lut.status().message();
+  const int x0 = 60, x1 = 80, y0 = 60, y1 = 90;
+  auto build = [&] {
+    return LearnedRoom(
+        room, 0.0, [&](size_t n, int x, int y) { return n <= 1 && y >= y0 && y < y1 && x >= x0 && x < x1; },
+        [](size_t, int, int) { return true; });
+  };
+  const int xs = x0 + 5, ys = y0 + 5;
+  std::array<int, 2> floor{};
+  for (size_t n = 0; n <= 1; ++n) {
+    const auto seen = room.cameras[n].PixelToPlane(Eigen::Vector2d(xs, ys), 0.0);
+    ASSERT_TRUE(seen.has_value());
+    floor[n] = FloorLevel(*seen);
+  }
+  const auto checked_all = build();
+  const ConsensusResult all = ResolveLearnedBackgrounds(*lut, {}, 0.0, Pointers(checked_all), 20, 0);
+  EXPECT_EQ(checked_all[0]->BackgroundLevel(xs, ys), floor[0]);  // unkept, camera 0 takes the floor too
+
+  const auto models = build();
+  const ConsensusResult r = ResolveLearnedBackgrounds(*lut, {}, 0.0, Pointers(models), 20, 0, /*drop_kept=*/true,
+                                                      /*keep=*/{true, false, false, false});
+  EXPECT_EQ(models[0]->BackgroundLevel(xs, ys), 250);
+  EXPECT_EQ(models[0]->AlternativeLevel(xs, ys), floor[0]);
+  EXPECT_EQ(models[1]->BackgroundLevel(xs, ys), floor[1]);
+  EXPECT_EQ(models[1]->AlternativeLevel(xs, ys), -1);
+  EXPECT_GT(r.pixels_swapped, 0);
+  EXPECT_LT(r.pixels_swapped, all.pixels_swapped);
+  EXPECT_LT(r.pixels_checked, all.pixels_checked);  // camera 0's pixels are not counted
 }
 
 // The same room with a grid over its first 2 x 1.5 m only: camera 0 has a person learned in

@@ -108,11 +108,14 @@ bool FromFile(const FrameSourceSpec& source) {
 // A learned background's cache entry: one PNG per plane, `<prefix>-y.png` last (it marks the
 // set complete); the alternatives' planes too when given, and none left over otherwise.
 fs::path CachePlane(const fs::path& prefix, const char* plane) { return fs::path(prefix.string() + "-" + plane + ".png"); }
+// In an entry written from a running model (BackgroundCacheRefresh), not learned: the start's
+// checks across cameras have been made on it already (CameraState::background_from_model).
+fs::path FromModelMark(const fs::path& prefix) { return fs::path(prefix.string() + "-from-model.txt"); }
 // Every plane is written beside its place first (the slow part), then the set is swapped in:
 // `-y` removed, the others renamed, `-y` renamed last. A run killed meanwhile leaves either the
 // old set, or no `-y` (learned again), never a `-y` over planes of another time.
 Status CacheAdaptiveBackground(const fs::path& prefix, const YuvImage& background,
-                               const BackgroundLearner::Alternative* alternative) {
+                               const BackgroundLearner::Alternative* alternative, bool from_model = false) {
   OCCMAP_RETURN_IF_ERROR(EnsureDirectory(prefix.parent_path()));
   const bool chroma = background.has_chroma();
   std::vector<std::pair<const char*, ImageView<const uint8_t>>> planes;
@@ -139,8 +142,20 @@ Status CacheAdaptiveBackground(const fs::path& prefix, const YuvImage& backgroun
       return s;
     }
   }
+  const fs::path mark = FromModelMark(prefix), fresh_mark = mark.string() + ".new";
+  if (from_model) {
+    if (Status s = WriteFileAtomic(fresh_mark, "written from a running model: its start's checks are made\n"); !s.ok()) {
+      for (const auto& [plane, image] : planes) fs::remove(fresh(plane), ec);
+      return s;
+    }
+  }
   fs::remove(CachePlane(prefix, "y"), ec);
   for (const char* plane : {"alt-y", "alt-u", "alt-v", "alt-n"}) fs::remove(CachePlane(prefix, plane), ec);
+  fs::remove(mark, ec);
+  if (from_model) {
+    fs::rename(fresh_mark, mark, ec);
+    if (ec) return IoError(fmt::format("'{}': could not rename it into place: {}", fresh_mark.string(), ec.message()));
+  }
   for (const auto& [plane, image] : planes) {
     fs::rename(fresh(plane), CachePlane(prefix, plane), ec);
     if (ec) return IoError(fmt::format("'{}': could not rename it into place: {}", fresh(plane).string(), ec.message()));
@@ -268,6 +283,7 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
           alternative->support = std::move(alt_n).value();
         }
         reused = true;
+        c.background_from_model = fs::exists(FromModelMark(cached), ec);
         c.info.background = fmt::format("reused: {} (saved {})", plane_path("y").string(), AgeOf(plane_path("y")));
       }
     }
@@ -417,7 +433,7 @@ Status RefreshCachedBackground(const CameraState& c, const BackgroundOptions& bo
   const int min_support = static_cast<int>(std::ceil(bo.alternative_min_share * bo.learn_samples));
   const BackgroundLearner::Alternative alternative =
       c.model->CurrentAlternative(static_cast<uint8_t>(std::clamp(min_support, 1, 255)));
-  return CacheAdaptiveBackground(c.refresh_cache, c.model->Current(), &alternative)
+  return CacheAdaptiveBackground(c.refresh_cache, c.model->Current(), &alternative, /*from_model=*/true)
       .WithContext(fmt::format("camera {}: refreshing its cached background", c.cam->id));
 }
 

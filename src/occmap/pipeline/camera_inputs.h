@@ -41,6 +41,10 @@ struct CameraState {
   // A live stream's adaptive model: its cache entry, written back as the scene goes on
   // (BackgroundCacheRefresh); empty for files, given backgrounds, or without a cache.
   std::filesystem::path refresh_cache;
+  // Its adaptive background was reused from an entry a running model wrote (refresh_cache), not
+  // one learned: checked across cameras when first learned, and the scene as it was minutes
+  // ago, so the start's check (ResolveLearnedBackgrounds) leaves it as it is.
+  bool background_from_model = false;
   CameraRunInfo info;
 };
 

@@ -215,16 +215,19 @@ class EdgeBackgrounds {
 ConsensusResult ResolveAtEdge(const Site& site, const GroundLut& lut, std::vector<CameraState>& cams,
                               const std::vector<size_t>& index) {
   std::vector<BackgroundModel*> models(site.cameras.size(), nullptr);
+  std::vector<bool> keep(site.cameras.size(), false);  // entries a running model wrote (run.cc's reason)
   bool any_alternative = false;
   for (size_t k = 0; k < cams.size(); ++k) {
     models[index[k]] = cams[k].model.get();
-    any_alternative |= cams[k].info.background.starts_with("learned") || cams[k].info.background.starts_with("reused");
+    keep[index[k]] = cams[k].background_from_model;
+    any_alternative |= !cams[k].background_from_model && (cams[k].info.background.starts_with("learned") ||
+                                                          cams[k].info.background.starts_with("reused"));
   }
   if (!any_alternative) return {};
   std::vector<const CameraModel*> cameras;
   for (const SiteCamera& c : site.cameras) cameras.push_back(c.camera.get());
   return ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold,
-                                   site.backgrounds.chroma_threshold);
+                                   site.backgrounds.chroma_threshold, /*drop_kept=*/true, keep);
 }
 
 }  // namespace
