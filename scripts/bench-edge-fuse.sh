@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The bench of `occmap edge` and `occmap fuse` (issue 17, item 4), with a mosquitto of its own on
 # 127.0.0.1 (an ephemeral port, stopped at exit):
-#  1. Per scene (lab; WILDTRACK and plaza at --scale 0.5), FRAMES frames of H.264 rendered by
+#  1. Per scene (lab; WILDTRACK and plaza at --scale SCALE, 0.5), FRAMES frames of H.264 rendered by
 #     `occmap synth --video`: one `occmap edge` reads every camera; `occmap edge-sim --record`
 #     keeps its messages. Bytes per camera-frame against the video's own (its files' bytes per
 #     camera-frame), and the edge's CPU per camera-frame after its first message (decoding
@@ -36,6 +36,8 @@ people=${PEOPLE:-site}
 block_px=${BLOCK_PX:-1}
 block_rule=${BLOCK_RULE:-any}
 warmup=${WARMUP_S:-5}
+# SCALE: the WILDTRACK and plaza scenes' resolution (1: WILDTRACK's cameras' 1920x1080).
+scene_scale=${SCALE:-0.5}
 mkdir -p "$work"
 pids=()
 broker_pid=""
@@ -73,7 +75,7 @@ printf '\n%-13s %8s %12s %12s %8s %14s %14s %16s\n' scene cameras "video B/f" "m
 for scene in $scenes; do
   dir="$work/$scene"
   scale=()
-  [ "$scene" != lab ] && scale=(--scale 0.5)
+  [ "$scene" != lab ] && scale=(--scale "$scene_scale")
   learned=false
   [ "$scene" = plaza-learned ] && learned=true
   # Given backgrounds: the edge runs here without a fuse, and adaptive ones (the plaza's default)
