@@ -437,7 +437,7 @@ TEST_F(RunFixture, LiveCamerasRefreshTheirCachedBackgrounds) {
   std::string text = SiteText(/*with_backgrounds=*/false);
   for (int n = 0; n < 4; ++n) {
     const std::string from = fmt::format("images: cam{}/%06d.png", n);
-    text.replace(text.find(from), from.size(), fmt::format("stream: {}", (dir_ / fmt::format("live{}.mp4", n)).string()));  // as a URL: not resolved against the site file
+    text.replace(text.find(from), from.size(), fmt::format("stream: {}", (dir_ / fmt::format("live{}.mp4", n)).string()));
   }
   // No refresh but the stop's within a run (3600 s): the entry is the model at the stop.
   text += "backgrounds: {adaptive: true, learn_s: 2, learn_samples: 20, relight_s: 0.1, absorb_s: 2, refresh_cache_s: 3600}\n";

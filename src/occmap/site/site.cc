@@ -269,7 +269,14 @@ Result<FrameSourceSpec> ParseSource(const YamlField& field, const PathContext& c
   if (value.empty()) return field.Error(fmt::format("{}: expected a location, found an empty text", key));
   if (key == "stream") {
     spec.kind = FrameSourceSpec::Kind::kStream;
-    spec.location = value;  // URL or device, used as is
+    spec.location = value;  // a URL or a device, used as is
+    // A file played as a stream (a recording standing in for a camera) is found like every
+    // other file of the site, beside the site file.
+    if (value.find("://") == std::string::npos && !fs::path(value).is_absolute()) {
+      std::error_code ec;
+      const fs::path file = ResolvePath(ctx.data_root, value);
+      if (fs::is_regular_file(file, ec)) spec.location = file.string();
+    }
     return spec;
   }
   spec.kind = key == "images" ? FrameSourceSpec::Kind::kImages

@@ -1,5 +1,6 @@
 #include "occmap/site/site.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 
 #include "occmap/calib/opencv_storage.h"
@@ -169,6 +170,29 @@ TEST_F(SiteFixture, DataRootOptionRedirectsRelativePaths) {
   options.data_root = dir_.path();
   auto site = LoadSite(other / "site.yaml", options);
   EXPECT_TRUE(site.ok()) << site.status().message();
+}
+
+// A stream that names a file beside the site file (a recording played as a live camera) is
+// that file; a URL, an absolute device and a name that is no file are used as they are.
+TEST_F(SiteFixture, AStreamNamingAFileBesideTheSiteIsThatFile) {
+  testing::WriteText(dir_ / "clip.mp4", "not decoded here");
+  std::string text = Valid();
+  const std::string mask_line = "    mask: mask.png\n";
+  text.replace(text.find(mask_line), mask_line.size(), mask_line + "    source: {stream: clip.mp4}\n");
+  const std::string polygon = "      polygon: [[0, 30], [79, 30], [79, 59], [0, 59]]\n";
+  text.replace(text.find(polygon), polygon.size(), polygon + "    source: {stream: 'rtsp://cam-b/live'}\n");
+  auto site = Parse(text);
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  EXPECT_EQ(site->cameras[0].source.kind, FrameSourceSpec::Kind::kStream);
+  EXPECT_EQ(site->cameras[0].source.location, (dir_ / "clip.mp4").lexically_normal().string());
+  EXPECT_EQ(site->cameras[1].source.location, "rtsp://cam-b/live");
+  for (const char* as_is : {"/dev/video7", "missing.mp4"}) {
+    std::string t = text;
+    t.replace(t.find("stream: clip.mp4"), 16, fmt::format("stream: {}", as_is));
+    auto s = Parse(t);
+    ASSERT_TRUE(s.ok()) << s.status().message();
+    EXPECT_EQ(s->cameras[0].source.location, as_is);
+  }
 }
 
 struct BadSite {
