@@ -6,32 +6,44 @@ namespace occmap {
 
 namespace {
 
-// Whether every viewer that sees floor point p (of detection d) looks at it past a detection
-// that can occlude, nearer to the camera and low enough; false when no viewer sees it.
+// Whether detection d is not placed at its floor point p: every viewer that sees p looks at it
+// past a detection that can occlude (within occluder_radius_m, nearer to the camera and low
+// enough), or fewer than min(seeing, min_clear_views) viewers see it past every such detection
+// by more than clear_radius_m; false when no viewer sees it.
 bool HiddenAt(const Eigen::Vector2d& p, size_t d, const std::vector<Eigen::Vector2d>& points,
               const std::vector<Viewer>& viewers, const GhostOptions& options, const std::vector<bool>& can_occlude) {
-  int seeing = 0;
+  int seeing = 0, clear = 0, clear_of_bodies = 0;
   for (const Viewer& v : viewers) {
     if (!v.sees_point(p)) continue;
     ++seeing;
     const Eigen::Vector2d c = v.center_m.head<2>();
     const Eigen::Vector2d to_p = p - c;
     const double length = to_p.norm();
-    if (length <= 1e-9) continue;
-    bool is_blocked = false;
-    for (size_t e = 0; e < points.size() && !is_blocked; ++e) {
+    if (length <= 1e-9) {
+      ++clear;
+      ++clear_of_bodies;
+      continue;
+    }
+    bool is_blocked = false, passes_a_body = false;
+    for (size_t e = 0; e < points.size(); ++e) {
       if (e == d || !can_occlude[e]) continue;
       // The closest point of the line of sight (on the floor plan) to the other detection.
       const double t = std::clamp((points[e] - c).dot(to_p) / (length * length), 0.0, 1.0);
       const Eigen::Vector2d closest = c + t * to_p;
-      if ((points[e] - closest).norm() > options.occluder_radius_m || t >= 1.0) continue;
+      const double miss_m = (points[e] - closest).norm();
+      if (t >= 1.0 || miss_m > std::max(options.occluder_radius_m, options.clear_radius_m)) continue;
       // The sight line's height there falls linearly from the camera to the floor point.
       const double height = v.center_m.z() * (1.0 - t);
-      is_blocked = height <= options.occluder_height_m;
+      if (height > options.occluder_height_m) continue;
+      is_blocked |= miss_m <= options.occluder_radius_m;
+      passes_a_body |= miss_m <= options.clear_radius_m;
     }
-    if (!is_blocked) return false;
+    clear += !is_blocked;
+    clear_of_bodies += !passes_a_body;
   }
-  return seeing > 0;
+  if (seeing == 0) return false;
+  if (clear == 0) return true;
+  return options.min_clear_views > 1 && clear_of_bodies < std::min(seeing, options.min_clear_views);
 }
 
 // One pass: ghosts among `points` when only the detections with can_occlude[e] block views.
@@ -53,9 +65,10 @@ std::vector<bool> GhostPass(const std::vector<Eigen::Vector2d>& points, const st
 
 }  // namespace
 
-// Only detections that are certainly real hide others: those with at least one view that no
-// other detection blocks. A ghost is then a detection whose every view is blocked by one of
-// those. Two detections that only hide each other both stay (neither is explained away).
+// Only detections that are certainly real hide others: those that pass the test when every
+// other detection may block (at least one view that none blocks, and the clear views asked).
+// A ghost is then a detection whose views are blocked by those. Two detections that only hide
+// each other both stay (neither is explained away).
 std::vector<bool> FindGhosts(const std::vector<Eigen::Vector2d>& points, const std::vector<Viewer>& viewers,
                              const GhostOptions& options, const std::vector<std::vector<Eigen::Vector2d>>& samples) {
   const std::vector<bool> hidden_by_any =

@@ -6,6 +6,12 @@
 // occluder_height_m standing there. Real objects hidden that way from every camera are
 // dropped too: nothing in the images tells them from ghosts.
 //
+// With min_clear_views = 2, a detection that two cameras or more see must also be seen by two
+// of them clear of every other detection (no line of sight within clear_radius_m, a body, of
+// one): otherwise a single camera places it, and the others only look through someone. That
+// is the false detection a cast shadow makes beside a person or by a wall, where one camera
+// takes the shadow's thin tip for a change and the others see that floor through the person.
+//
 //   std::vector<bool> ghost = FindGhosts(points_m, viewers, {.occluder_radius_m = 0.3});
 #pragma once
 
@@ -18,6 +24,10 @@ namespace occmap {
 struct GhostOptions {
   double occluder_radius_m = 0.3;   // how far from a detection's centre a line of sight is blocked
   double occluder_height_m = 1.8;   // how tall the blocking objects are
+  // A detection seen by n cameras needs min(n, min_clear_views) of them to see it clear: past
+  // every other detection by more than clear_radius_m (1: one clear view keeps it, as above).
+  int min_clear_views = 1;
+  double clear_radius_m = 0.25;
 };
 
 struct Viewer {

@@ -31,8 +31,12 @@ ObjectDetector::ObjectDetector(const ObjectOptions& options, double plane_height
   OCCMAP_CHECK(valid.ok(), "ObjectDetector: invalid options: " + valid.message());
   // The groups are footprints grown by r, so one person's size grows with them.
   split_options_.person_diameter_m += 2 * settings_.group_radius_m;
+  // Blocked views: within a grown person of another detection (a ghost is called only where it
+  // is surely hidden); clear views: past a body (settings_'s person) of every other one.
   ghost_options_ = {.occluder_radius_m = split_options_.person_radius_m(),
-                    .occluder_height_m = settings_.occluder_height_m};
+                    .occluder_height_m = settings_.occluder_height_m,
+                    .min_clear_views = settings_.min_clear_views,
+                    .clear_radius_m = settings_.person_radius_m()};
   for (const CameraView& v : cameras_) {
     const CameraModel* model = v.camera;
     const Image<uint8_t>* mask = v.mask;

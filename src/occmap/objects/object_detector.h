@@ -10,7 +10,8 @@
 //      elevated_check.h: the planes above the floor, read through each camera's changes at
 //      the footprint, show nothing);
 //   5. with remove_ghosts, detections that every camera seeing them sees only through other,
-//      certainly real detections are dropped (ghosts.h).
+//      certainly real detections are dropped, and so are those that two cameras see but fewer
+//      than min_clear_views see clear of the others (ghosts.h).
 // A detection is placed at the centroid of its footprint (of its part of the group when its
 // group was split), with the footprint's area and spread. The output is an ObjectFrame
 // (object_frame.h): the detections, what detections.jsonl shows and what the tracker

@@ -29,6 +29,9 @@ std::optional<Problem> CheckBlobs(const ObjectOptions& o) {
   if (!(o.occluder_height_m > 0)) {
     return Problem{"occluder_height_m", fmt::format("expected > 0 m, found {}", o.occluder_height_m)};
   }
+  if (!(o.min_clear_views >= 1 && o.min_clear_views <= 64)) {
+    return Problem{"min_clear_views", fmt::format("expected 1..64 cameras, found {}", o.min_clear_views)};
+  }
   if (!(o.group_radius_m >= 0 && o.group_radius_m <= 5)) {
     return Problem{"group_radius_m", fmt::format("expected 0..5 m, found {}", o.group_radius_m)};
   }
@@ -84,11 +87,17 @@ Status ObjectOptions::Validate() const {
 Status ParseObjectOptions(const YamlField& f, ObjectOptions& options) {
   if (f.IsNull()) return Status::Ok();
   OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"group_radius_m", "min_area_m2", "split", "remove_ghosts", "occluder_height_m",
-                                      "support_heights_m", "min_support", "support_slack_m", "standing_radius_m"}));
+                                      "min_clear_views", "support_heights_m", "min_support", "support_slack_m",
+                                      "standing_radius_m"}));
   ObjectOptions o = options;
   OCCMAP_ASSIGN_OR_RETURN(o.split, f.GetBool("split", o.split));
   OCCMAP_ASSIGN_OR_RETURN(o.remove_ghosts, f.GetBool("remove_ghosts", o.remove_ghosts));
   OCCMAP_ASSIGN_OR_RETURN(o.occluder_height_m, f.GetDouble("occluder_height_m", o.occluder_height_m));
+  OCCMAP_ASSIGN_OR_RETURN(const int64_t clear_views, f.GetInt("min_clear_views", o.min_clear_views));
+  if (clear_views < 1 || clear_views > 64) {
+    return f.Find("min_clear_views")->Error(fmt::format("expected 1..64 cameras, found {}", clear_views));
+  }
+  o.min_clear_views = static_cast<int>(clear_views);
   if (f.Find("support_heights_m")) {
     OCCMAP_ASSIGN_OR_RETURN(o.support_heights_m, f.GetDoubles("support_heights_m"));
   }

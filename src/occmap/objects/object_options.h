@@ -41,6 +41,11 @@ struct ObjectOptions {
   //    dropped (ghosts.h).
   bool remove_ghosts = true;
   double occluder_height_m = 1.8;  // objects that hide the floor behind them (ghost test)
+  // With remove_ghosts: a detection that n cameras see must be seen by min(n, min_clear_views)
+  // of them clear of every other detection (no line of sight within person_radius_m of one).
+  // 2: one camera alone does not place it while the others look through someone (a cast
+  // shadow's tip beside a person or by a wall); 1: one clear view is enough.
+  int min_clear_views = 2;
   // The elevated check (empty = off): a detection is kept only when, on one of the planes
   // support_heights_m above the floor, at least min_support of its footprint cells are also
   // occupied within support_slack_m (tested pixel by pixel through each camera's changes).

@@ -50,6 +50,7 @@ blobs:
   split: false
   remove_ghosts: false
   occluder_height_m: 1.6
+  min_clear_views: 1
   support_heights_m: [0.35, 1.0]
   min_support: 0.3
   support_slack_m: 0.04
@@ -71,6 +72,7 @@ tracking:
   EXPECT_FALSE(options.split);
   EXPECT_FALSE(options.remove_ghosts);
   EXPECT_EQ(options.occluder_height_m, 1.6);
+  EXPECT_EQ(options.min_clear_views, 1);
   EXPECT_EQ(options.support_heights_m, (std::vector<double>{0.35, 1.0}));
   EXPECT_EQ(options.min_support, 0.3);
   EXPECT_EQ(options.support_slack_m, 0.04);
@@ -107,6 +109,8 @@ TEST(ParseObjectOptions, MalformedInputsGiveLocatedMessagesAndLeaveTheOptionsAlo
       {"blobs:\n  support_heights_m: [0.5, 12]", "site.yaml:2: blobs.support_heights_m: expected heights in (0, 10) m, found 12"},
       {"blobs:\n  min_support: 1.5", "site.yaml:2: blobs.min_support: expected a fraction in [0, 1], found 1.5"},
       {"blobs:\n  occluder_height_m: 0", "site.yaml:2: blobs.occluder_height_m: expected > 0 m, found 0"},
+      {"blobs:\n  min_clear_views: 0", "site.yaml:2: blobs.min_clear_views: expected 1..64 cameras, found 0"},
+      {"blobs:\n  min_clear_views: 1.5", "site.yaml:2: blobs.min_clear_views: expected an integer, found '1.5'"},
       {"tracking: 3", "site.yaml:1: tracking: expected a map, found '3'"},
       {"tracking:\n  person_diameter_m: -1", "site.yaml:2: tracking.person_diameter_m: expected a number > 0, found -1"},
       {"tracking:\n  max_people_per_blob: 2.5", "site.yaml:2: tracking.max_people_per_blob: expected an integer, found '2.5'"},
