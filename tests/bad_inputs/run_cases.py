@@ -295,6 +295,8 @@ site("site_blobs_area", "min_area_m2: 0.015", "min_area_m2: abc", ["blobs.min_ar
 site("site_blobs_support", "min_support: 0.3", "min_support: 1.5", ["blobs.min_support", "found 1.5"])
 site("site_blobs_heights", "support_heights_m: [0.35, 0.7, 1.0, 1.3]", "support_heights_m: [0.35, -1]",
      ["blobs.support_heights_m", "found -1"])
+site("site_blobs_clear_views", "min_support: 0.3", "min_support: 0.3\n  min_clear_views: 0",
+     ["blobs.min_clear_views", "expected 1..64 cameras, found 0"])
 site("site_blobs_unknown", "min_support: 0.3", "min_support: 0.3\n  split_me: true", ["blobs", "unknown field 'split_me'"])
 site("site_fusion_algorithm", "min_support: 0.3", "min_support: 0.3\nfusion: {algorithm: fastest}",
      ["fusion.algorithm", "found 'fastest'"])
