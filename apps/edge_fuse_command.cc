@@ -202,8 +202,11 @@ Status RunEdgeCommand(EdgeCommand cmd, int threads, const std::string& data_root
              stdout);
   if (site.backgrounds.adaptive) {
     std::fputs(fmt::format("adaptive backgrounds: {} protections from the fuse, {} frame sets updated without one; "
-                           "learned backgrounds checked over this edge's cameras: {} pixels, {} swapped\n",
-                           s.protections, s.unprotected_updates, s.consensus_pixels_checked, s.consensus_pixels_swapped)
+                           "learned backgrounds checked over this edge's cameras: {} pixels, {} swapped{}\n",
+                           s.protections, s.unprotected_updates, s.consensus_pixels_checked, s.consensus_pixels_swapped,
+                           s.settle_frame_sets > 0 ? fmt::format("; settled over {} frame sets in {:.1f} s",
+                                                                 s.settle_frame_sets, s.settle_s)
+                                                   : std::string())
                    .c_str(),
                stdout);
   }

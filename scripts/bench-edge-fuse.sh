@@ -88,7 +88,7 @@ for scene in $scenes; do
       --out "$dir" >"$work/synth-$scene.log" 2>&1
   fi
   if $learned; then
-    # Learned and kept up at the edge; not settled (that needs the fused map while it learns).
+    # Learned and kept up at the edge; not settled (a start-up pass: the bench measures the steady state).
     sed 's/^  adaptive: true$/  adaptive: true\n  settle: false/' "$dir/site.yaml" >"$dir/site-edge.yaml"
     grep -q 'settle: false' "$dir/site-edge.yaml" || { echo "$scene: the site is not adaptive" >&2; exit 1; }
   else

@@ -25,6 +25,7 @@
 #include "occmap/pipeline/fusion_stage.h"
 #include "occmap/pipeline/mqtt_link.h"
 #include "occmap/pipeline/protection_message.h"
+#include "occmap/pipeline/settle_backgrounds.h"
 #include "occmap/pipeline/sink_stage.h"
 #include "occmap/pipeline/summary_file.h"
 #include "occmap/site/site_lut.h"
@@ -226,8 +227,27 @@ ConsensusResult ResolveAtEdge(const Site& site, const GroundLut& lut, std::vecto
   if (!any_alternative) return {};
   std::vector<const CameraModel*> cameras;
   for (const SiteCamera& c : site.cameras) cameras.push_back(c.camera.get());
+  // Settling reads the alternatives of the kept pixels too (run.cc's ResolveBackgrounds).
+  const bool settles = std::any_of(cams.begin(), cams.end(), [](const CameraState& c) { return c.settles; });
   return ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold,
-                                   site.backgrounds.chroma_threshold, /*drop_kept=*/true, keep);
+                                   site.backgrounds.chroma_threshold, /*drop_kept=*/!settles, keep);
+}
+
+// An edge of every camera settles its learned backgrounds as `occmap run` does: the same pass,
+// its cameras in the site's order (as the run's tables and fusion stage hold them).
+Status SettleAtEdge(const Site& site, const RunOptions& options, const FusionPlan& plan, const GroundLut& lut,
+                    std::vector<CameraState>& cams, const std::vector<size_t>& index, Context& ctx,
+                    EdgeSummary& summary) {
+  if (std::none_of(cams.begin(), cams.end(), [](const CameraState& c) { return c.settles; })) return Status::Ok();
+  std::vector<CameraState> ordered(cams.size());
+  for (size_t k = 0; k < cams.size(); ++k) ordered[index[k]] = std::move(cams[k]);
+  const double fps = ordered[0].source->fps().value_or(10.0);
+  Result<SettleFigures> settled = SettleLearnedBackgrounds(site, options, plan, lut, ordered, fps, ctx);
+  for (size_t k = 0; k < cams.size(); ++k) cams[k] = std::move(ordered[index[k]]);
+  if (!settled.ok()) return settled.status();
+  summary.settle_frame_sets = settled->frame_sets;
+  summary.settle_s = settled->seconds;
+  return Status::Ok();
 }
 
 }  // namespace
@@ -312,8 +332,12 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& given, Context&
       progress.reset();  // an old one (a fuse killed), or behind --start
     }
   }
+  // Settling learned backgrounds replays the window through the fusion (settle_backgrounds.h):
+  // an edge of every camera of the site fuses it itself, as the run does; an edge of some of
+  // them cannot tell a person who left from one another camera of the site still sees.
+  const bool whole_site = index.size() == site.cameras.size();
   RunOptions open_options = o.run;
-  open_options.settle_learned_backgrounds = false;  // settling needs the fused map
+  open_options.settle_learned_backgrounds = o.run.settle_learned_backgrounds && whole_site;
   OCCMAP_ASSIGN_OR_RETURN(std::vector<CameraState> cams, OpenCameras(site, open_options, plan, ctx, index));
   // Opened (backgrounds learned or reused) from --start as on the first start; then skipped to
   // the fuse's latest progress (it went on while the cameras opened).
@@ -356,6 +380,7 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& given, Context&
     const ConsensusResult r = ResolveAtEdge(site, lut->lut, cams, index);
     summary.consensus_pixels_checked = r.pixels_checked;
     summary.consensus_pixels_swapped = r.pixels_swapped;
+    OCCMAP_RETURN_IF_ERROR(SettleAtEdge(site, open_options, plan, lut->lut, cams, index, ctx, summary));
   }
   // What a restarted edge did before it can publish (learned again, or reused from the cache).
   std::string backgrounds_said;

@@ -87,6 +87,10 @@ struct EdgeSummary {
   int64_t protections = 0;
   int64_t unprotected_updates = 0;
   int64_t consensus_pixels_checked = 0, consensus_pixels_swapped = 0;
+  // Learned backgrounds of files settled over the window (an edge of every camera of the site):
+  // the pass's frame sets and seconds; 0 when nothing was settled.
+  int64_t settle_frame_sets = 0;
+  double settle_s = 0;
   // Per live camera whose cached background is refreshed (backgrounds.refresh_cache_s): its id
   // and what the refreshes did, the stop's included. Failures are told to run.warning once.
   std::vector<std::pair<std::string, BackgroundCacheFigures>> background_cache{};

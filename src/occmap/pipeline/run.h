@@ -91,7 +91,8 @@ struct RunOptions {
   // change_masks), for a sink that shows them (`occmap serve`). Costs a copy per frame set.
   bool sink_frames = false;
   // Learned backgrounds of file sources are settled before the run (site.backgrounds.settle,
-  // pipeline/settle_backgrounds.h); an edge process, which has no fused map, does not settle.
+  // pipeline/settle_backgrounds.h); an edge process settles only when it reads every camera of
+  // the site (it fuses the window itself then).
   bool settle_learned_backgrounds = true;
   int background_frames = 25;  // K of the median background, when a camera has none
   int background_step = 4;     // take every n-th frame for the median
