@@ -100,6 +100,7 @@ CLI::App* AddFuseCommand(CLI::App& app, FuseCommand& cmd) {
                 "rewrite summary.json with the running figures this often (0 = only at the end)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  AddLiveOutputOptions(*c, cmd.live);
   return c;
 }
 
@@ -230,6 +231,7 @@ Status RunFuseCommand(FuseCommand cmd, int threads, const std::string& data_root
   if (!cmd.sync.empty()) cmd.options.sync = cmd.sync == "index" ? FrameSync::kIndex : FrameSync::kTimestamp;
   o.output_mode = cmd.atomic_outputs ? OutputMode::kAtomic : OutputMode::kLive;
   o.wall_clock_times = !cmd.no_wall_clock;
+  OCCMAP_ASSIGN_OR_RETURN(const LiveSinks live, AddLiveSinks(site, cmd.live, o));
   StopOnSignals signals(o.out_dir);
   o.stop = signals.stop();
   Context ctx(threads);
@@ -238,6 +240,7 @@ Status RunFuseCommand(FuseCommand cmd, int threads, const std::string& data_root
                          s.tracks, (o.out_dir / "summary.json").string())
                  .c_str(),
              stdout);
+  PrintLiveSinks(live);
   return Status::Ok();
 }
 

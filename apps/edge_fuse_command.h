@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "live_outputs.h"
 #include "occmap/pipeline/edge_fuse.h"
 #include "occmap/util/status.h"
 
@@ -28,6 +29,7 @@ struct EdgeCommand {
 struct FuseCommand {
   EdgeFuseCommon common;
   FuseOptions options;
+  LiveOutputsCommand live;  // --mqtt, --ros-map: the run's outputs for other software
   bool no_video = false;
   bool no_wall_clock = false;
   bool atomic_outputs = false;

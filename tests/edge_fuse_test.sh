@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # `occmap edge` x 3 + `occmap fuse` through a mosquitto of the test's own (127.0.0.1, an
 # ephemeral port) on a rendered lab scene: the fuse's detections, tracks and events equal
-# `occmap run`'s byte for byte; a fuse given a site with other detection settings refuses the
+# `occmap run`'s byte for byte, and its tracks go out on MQTT as the run's do (--mqtt); a fuse given a site with other detection settings refuses the
 # edges' messages, naming what differs; a fuse survives a restart of the broker; with the
 # changes in 2x2 blocks (detection.block_px 2) the fuse still equals the run.
 #
@@ -22,8 +22,12 @@ common=(--no-cache --threads 1)
 # 1. Three edges (two cameras, one, one) and the fuse: the same outputs as the run.
 # Over files the edges race ahead of each other: a budget longer than their lag keeps every
 # frame set whole, as the run's.
+mosquitto_sub -h 127.0.0.1 -p "$broker_port" -t 'occmap/lab/tracks' -t 'occmap/lab/stats' -t 'occmap/lab/available' \
+  -F '%t %p' >"$work/outputs.log" 2>&1 &
+tl_track $!
+sub_pid=$!
 "$occmap" fuse "$work/lab/site.yaml" --broker "$broker" --out "$work/fuse" --no-video --no-wall-clock \
-  --latency-budget-s 60 --dead-after-s 60 "${common[@]}" >"$work/fuse.log" 2>&1 &
+  --latency-budget-s 60 --dead-after-s 60 --mqtt "$broker" "${common[@]}" >"$work/fuse.log" 2>&1 &
 fuse_pid=$!
 tl_track $fuse_pid
 tl_wait_for "$work/fuse.log" "subscribed to" 10
@@ -43,6 +47,22 @@ for f in detections.jsonl tracks.jsonl tracks_mot.csv $([ -f "$work/run/events.j
 done
 frames=$(summary_field "$work/fuse" "s['frames']")
 [ "$frames" = 60 ] && ok || fail "fuse: 60 frame sets expected, found $frames"
+# The fuse's outputs for other software: every frame set's tracks on MQTT, the tracks.jsonl lines.
+sleep 0.3
+kill $sub_pid 2>/dev/null
+"$python" - "$work" <<'PY' && ok || fail "the fuse's MQTT outputs: $(tail -3 "$work/outputs.log")"
+import json, sys
+work = sys.argv[1]
+msgs = [l.rstrip("\n").split(" ", 1) for l in open(f"{work}/outputs.log") if " " in l]
+tracks = [json.loads(p) for t, p in msgs if t == "occmap/lab/tracks"]
+assert tracks == [json.loads(l) for l in open(f"{work}/fuse/tracks.jsonl")], (len(tracks), "tracks differ")
+stats = [json.loads(p) for t, p in msgs if t == "occmap/lab/stats"]
+assert stats and stats[-1]["frames"] == 60, stats[-1:]
+avail = [p for t, p in msgs if t == "occmap/lab/available"]
+assert avail[0] == "online" and avail[-1] == "offline", avail
+print(f"fuse on MQTT: {len(tracks)} tracks messages, {len(stats)} stats, availability {avail}")
+PY
+grep -q "^mqtt: .* published, 0 dropped" "$work/fuse.log" && ok || fail "fuse: no MQTT figures: $(tail -3 "$work/fuse.log")"
 grep -q "edge messages\|bytes per message" "$work"/edge-cam3.log && ok || fail "edge: no figures printed: $(cat "$work/edge-cam3.log")"
 
 # 2. A fuse whose site has another threshold refuses the edges' messages, and says why.
