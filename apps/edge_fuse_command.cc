@@ -2,13 +2,22 @@
 
 #include <fmt/core.h>
 
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
+#include <thread>
 
 #include "occmap/bench/edge_sim.h"
+#include "occmap/serve/live_state.h"
+#include "occmap/serve/view_backend.h"
+#include "occmap/serve/web_assets.h"
+#include "occmap/serve/web_server.h"
 #include "occmap/site/site.h"
+#include "occmap/util/file_util.h"
 #include "occmap/util/thread_pool.h"
 #include "run_support.h"
+#include "serve_command.h"
 
 namespace occmap {
 namespace fs = std::filesystem;
@@ -101,6 +110,11 @@ CLI::App* AddFuseCommand(CLI::App& app, FuseCommand& cmd) {
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   AddLiveOutputOptions(*c, cmd.live);
+  c->add_option("--listen", cmd.listen,
+                "HOST:PORT: the live web view of `occmap serve` (map, tracks, counts, figures; no setup), served "
+                "until a signal (port 0: any free port, printed)");
+  c->add_option("--token", cmd.token, "--listen: every request needs this token (Authorization: Bearer T or ?token=T)");
+  c->add_option("--token-file", cmd.token_file, "--listen: file whose first line is the token");
   return c;
 }
 
@@ -232,15 +246,48 @@ Status RunFuseCommand(FuseCommand cmd, int threads, const std::string& data_root
   o.output_mode = cmd.atomic_outputs ? OutputMode::kAtomic : OutputMode::kLive;
   o.wall_clock_times = !cmd.no_wall_clock;
   OCCMAP_ASSIGN_OR_RETURN(const LiveSinks live, AddLiveSinks(site, cmd.live, o));
+  if (cmd.listen.empty() && (!cmd.token.empty() || !cmd.token_file.empty())) {
+    return InvalidInput("--token, --token-file: need --listen HOST:PORT");
+  }
+  // Before any thread starts, so that every thread inherits the blocked signals.
   StopOnSignals signals(o.out_dir);
   o.stop = signals.stop();
+  // The web view: serve's pages over the fuse's own state (serve/view_backend.h).
+  std::shared_ptr<LiveState> view;
+  std::unique_ptr<ViewBackend> backend;
+  std::unique_ptr<WebServer> server;
+  if (!cmd.listen.empty()) {
+    OCCMAP_ASSIGN_OR_RETURN(const WebServerOptions wo, WebServerOptionsFrom(cmd.listen, cmd.token, cmd.token_file));
+    OCCMAP_ASSIGN_OR_RETURN(std::string site_text, ReadFileToString(site.file));
+    view = std::make_shared<LiveState>();
+    view->SetStarting();
+    o.sink_frames = true;  // each camera's changes, the tiles' pictures
+    o.sinks.push_back(std::make_shared<LiveStateSink>(view));
+    backend = std::make_unique<ViewBackend>(view, site, std::move(site_text), o.out_dir, "occmap fuse");
+    server = std::make_unique<WebServer>(wo, *backend, EmbeddedWebAssets());
+    OCCMAP_ASSIGN_OR_RETURN(const int port, server->Bind());
+    server->Start();
+    SayListening("occmap fuse", wo.listen, port);
+  }
   Context ctx(threads);
-  OCCMAP_ASSIGN_OR_RETURN(RunSummary s, RunFuse(site, cmd.options, ctx));
+  Result<RunSummary> fused = RunFuse(site, cmd.options, ctx);
+  if (!fused.ok()) {
+    if (server) server->Stop();
+    return fused.status();
+  }
+  const RunSummary& s = *fused;
   std::fputs(fmt::format("{} frame sets in {:.2f} s: {}; tracks {}\nwrote {}\n", s.frames, s.seconds, s.stop_reason,
                          s.tracks, (o.out_dir / "summary.json").string())
                  .c_str(),
              stdout);
   PrintLiveSinks(live);
+  if (server) {  // as `occmap serve`: the last state stays on view until a signal
+    view->SetRunning(false, s.stop_reason);
+    view->Wake();
+    std::fflush(stdout);
+    while (!signals.stop()->load()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    server->Stop();
+  }
   return Status::Ok();
 }
 

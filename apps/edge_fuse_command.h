@@ -30,6 +30,8 @@ struct FuseCommand {
   EdgeFuseCommon common;
   FuseOptions options;
   LiveOutputsCommand live;  // --mqtt, --ros-map: the run's outputs for other software
+  // --listen (empty: no web view), --token, --token-file: `occmap serve`'s live view of the fuse.
+  std::string listen, token, token_file;
   bool no_video = false;
   bool no_wall_clock = false;
   bool atomic_outputs = false;

@@ -51,25 +51,40 @@ CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd) {
   return c;
 }
 
-Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_root) {
-  namespace fs = std::filesystem;
-  OCCMAP_ASSIGN_OR_RETURN(ListenAddress listen, ParseListen(cmd.listen));
-  if (!cmd.token.empty() && !cmd.token_file.empty()) return InvalidInput("--token, --token-file: give one of them");
-  std::string token = cmd.token;
-  if (!cmd.token_file.empty()) {
-    auto text = ReadFileToString(cmd.token_file);
-    if (!text.ok()) return NotFound(fmt::format("--token-file: cannot read '{}'", cmd.token_file));
+Result<WebServerOptions> WebServerOptionsFrom(const std::string& listen_text, const std::string& token_text,
+                                              const std::string& token_file) {
+  OCCMAP_ASSIGN_OR_RETURN(ListenAddress listen, ParseListen(listen_text));
+  if (!token_text.empty() && !token_file.empty()) return InvalidInput("--token, --token-file: give one of them");
+  std::string token = token_text;
+  if (!token_file.empty()) {
+    auto text = ReadFileToString(token_file);
+    if (!text.ok()) return NotFound(fmt::format("--token-file: cannot read '{}'", token_file));
     token = text->substr(0, text->find('\n'));
     while (!token.empty() && (token.back() == '\r' || token.back() == ' ')) token.pop_back();
-    if (token.empty()) return InvalidInput(fmt::format("--token-file '{}': the first line is empty", cmd.token_file));
+    if (token.empty()) return InvalidInput(fmt::format("--token-file '{}': the first line is empty", token_file));
   }
   for (char ch : token) {
     if (ch < 0x21 || ch > 0x7e) return InvalidInput("--token: expected printable ASCII without spaces");
   }
   if (!IsLoopbackHost(listen.host) && token.empty()) {
     return InvalidInput(fmt::format("--listen {}: serving beyond this machine needs --token or --token-file",
-                                    cmd.listen));
+                                    listen_text));
   }
+  WebServerOptions wo;
+  wo.listen = listen;
+  wo.token = token;
+  return wo;
+}
+
+void SayListening(const std::string& who, const ListenAddress& listen, int port) {
+  const std::string host = listen.host.find(':') != std::string::npos ? "[" + listen.host + "]" : listen.host;
+  std::fputs(fmt::format("{}: listening on http://{}:{}/\n", who, host, port).c_str(), stdout);
+  std::fflush(stdout);
+}
+
+Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_root) {
+  namespace fs = std::filesystem;
+  OCCMAP_ASSIGN_OR_RETURN(const WebServerOptions wo, WebServerOptionsFrom(cmd.listen, cmd.token, cmd.token_file));
   if (cmd.min_blob_area_m2 && !(*cmd.min_blob_area_m2 >= 0)) return InvalidInput("--min-blob-area-m2: expected >= 0");
 
   ServeSessionOptions so;
@@ -110,15 +125,10 @@ Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_ro
   // Before any thread starts, so that every thread inherits the blocked signals.
   StopOnSignals signals(cmd.out_dir);
   OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<ServeSession> session, ServeSession::Create(so));
-  WebServerOptions wo;
-  wo.listen = listen;
-  wo.token = token;
   WebServer server(wo, *session, EmbeddedWebAssets());
   OCCMAP_ASSIGN_OR_RETURN(int port, server.Bind());
   server.Start();
-  const std::string host = listen.host.find(':') != std::string::npos ? "[" + listen.host + "]" : listen.host;
-  std::fputs(fmt::format("occmap serve: listening on http://{}:{}/\n", host, port).c_str(), stdout);
-  std::fflush(stdout);
+  SayListening("occmap serve", wo.listen, port);
   session->Start();
   // With file inputs the run ends on its own; the server stays up with the last state until
   // a signal.

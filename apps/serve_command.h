@@ -8,6 +8,7 @@
 #include <string>
 
 #include "live_outputs.h"
+#include "occmap/serve/web_server.h"
 #include "occmap/util/status.h"
 
 namespace occmap {
@@ -36,6 +37,14 @@ struct ServeCommand {
 };
 
 CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd);
+
+// --listen, --token, --token-file: the address (port 0: any free port) and the token, checked:
+// a token of printable ASCII, and one whenever the address is not loopback. `who` names the
+// command in the messages ("occmap serve", "occmap fuse").
+Result<WebServerOptions> WebServerOptionsFrom(const std::string& listen, const std::string& token,
+                                              const std::string& token_file);
+// "<who>: listening on http://HOST:PORT/" on stdout, the line scripts and tests wait for.
+void SayListening(const std::string& who, const ListenAddress& listen, int port);
 
 Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_root);
 

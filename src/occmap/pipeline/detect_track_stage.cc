@@ -16,7 +16,8 @@ using Clock = std::chrono::steady_clock;
 double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 // RunOptions::sink_frames: each active camera's frame and its changes (after the tolerance),
-// copied into the record (the slot is reused once this stage is done with it).
+// copied into the record (the slot is reused once this stage is done with it). A fuse's frame
+// sets have changes and no frames: the changes alone.
 void CopyFramesForSinks(const FrameSet& set, const GroundLut& lut, FrameRecord& record) {
   const size_t n_cams = set.frames.size();
   record.frames_gray.resize(n_cams);
@@ -28,7 +29,8 @@ void CopyFramesForSinks(const FrameSet& set, const GroundLut& lut, FrameRecord& 
     record.frames_gray[n] = f.gray;
     record.frames_rgb[n] = f.rgb;
     if (!set.changes_ready) continue;
-    const int w = f.gray.width(), h = f.gray.height();
+    const ImageSize size = lut.image_size(static_cast<int>(n));
+    const int w = size.width, h = size.height;
     Image<uint8_t>& mask = record.change_masks[n];
     mask = Image<uint8_t>(w, h);
     const uint8_t* src = set.changes.data() + lut.pixel_offset(static_cast<int>(n));

@@ -553,8 +553,9 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   const auto t_start = Clock::now();
   auto stop_requested = [&] { return o.run.stop != nullptr && o.run.stop->load(); };
   RunOptions options = o.run;
-  // No frames reach the fuse: nothing to draw the cameras' tiles from.
-  options.mosaic_video = options.mosaic_picture = options.change_pngs = options.sink_frames = false;
+  // No frames reach the fuse: nothing to draw the mosaic from. The sinks may still have each
+  // camera's changes as the edge sent them (sink_frames: the web view's tiles).
+  options.mosaic_video = options.mosaic_picture = options.change_pngs = false;
   RunSummary summary;
   const FusionPlan plan = ChooseFusionPath(site, /*needs_change_buffer=*/true);
   summary.fusion_path = plan.Describe(site);

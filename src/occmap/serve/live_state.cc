@@ -127,9 +127,11 @@ Status LiveStateSink::Consume(const FrameRecord& record, const RunStats& stats) 
   s->frames_rgb.resize(n);
   s->change_masks.resize(n);
   for (size_t i = 0; i < n; ++i) {
-    const bool here = i < record.frames_gray.size() && !record.frames_gray[i].empty();
+    // A fuse's cameras come as their changes alone (no frames).
+    const bool here = (i < record.frames_gray.size() && !record.frames_gray[i].empty()) ||
+                      (i < record.change_masks.size() && !record.change_masks[i].empty());
     if (here) {
-      s->frames_gray[i] = record.frames_gray[i];
+      if (i < record.frames_gray.size()) s->frames_gray[i] = record.frames_gray[i];
       if (i < record.frames_rgb.size()) s->frames_rgb[i] = record.frames_rgb[i];
       if (i < record.change_masks.size()) s->change_masks[i] = record.change_masks[i];
     } else if (same_cameras) {  // the camera missed this set: its last picture stays

@@ -85,6 +85,31 @@ TEST(LiveState, SinkPublishesCopiesAndKeepsAMissingCamerasLastFrame) {
   EXPECT_EQ(state->Latest()->frame, 6);  // the last state stays served
 }
 
+TEST(LiveState, SinkKeepsTheChangesOfACameraWithoutFrames) {
+  // occmap fuse: its cameras come as the changes their edges sent, without frames.
+  auto state = std::make_shared<LiveState>();
+  LiveStateSink sink(state);
+  SinkStart start;
+  start.camera_ids = {"c1", "c2"};
+  ASSERT_TRUE(sink.Open(start).ok());
+  FrameRecord r;
+  r.frame = 3;
+  FloorGrid g;
+  g.cells_x = 2;
+  g.cells_y = 2;
+  g.cell_size_m = 0.5;
+  r.map = OccupancyMap(g);
+  r.frames_gray.assign(2, Image<uint8_t>());
+  r.change_masks.assign(2, Image<uint8_t>());
+  r.change_masks[0] = Image<uint8_t>(8, 6, 1);
+  ASSERT_TRUE(sink.Consume(r, RunStats()).ok());
+  auto s = state->Latest();
+  ASSERT_EQ(s->change_masks[0].width(), 8);
+  EXPECT_EQ(s->change_masks[0].row(0)[0], 1);
+  EXPECT_TRUE(s->frames_gray[0].empty());
+  EXPECT_TRUE(s->change_masks[1].empty());  // c2 sent nothing yet
+}
+
 TEST(LiveState, StartingUntilTheRunOpens) {
   LiveState state;
   EXPECT_FALSE(state.starting());

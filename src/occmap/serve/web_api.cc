@@ -486,7 +486,18 @@ json CoverageJson(const LiveCoverage& c) {
 
 Image<Rgb8> CameraRgb(const LiveSnapshot& s, size_t n) {
   if (n < s.frames_rgb.size() && !s.frames_rgb[n].empty()) return s.frames_rgb[n];
-  if (n >= s.frames_gray.size() || s.frames_gray[n].empty()) return {};
+  if (n >= s.frames_gray.size() || s.frames_gray[n].empty()) {
+    // No frame (a fuse's camera): its changes, light on dark, the overlay's colour added.
+    if (n >= s.change_masks.size() || s.change_masks[n].empty()) return {};
+    const Image<uint8_t>& m = s.change_masks[n];
+    Image<Rgb8> rgb(m.width(), m.height());
+    for (int y = 0; y < m.height(); ++y) {
+      const uint8_t* src = m.row(y);
+      Rgb8* dst = rgb.row(y);
+      for (int x = 0; x < m.width(); ++x) dst[x] = src[x] != 0 ? Rgb8{230, 230, 230} : Rgb8{24, 24, 24};
+    }
+    return rgb;
+  }
   const Image<uint8_t>& g = s.frames_gray[n];
   Image<Rgb8> rgb(g.width(), g.height());
   for (int y = 0; y < g.height(); ++y) {

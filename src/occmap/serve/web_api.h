@@ -67,11 +67,12 @@ std::string MapPng(const OccupancyMap& map);
 // exactly k cameras, k = 0..N], "colors": ["#rrggbb" for k = 0..N]}.
 std::string CoveragePng(const LiveCoverage& coverage);
 nlohmann::json CoverageJson(const LiveCoverage& coverage);
-// Camera n's latest frame as JPEG, changed pixels tinted red when `change_overlay`; empty when
-// the camera has no frame yet.
+// Camera n's latest frame as JPEG, changed pixels tinted red when `change_overlay`; a camera
+// with changes and no frame (occmap fuse's) as its changes; empty when it has neither yet.
 std::string CameraJpeg(const LiveSnapshot& s, size_t camera, bool change_overlay, int quality = 80);
 std::string EncodeJpeg(const Image<Rgb8>& image, int quality = 80);
-// The frame in colour (grey expanded when the run reads grey).
+// The frame in colour (grey expanded when the run reads grey); without a frame, the changes
+// (light on dark).
 Image<Rgb8> CameraRgb(const LiveSnapshot& s, size_t camera);
 
 }  // namespace occmap

@@ -288,5 +288,27 @@ TEST(WebApi, CameraJpegTintsChanges) {
   EXPECT_NEAR(p.at<cv::Vec3b>(5, 30)[2], 100, 4);
 }
 
+TEST(WebApi, ACameraWithChangesAndNoFrameShowsItsChanges) {
+  // occmap fuse's cameras: the changes their edges sent, no frames.
+  LiveSnapshot s = TestSnapshot();
+  s.frames_gray.assign(1, Image<uint8_t>());
+  s.frames_rgb.assign(1, Image<Rgb8>());
+  s.change_masks.assign(1, Image<uint8_t>(64, 48, 0));
+  for (int y = 0; y < 24; ++y) {
+    for (int x = 0; x < 64; ++x) s.change_masks[0].row(y)[x] = 1;
+  }
+  const Image<Rgb8> rgb = CameraRgb(s, 0);
+  ASSERT_EQ(rgb.width(), 64);
+  EXPECT_EQ(rgb(30, 5).g, 230);   // changed: light
+  EXPECT_EQ(rgb(30, 40).g, 24);   // not: dark
+  const std::string jpeg = CameraJpeg(s, 0, /*change_overlay=*/false, 95);
+  ASSERT_FALSE(jpeg.empty());
+  const cv::Mat img = cv::imdecode(std::vector<uint8_t>(jpeg.begin(), jpeg.end()), cv::IMREAD_COLOR);
+  EXPECT_NEAR(img.at<cv::Vec3b>(5, 30)[1], 230, 4);
+  EXPECT_NEAR(img.at<cv::Vec3b>(40, 30)[1], 24, 4);
+  s.change_masks[0] = Image<uint8_t>();
+  EXPECT_TRUE(CameraJpeg(s, 0, false).empty());  // neither yet
+}
+
 }  // namespace
 }  // namespace occmap
