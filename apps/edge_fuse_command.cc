@@ -252,6 +252,7 @@ Status RunFuseCommand(FuseCommand cmd, int threads, const std::string& data_root
   // Before any thread starts, so that every thread inherits the blocked signals.
   StopOnSignals signals(o.out_dir);
   o.stop = signals.stop();
+  o.warning = PrintWarnings("occmap fuse");  // a table cache that cannot be written
   // The web view: serve's pages over the fuse's own state (serve/view_backend.h).
   std::shared_ptr<LiveState> view;
   std::unique_ptr<ViewBackend> backend;

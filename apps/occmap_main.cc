@@ -106,6 +106,8 @@ Status WriteLutReport(const Site& site, const fs::path& out_dir, const fs::path&
                       bool json_to_stdout) {
   OCCMAP_ASSIGN_OR_RETURN(CachedLut cached, LoadOrBuildSiteLut(site, cache_dir, ctx));
   const fs::path cache_path = cache_dir.empty() ? fs::path() : SiteLutPath(site, cache_dir);
+  // The cache folder is no output here either (the report is): a failed write is said, not an error.
+  if (!cached.write_error.empty()) WarnCacheNotWritten(PrintWarnings("occmap lut"), "table cache", cache_path, cached.write_error);
   OCCMAP_RETURN_IF_ERROR(EnsureDirectory(out_dir));
   const Image<Rgb8> picture = RenderVisibility(cached.lut, SiteCameraMarkers(site), 1200);
   OCCMAP_RETURN_IF_ERROR(WritePng(out_dir / "visibility.png", picture.view()));

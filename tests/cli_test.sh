@@ -148,6 +148,16 @@ check synth_plaza 0 'wrote' -- "$occmap" synth --scene plaza --scale 0.25 --dura
 check plaza_site_learns 0 'adaptive: true' -- cat "$work/plaza/site.yaml"
 check plaza_no_background 1 '^$' -- grep -q 'background:' "$work/plaza/site.yaml"
 check run_plaza 0 'background learned: mode of 3 frames' -- "$occmap" run "$work/plaza/site.yaml" --no-cache --no-video --change-pngs --out "$work/pr"
+# A cache folder that cannot be written (a file in its place: root ignores modes) is said once
+# per entry and the run goes on: the tables, and the six learned (settled) backgrounds.
+printf 'not a folder' >"$work/blocked-cache"
+check run_cache_blocked 0 "could not write the table cache $work/blocked-cache/plaza.lut: .*; going on without it" -- \
+  "$occmap" run "$work/plaza/site.yaml" --cache-dir "$work/blocked-cache" --no-video --out "$work/pb"
+check run_cache_blocked_backgrounds 0 '^6$' -- bash -c "\"\$0\" run \"\$1\" --cache-dir \"\$2\" --no-video --out \"\$3\" 2>&1 |
+  grep -c 'warning: could not write the background cache .*going on without it'" \
+  "$occmap" "$work/plaza/site.yaml" "$work/blocked-cache" "$work/pb2"
+check lut_cache_blocked 0 "occmap lut: warning: could not write the table cache $work/blocked-cache/top-down.lut: " -- \
+  "$occmap" lut "$work/homography.yaml" --cache-dir "$work/blocked-cache" --out "$work/h"
 check plaza_change_pngs 0 '000029.png' -- ls "$work/pr/changes/c1"
 check plaza_summary 0 '"shadow_look"' -- cat "$work/pr/summary.json"
 check eval_plaza_changes 0 '"shadow_changed_fraction"' -- bash -c "\"$occmap\" eval \"$work/plaza\" \"$work/pr\" >/dev/null && cat \"$work/pr/evaluation.json\""

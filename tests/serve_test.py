@@ -10,7 +10,8 @@ site's own calibration) gives a sub-pixel RMS; PUT /api/site adding a zone write
 file with a .bak and the zone's count then appears in the frame events; a bad PUT is refused
 with the loader's message and writes nothing; with a token, requests without it are refused
 and with it (header or query) accepted; path traversal (400) and an oversized body (413) are
-refused; SIGTERM stops it (exit 0) with its outputs valid. Needs only python3.
+refused; a cache folder that cannot be written is said once, not an error; SIGTERM stops it
+(exit 0) with its outputs valid. Needs only python3.
 """
 import json
 import os
@@ -212,6 +213,23 @@ try:
     big = b"x" * (1536 * 1024)
     code = raw(port, b"PUT /api/site HTTP/1.1\r\nHost: x\r\nContent-Length: %d\r\nConnection: close\r\n\r\n" % len(big) + big)
     check(code == 413, f"1.5 MiB body: 413 ({code})")
+
+    # A cache that cannot be written (a file where its folder should be: the tests may run as
+    # root, whom no mode stops) is said once and the pipeline runs: a cache is no output.
+    blocked = os.path.join(work, "blocked-cache")
+    open(blocked, "w").write("not a folder")
+    p3, port3 = start([site, "--listen", "127.0.0.1:0", "--out", os.path.join(work, "out3"), "--cache-dir", blocked,
+                       "--no-video"], "serve-blocked-cache")
+    deadline = time.time() + 120
+    st = {"frame": -1}
+    while time.time() < deadline and st["frame"] < 0:
+        st = get_json(port3, "/api/state")[1]
+        time.sleep(0.2)
+    said = open(os.path.join(work, "serve-blocked-cache.log")).read()
+    check(st["frame"] >= 0 and said.count(f"could not write the table cache {blocked}/lab.lut: ") == 1
+          and "going on without it" in said, f"a cache that cannot be written: said once, the run goes on ({said.strip()[-300:]})")
+    p3.send_signal(signal.SIGTERM)
+    check(p3.wait(timeout=60) == 0, "the server with a blocked cache stops on SIGTERM")
 
     # A token: refused without, accepted with.
     p2, port2 = start([site, "--listen", "127.0.0.1:0", "--token", "t0ken", "--out", os.path.join(work, "out2"),

@@ -67,6 +67,13 @@ tl_synth_small_plaza() {
     { echo "FAIL synth --scene plaza: $(tail -2 "$dir.synth.log")"; exit 1; }
 }
 
+# tl_unsettle SITE: the site's learned backgrounds not settled (settle: false after adaptive:
+# true), as edges do (settling needs the fused map while they learn); exits when it cannot.
+tl_unsettle() {
+  sed -i 's/^  adaptive: true$/  adaptive: true\n  settle: false/' "$1"
+  grep -q "settle: false" "$1" || { echo "FAIL could not turn settling off in $1 (not adaptive?)"; exit 1; }
+}
+
 tl_synth_lab() {
   local occmap=$1 dir=$2
   shift 2

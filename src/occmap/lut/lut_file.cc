@@ -183,9 +183,10 @@ Result<CachedLut> LoadOrBuildGroundLut(const fs::path& cache_path, const std::ve
   const auto t0 = Clock::now();
   OCCMAP_ASSIGN_OR_RETURN(result.lut, BuildGroundLut(cameras, grid, options, ctx));
   result.build_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
-  if (!cache_path.empty()) {
-    if (cache_path.has_parent_path()) OCCMAP_RETURN_IF_ERROR(EnsureDirectory(cache_path.parent_path()));
-    OCCMAP_RETURN_IF_ERROR(SaveGroundLut(cache_path, result.lut, result.key));
+  if (!cache_path.empty()) {  // a cache, never an output: the caller says why it was not written
+    Status written = cache_path.has_parent_path() ? EnsureDirectory(cache_path.parent_path()) : Status::Ok();
+    if (written.ok()) written = SaveGroundLut(cache_path, result.lut, result.key);
+    if (!written.ok()) result.write_error = written.message();
   }
   return result;
 }

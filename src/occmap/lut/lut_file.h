@@ -7,7 +7,8 @@
 //            view counts; every array as u64 element count + raw elements.
 // A file is trusted only when magic, version, key, size and checksum match and the decoded
 // tables pass GroundLut::CheckConsistency. LoadOrBuildGroundLut reuses a valid file and
-// rebuilds (and rewrites, atomically) a missing, stale or corrupt one, saying which.
+// rebuilds (and rewrites, atomically) a missing, stale or corrupt one, saying which; a file
+// that cannot be written is no error (CachedLut::write_error says why).
 //
 //   OCCMAP_ASSIGN_OR_RETURN(CachedLut cached,
 //       LoadOrBuildGroundLut(cache_dir / "wildtrack.lut", cams, grid, options, ctx));
@@ -37,6 +38,9 @@ struct CachedLut {
   uint64_t key = 0;
   LutCacheOutcome outcome = LutCacheOutcome::kBuiltNoCache;
   std::string reason;     // why a file was not used, when it was not
+  // Why the file could not be written (the tables are used all the same: a cache is a head
+  // start, never an output); empty when it was, or with no cache.
+  std::string write_error;
   double build_seconds = 0;  // 0 when loaded
   double load_seconds = 0;
 };

@@ -1,5 +1,6 @@
 #include "occmap/lut/lut_file.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 
 #include "occmap/lut/test_scene.h"
@@ -93,6 +94,26 @@ TEST(LutFile, LoadOrBuildReusesValidFilesAndRebuildsOthers) {
   EXPECT_NE(fourth->reason.find("checksum"), std::string::npos);
   EXPECT_TRUE(fourth->lut == third->lut);
   EXPECT_EQ(LoadOrBuildGroundLut(path, Inputs(room.cameras), room.grid, knee, ctx)->outcome, LutCacheOutcome::kLoaded);
+}
+
+// A cache is a head start, never an output: a file that cannot be written (a regular file where
+// its folder should be; the tests may run as root, whom no mode stops) gives the tables built,
+// with why it was not written.
+TEST(LutFile, AFileThatCannotBeWrittenGivesTheTablesAndSaysWhy) {
+  testing::SmallRoom room;
+  testing::TempDir dir;
+  Context ctx(2);
+  testing::WriteText(dir / "cache", "not a folder");
+  auto built = LoadOrBuildGroundLut(dir / "cache" / "room.lut", Inputs(room.cameras), room.grid, {}, ctx);
+  ASSERT_TRUE(built.ok()) << built.status().message();
+  EXPECT_EQ(built->outcome, LutCacheOutcome::kBuiltNoFile);
+  EXPECT_NE(built->write_error.find(fmt::format("'{}': cannot create folder: ", (dir / "cache").string())),
+            std::string::npos)
+      << built->write_error;
+  auto plain = LoadOrBuildGroundLut({}, Inputs(room.cameras), room.grid, {}, ctx);
+  EXPECT_TRUE(built->lut == plain->lut);
+  EXPECT_EQ(plain->write_error, "");
+  EXPECT_EQ(*ReadFileToString(dir / "cache"), "not a folder");
 }
 
 }  // namespace

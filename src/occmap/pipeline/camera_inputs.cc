@@ -318,7 +318,11 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
         c.settles = true;
         c.learned_cache = cached;
       } else if (!cached.empty()) {
-        OCCMAP_RETURN_IF_ERROR(CacheAdaptiveBackground(cached, background, alternative ? &*alternative : nullptr));
+        // The cache folder is no output the user named (backgrounds/<camera>.png in out_dir is):
+        // a head start for the next run, so a failed write is said, not an error.
+        if (Status s = CacheAdaptiveBackground(cached, background, alternative ? &*alternative : nullptr); !s.ok()) {
+          WarnCacheNotWritten(options.warning, "background cache", plane_path("y"), s.message());
+        }
       }
     }
   }
@@ -391,13 +395,10 @@ Status PrepareBackground(const Site& site, const RunOptions& options, bool colou
   c.background_gray = gray_median.Median();
   if (colour) c.background_rgb = rgb_median.Median();
   c.info.background = fmt::format("estimated: median of {} frames", gray_median.count());
-  if (!cached.empty()) {
-    OCCMAP_RETURN_IF_ERROR(EnsureDirectory(cached.parent_path()));
-    if (colour) {
-      OCCMAP_RETURN_IF_ERROR(WritePng(cached, c.background_rgb.view()));
-    } else {
-      OCCMAP_RETURN_IF_ERROR(WritePng(cached, c.background_gray.view()));
-    }
+  if (!cached.empty()) {  // a head start for the next run, not an output: said, never an error
+    Status written = EnsureDirectory(cached.parent_path());
+    if (written.ok()) written = colour ? WritePng(cached, c.background_rgb.view()) : WritePng(cached, c.background_gray.view());
+    if (!written.ok()) WarnCacheNotWritten(options.warning, "background cache", cached, written.message());
   }
   return Status::Ok();
 }
@@ -425,7 +426,11 @@ Status RestartAdaptiveModel(const Site& site, const RunOptions& options, const F
   c.model->Reset(background);
   OCCMAP_RETURN_IF_ERROR(WarmUpShadows(site, options, src_opts, background.has_chroma(), nullptr, c));
   if (c.learned_cache.empty()) return Status::Ok();
-  return CacheAdaptiveBackground(c.learned_cache, background, nullptr);
+  // The settled background is used either way; its entry only spares the next run the pass.
+  if (Status s = CacheAdaptiveBackground(c.learned_cache, background, nullptr); !s.ok()) {
+    WarnCacheNotWritten(options.warning, "background cache", CachePlane(c.learned_cache, "y"), s.message());
+  }
+  return Status::Ok();
 }
 
 Status RefreshCachedBackground(const CameraState& c, const BackgroundOptions& bo) {

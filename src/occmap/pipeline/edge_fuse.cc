@@ -376,6 +376,9 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& given, Context&
   BackgroundCacheRefresh refresh(site.backgrounds, fps.empty() || fps[0] <= 0 ? 10.0 : fps[0], o.run.warning);
   if (plan.adaptive) {
     OCCMAP_ASSIGN_OR_RETURN(CachedLut cached, LoadOrBuildSiteLut(site, o.run.cache_dir, ctx));
+    if (!cached.write_error.empty()) {
+      WarnCacheNotWritten(o.run.warning, "table cache", SiteLutPath(site, o.run.cache_dir), cached.write_error);
+    }
     lut.emplace(std::move(cached));
     const ConsensusResult r = ResolveAtEdge(site, lut->lut, cams, index);
     summary.consensus_pixels_checked = r.pixels_checked;
@@ -579,6 +582,9 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
                           MqttLink::Start(o.broker, client_id, {prefix + "/edge/+"}, /*persistent=*/true));
   const auto t_lut = Clock::now();
   OCCMAP_ASSIGN_OR_RETURN(CachedLut cached, LoadOrBuildSiteLut(site, options.cache_dir, ctx));
+  if (!cached.write_error.empty()) {
+    WarnCacheNotWritten(options.warning, "table cache", SiteLutPath(site, options.cache_dir), cached.write_error);
+  }
   summary.lut_cache = ToString(cached.outcome);
   summary.lut_seconds = Since(t_lut);
   const GroundLut& lut = cached.lut;

@@ -127,6 +127,11 @@ struct Completions {
 
 }  // namespace
 
+void WarnCacheNotWritten(const WarningCallback& warning, std::string_view what, const fs::path& path,
+                         std::string_view error) {
+  if (warning) warning(fmt::format("could not write the {} {}: {}; going on without it", what, path.string(), error));
+}
+
 FusionPlan RunFusionPlan(const Site& site, const RunOptions& options) {
   return ChooseFusionPath(site, options.mosaic_video || options.change_pngs || options.sink_frames);
 }
@@ -146,7 +151,10 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   // Sources and backgrounds, then the tables.
   OCCMAP_ASSIGN_OR_RETURN(std::vector<CameraState> cams, OpenCameras(site, options, plan, ctx));
   const auto t_lut = Clock::now();
-  OCCMAP_ASSIGN_OR_RETURN(CachedLut cached, LoadOrBuildSiteLut(site, options.cache_dir.empty() ? fs::path() : options.cache_dir, ctx));
+  OCCMAP_ASSIGN_OR_RETURN(CachedLut cached, LoadOrBuildSiteLut(site, options.cache_dir, ctx));
+  if (!cached.write_error.empty()) {
+    WarnCacheNotWritten(options.warning, "table cache", SiteLutPath(site, options.cache_dir), cached.write_error);
+  }
   summary.lut_cache = ToString(cached.outcome);
   summary.lut_seconds = Since(t_lut);
   const GroundLut& lut = cached.lut;

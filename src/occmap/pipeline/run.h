@@ -43,6 +43,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "occmap/fusion/blobs.h"
@@ -62,6 +63,12 @@ enum class OnCameraFailure { kStop, kContinue };
 // wrong that does not stop the run, and is said once, not per frame set. Called on a stage's
 // thread.
 using WarningCallback = std::function<void(const std::string& line)>;
+
+// A cache entry that could not be written at start-up: said once ("could not write the
+// <what> <path>: <error>; going on without it") and the caller goes on. A cache is a head
+// start, never an output. `what`: "background cache", "table cache".
+void WarnCacheNotWritten(const WarningCallback& warning, std::string_view what, const std::filesystem::path& path,
+                         std::string_view error);
 
 struct RunOptions {
   std::filesystem::path out_dir = "occmap-out";

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <functional>
+#include <mutex>
 #include <new>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -280,6 +281,69 @@ TEST_F(RunFixture, EstimatesAndReusesMedianBackgrounds) {
   EXPECT_EQ(again->cameras[0].background.rfind("reused: ", 0), 0u) << again->cameras[0].background;
   EXPECT_EQ(again->lut_cache, "loaded");
   EXPECT_EQ(*ReadFileToString(dir_ / "estimated" / "detections.jsonl"), *ReadFileToString(dir_ / "again" / "detections.jsonl"));
+}
+
+// A cache is a head start, never an output: a start-up whose cache cannot be written (a file
+// where its folder should be: tests may run as root, whom no mode stops) says so once per entry,
+// naming it and the system's error, and gives the run it gives without a cache. Estimated
+// (median), learned and settled backgrounds, and the tables.
+TEST_F(RunFixture, AStartUpCacheThatCannotBeWrittenIsSaidAndTheRunGoesOn) {
+  const std::string text = SiteText(/*with_backgrounds=*/false);
+  const std::string learn = "backgrounds: {adaptive: true, learn_s: 1.2, learn_samples: 12, settle: ";
+  struct Case {
+    std::string name, site;
+    std::string blocked;  // what is a file: the cache folder itself, or its backgrounds/
+  };
+  const std::vector<Case> cases = {{"estimated", text, "cache"},
+                                   {"learned", text + learn + "false}\n", "backgrounds"},
+                                   {"settled", text + learn + "true}\n", "cache"}};
+  Context ctx(2);
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const Site site = LoadSiteText(c.site);
+    const fs::path cache = dir_ / ("cache-" + c.name);
+    if (c.blocked == "cache") {
+      testing::WriteText(cache, "not a folder");
+    } else {
+      fs::create_directories(cache);
+      testing::WriteText(cache / "backgrounds", "not a folder");
+    }
+    std::vector<std::string> said;
+    std::mutex said_mutex;  // streams' backgrounds are prepared a thread each
+    RunOptions o = Options(c.name);
+    o.cache_dir = cache;
+    o.background_frames = kFrames;
+    o.background_step = 1;
+    o.warning = [&](const std::string& line) {
+      std::lock_guard lock(said_mutex);
+      said.push_back(line);
+    };
+    auto summary = RunSite(site, o, ctx);
+    ASSERT_TRUE(summary.ok()) << summary.status().message();
+    EXPECT_EQ(summary->frames, kFrames);
+    // Once per entry: the four cameras' backgrounds, and the tables when the folder is a file.
+    int backgrounds = 0, tables = 0;
+    for (const std::string& line : said) {
+      EXPECT_NE(line.find("going on without it"), std::string::npos) << line;
+      EXPECT_NE(line.find("': cannot create folder: "), std::string::npos) << line;  // the system's error
+      if (line.starts_with("could not write the background cache " + (cache / "backgrounds").string() + "/walk-c")) {
+        ++backgrounds;
+      }
+      if (line.starts_with("could not write the table cache " + (cache / "walk.lut").string() + ": ")) ++tables;
+    }
+    std::string all;
+    for (const std::string& line : said) all += line + "\n";
+    EXPECT_EQ(backgrounds, 4) << all;
+    EXPECT_EQ(tables, c.blocked == "cache" ? 1 : 0) << all;
+    EXPECT_EQ(said.size(), static_cast<size_t>(backgrounds + tables));
+    // The same answer as without a cache.
+    RunOptions none = Options(c.name + "-no-cache");
+    none.background_frames = kFrames;
+    none.background_step = 1;
+    ASSERT_TRUE(RunSite(site, none, ctx).ok());
+    EXPECT_EQ(*ReadFileToString(dir_ / c.name / "detections.jsonl"),
+              *ReadFileToString(dir_ / (c.name + "-no-cache") / "detections.jsonl"));
+  }
 }
 
 // What a refresh writes: the model as it is now, over the entry, the planes swapped in whole.
