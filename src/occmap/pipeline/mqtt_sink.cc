@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "occmap/pipeline/output_files.h"
+#include "occmap/pipeline/summary_file.h"
 #include "occmap/track/track_output.h"
 
 namespace occmap {
@@ -27,6 +28,7 @@ std::string MqttStatsJson(double t_unix, const RunStats& stats, const std::vecto
                        {"frames_per_second", n < camera_fps.size() ? std::round(camera_fps[n] * 100) / 100 : 0.0},
                        {"dropped", c.dropped},
                        {"reconnects", c.reconnects}});
+    if (c.background_cache) cameras.back()["background_cache"] = BackgroundCacheJson(*c.background_cache);
   }
   const json j = {{"t_unix", std::round(t_unix * 1e3) / 1e3},
                   {"frames", stats.frames},

@@ -21,7 +21,9 @@ namespace occmap {
 
 // The <prefix>/stats payload (one line of JSON):
 //   {"t_unix", "frames", "elapsed_s", "frames_per_second",
-//    "cameras": [{"id", "active", "connected", "frames", "frames_per_second", "dropped", "reconnects"}],
+//    "cameras": [{"id", "active", "connected", "frames", "frames_per_second", "dropped", "reconnects",
+//                 "background_cache"?: as summary.json's (summary_file.h; live cameras whose cached
+//                 background is refreshed)}],
 //    "latency_ms": {"p50", "p95", "p99", "max"}, "tracks", "zone_events", "line_crossings",
 //    "mqtt": {"published", "dropped", "connects", "disconnects"}}
 // camera_fps: per camera, frames per second since the previous stats message.

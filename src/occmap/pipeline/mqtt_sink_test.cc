@@ -30,7 +30,7 @@ TEST(MqttSink, PublishesTheRecordsTracksEventsAndCountsAndStatsAtTheEnd) {
   MqttSink sink(options);
   SinkStart start;
   start.site = &site;
-  start.camera_ids = {"c1"};
+  start.camera_ids = {"c1", "c2"};
   ASSERT_TRUE(sink.Open(start).ok());
   ASSERT_TRUE(sub.WaitFor("occmap/lab/lines/gate/out", "0")) << "the state on connecting";
 
@@ -51,7 +51,14 @@ TEST(MqttSink, PublishesTheRecordsTracksEventsAndCountsAndStatsAtTheEnd) {
   MakeJsonLines(r, /*wall_clock_times=*/true);
   RunStats stats;
   stats.frames = 8;
-  stats.cameras = {CameraStats{.id = "c1", .frames = 8, .dropped = 2}};
+  // c2 a live camera whose cached background is refreshed, its last write failed.
+  const BackgroundCacheFigures cache{.entry = "/cache/backgrounds/lab-c2-0123-y.png",
+                                     .refreshes = 3,
+                                     .failures = 2,
+                                     .last_refresh_frame = 6,
+                                     .last_error = "camera c2: refreshing its cached background: disk full"};
+  stats.cameras = {CameraStats{.id = "c1", .frames = 8, .dropped = 2},
+                   CameraStats{.id = "c2", .frames = 8, .background_cache = cache}};
   ASSERT_TRUE(sink.Consume(r, stats).ok());
   ASSERT_TRUE(sink.Close(stats).ok());
 
@@ -72,6 +79,12 @@ TEST(MqttSink, PublishesTheRecordsTracksEventsAndCountsAndStatsAtTheEnd) {
   EXPECT_EQ(s["line_crossings"], 1);
   EXPECT_EQ(s["cameras"][0]["id"], "c1");
   EXPECT_EQ(s["cameras"][0]["dropped"], 2);
+  // The cache's figures as summary.json gives them, only for a camera that has them.
+  EXPECT_FALSE(s["cameras"][0].contains("background_cache"));
+  EXPECT_EQ(s["cameras"][1]["background_cache"],
+            nlohmann::json::parse(R"({"entry": "/cache/backgrounds/lab-c2-0123-y.png", "refreshes": 3, "failures": 2,
+                                      "last_refresh_frame": 6,
+                                      "last_error": "camera c2: refreshing its cached background: disk full"})"));
   EXPECT_EQ(s["mqtt"]["dropped"], 0);
   EXPECT_GT(s["t_unix"].get<double>(), 1.7e9);
 }

@@ -26,7 +26,8 @@ json LatencyJson(const LatencyFigures& f) {
           {"max", ms(f.max_ms)}};
 }
 
-// cameras[].background_cache: what refreshing a live camera's cached background did.
+}  // namespace
+
 json BackgroundCacheJson(const BackgroundCacheFigures& f) {
   return {{"entry", f.entry},
           {"refreshes", f.refreshes},
@@ -34,8 +35,6 @@ json BackgroundCacheJson(const BackgroundCacheFigures& f) {
           {"last_refresh_frame", f.last_refresh_frame ? json(*f.last_refresh_frame) : json(nullptr)},
           {"last_error", f.last_error.empty() ? json(nullptr) : json(f.last_error)}};
 }
-
-}  // namespace
 
 SummaryFile::SummaryFile(std::filesystem::path path, const Site& site, const RunOptions& options,
                          const FusionPlan& plan, const RunSummary& summary, const std::vector<CameraState>& cams,

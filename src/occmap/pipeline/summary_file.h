@@ -21,6 +21,11 @@
 
 namespace occmap {
 
+// A camera's `background_cache` (what refreshing its cached background did), as summary.json
+// and the MQTT <prefix>/stats (mqtt_sink.h) carry it: {"entry", "refreshes", "failures",
+// "last_refresh_frame", "last_error"}, the last two null when there is none.
+nlohmann::json BackgroundCacheJson(const BackgroundCacheFigures& f);
+
 class SummaryFile {
  public:
   // summary: the figures known before the first frame set (tables, the backgrounds' consensus).
