@@ -75,9 +75,11 @@ function stopProcess(proc, timeoutMs = 10000) {
 }
 
 // `occmap serve SITE --listen ... --out DIR [args]`: resolves once it printed its address.
-function startServe(site, { listen = '127.0.0.1:0', args = [], out } = {}) {
+// cache: a cache folder (--cache-dir) instead of --no-cache.
+function startServe(site, { listen = '127.0.0.1:0', args = [], out, cache } = {}) {
   const outDir = out || path.join(path.dirname(site), 'out');
-  const proc = spawn(occmap, ['serve', site, '--listen', listen, '--out', outDir, '--no-cache', ...args],
+  const cacheArgs = cache ? ['--cache-dir', cache] : ['--no-cache'];
+  const proc = spawn(occmap, ['serve', site, '--listen', listen, '--out', outDir, ...cacheArgs, ...args],
     { stdio: ['ignore', 'pipe', 'pipe'] });
   let log = '';
   return new Promise((resolve, reject) => {
@@ -142,14 +144,14 @@ function trueFloorPoints(camera, points, { noisePx = 0, seed = 1 } = {}) {
 
 // One test's world, torn down by node:test's t.after whatever happens: a folder, a copy of the
 // scene's site (its cameras streamed over UDP when `streams`, `videos(dir)[i]` in place of camera
-// i's video), `occmap serve` on it and a
+// i's video), `occmap serve` on it (with the cache folder `cache(dir)` gives, else none) and a
 // browser (`editSite(text)` changes the site file's text first). open(path) gives a page of it;
 // check(body) runs the test's steps, then asserts that
 // no page had a script error, and on a failure keeps a screenshot and the server's log.
 //   const s = await h.start(t, 'zones', { streams: true });
 //   const page = await s.open('/#setup');
 //   await s.check(async () => { ... });
-async function start(t, name, { streams = false, videos, listen, args, editSite } = {}) {
+async function start(t, name, { streams = false, videos, listen, args, editSite, cache } = {}) {
   const dir = tempDir(name);
   const cameras = fs.readdirSync(path.join(sceneDir, 'frames')).filter((f) => /^cam\d+\.mp4$/.test(f)).length;
   const ports = streams ? await freeUdpPorts(cameras) : null;
@@ -162,7 +164,7 @@ async function start(t, name, { streams = false, videos, listen, args, editSite 
     if (world.serve) await world.serve.stop();
     for (const s of senders) await stopProcess(s);
   });
-  world.serve = await startServe(world.site, { listen, args });
+  world.serve = await startServe(world.site, { listen, args, cache: cache ? cache(dir) : undefined });
   world.browser = await launchBrowser();
   // A server on every address is reached through loopback.
   world.base = world.serve.url.replace('://0.0.0.0:', '://127.0.0.1:');

@@ -94,6 +94,20 @@ export function cameraCondition(cam, state) {
   return { label: 'up', cls: 'up' };
 }
 
+// A live camera's cached background (its `background_cache` in /api/state: written back from its
+// model every refresh_cache_s): when it was last written, as the run's seconds at its rate
+// (`state.fps`), and its failed writes. Null for a camera whose entry is not refreshed.
+export function cacheCondition(cam, state) {
+  const c = cam.background_cache;
+  if (!c) return null;
+  let age = 'not yet';
+  if (c.last_refresh_frame !== null && c.last_refresh_frame !== undefined && state && state.frame >= 0) {
+    const frames = Math.max(0, state.frame - c.last_refresh_frame);
+    age = state.fps > 0 ? `${fmt(frames / state.fps, 0)} s ago` : `${frames} frames ago`;
+  }
+  return { age, failures: c.failures || 0, error: c.last_error || '' };
+}
+
 const kTileIntervalMs = 250;  // camera pictures: 4 a second each, whatever the frame rate
 
 // A camera's latest frame with its changed pixels tinted red, fetched at a steady rate while
@@ -187,11 +201,19 @@ function Stats({ state, frame, site }) {
     <section class="panel">
       <h2>Cameras</h2>
       <table class="cams">
-        <tr><th>id</th><th>state</th><th>fps</th><th title="frames read">frames</th><th title="frames dropped">drop</th><th title="reconnections">reconn</th><th title="age of the background model">bg age</th></tr>
-        ${cams.map((c) => html`
+        <tr><th>id</th><th>state</th><th>fps</th><th title="frames read">frames</th><th title="frames dropped">drop</th><th title="reconnections">reconn</th><th title="age of the background model">bg age</th><th title="the cached background, written back from the model (live cameras): its last write, failed writes">bg cache</th></tr>
+        ${cams.map((c) => {
+          const cache = cacheCondition(c, state);
+          return html`
           <tr data-camera=${c.id}><td>${c.id}</td><td>${cameraCondition(c, state).label}</td>
               <td class="num">${fmt(c.fps)}</td><td class="num">${c.frames ?? '–'}</td><td class="num">${c.dropped ?? '–'}</td>
-              <td class="num">${c.reconnects ?? '–'}</td><td class="num bg-age">${fmt(c.background_age_s, 0)} s</td></tr>`)}
+              <td class="num">${c.reconnects ?? '–'}</td><td class="num bg-age">${fmt(c.background_age_s, 0)} s</td>
+              <td class="bg-cache" data-testid="camera-cache" title=${cache && cache.error ? 'last error: ' + cache.error : ''}>${cache === null ? '–' : html`
+                <span data-testid="cache-age">${cache.age}</span>${cache.failures > 0
+                  ? html` <span class="bad" data-testid="cache-failures">${cache.failures} failed</span>` : null}`}</td></tr>
+          ${cache && cache.error ? html`
+          <tr class="cache-error" data-camera-error=${c.id}><td colspan="8" data-testid="cache-error">cache: ${cache.error}</td></tr>` : null}`;
+        })}
       </table>
     </section>`;
 }
