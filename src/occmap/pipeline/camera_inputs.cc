@@ -283,6 +283,7 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
           alternative->support = std::move(alt_n).value();
         }
         reused = true;
+        c.background_learned = true;
         c.background_from_model = fs::exists(FromModelMark(cached), ec);
         c.info.background = fmt::format("reused: {} (saved {})", plane_path("y").string(), AgeOf(plane_path("y")));
       }
@@ -312,6 +313,7 @@ Status PrepareAdaptiveBackground(const Site& site, const RunOptions& options, bo
       }
       if (bo.learning == BackgroundLearning::kMode) alternative.emplace();
       background = learner.Learn(bo.learning, bo.mode_radius, alternative ? &*alternative : nullptr);
+      c.background_learned = true;
       c.info.background = fmt::format("learned: {} of {} frames over {:.1f} s", ToString(bo.learning), learner.count(),
                                       static_cast<double>(std::min(window, learner.count() * step)) / fps);
       if (settles) {  // cached once settled (pipeline/settle_backgrounds.h)
@@ -440,6 +442,18 @@ Status RefreshCachedBackground(const CameraState& c, const BackgroundOptions& bo
       c.model->CurrentAlternative(static_cast<uint8_t>(std::clamp(min_support, 1, 255)));
   return CacheAdaptiveBackground(c.refresh_cache, c.model->Current(), &alternative, /*from_model=*/true)
       .WithContext(fmt::format("camera {}: refreshing its cached background", c.cam->id));
+}
+
+LearnedCheck LearnedCheckOf(const std::vector<CameraState>& cams, size_t num_site_cameras,
+                            const std::vector<size_t>& index) {
+  LearnedCheck check;
+  check.keep.assign(num_site_cameras, false);
+  for (size_t k = 0; k < cams.size(); ++k) {
+    const CameraState& c = cams[k];
+    check.keep[index.empty() ? k : index[k]] = c.background_from_model;
+    check.any_alternative |= c.background_learned && !c.background_from_model;
+  }
+  return check;
 }
 
 BackgroundCacheRefresh::BackgroundCacheRefresh(const BackgroundOptions& bo, double fps, WarningCallback warning)

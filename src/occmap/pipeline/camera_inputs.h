@@ -45,8 +45,22 @@ struct CameraState {
   // one learned: checked across cameras when first learned, and the scene as it was minutes
   // ago, so the start's check (ResolveLearnedBackgrounds) leaves it as it is.
   bool background_from_model = false;
+  // Its adaptive background was learned by this run or reused from a learned entry (not given):
+  // it has alternatives for the start's check across cameras to decide (LearnedCheckOf).
+  bool background_learned = false;
   CameraRunInfo info;
 };
+
+// What the start's check across cameras (ResolveLearnedBackgrounds) is given: keep[n] for the
+// cameras whose entry a running model wrote (they vote and are left as they are), and whether
+// any other camera has learned alternatives for it to decide (none: no check). index: each
+// camera's place among the site's num_site_cameras (an edge's cameras); empty: cams are the site's.
+struct LearnedCheck {
+  std::vector<bool> keep;
+  bool any_alternative = false;
+};
+LearnedCheck LearnedCheckOf(const std::vector<CameraState>& cams, size_t num_site_cameras,
+                            const std::vector<size_t>& index = {});
 
 // A frame's size against the camera's image size (masks: its shape).
 Status CheckFrameSize(const CameraState& c, const Frame& f);

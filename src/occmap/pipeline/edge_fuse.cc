@@ -215,22 +215,16 @@ class EdgeBackgrounds {
 // before its first frame set, over this edge's cameras (the others' models null).
 ConsensusResult ResolveAtEdge(const Site& site, const GroundLut& lut, std::vector<CameraState>& cams,
                               const std::vector<size_t>& index) {
+  const LearnedCheck check = LearnedCheckOf(cams, site.cameras.size(), index);
+  if (!check.any_alternative) return {};
   std::vector<BackgroundModel*> models(site.cameras.size(), nullptr);
-  std::vector<bool> keep(site.cameras.size(), false);  // entries a running model wrote (run.cc's reason)
-  bool any_alternative = false;
-  for (size_t k = 0; k < cams.size(); ++k) {
-    models[index[k]] = cams[k].model.get();
-    keep[index[k]] = cams[k].background_from_model;
-    any_alternative |= !cams[k].background_from_model && (cams[k].info.background.starts_with("learned") ||
-                                                          cams[k].info.background.starts_with("reused"));
-  }
-  if (!any_alternative) return {};
+  for (size_t k = 0; k < cams.size(); ++k) models[index[k]] = cams[k].model.get();
   std::vector<const CameraModel*> cameras;
   for (const SiteCamera& c : site.cameras) cameras.push_back(c.camera.get());
   // Settling reads the alternatives of the kept pixels too (run.cc's ResolveBackgrounds).
   const bool settles = std::any_of(cams.begin(), cams.end(), [](const CameraState& c) { return c.settles; });
   return ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold,
-                                   site.backgrounds.chroma_threshold, /*drop_kept=*/!settles, keep);
+                                   site.backgrounds.chroma_threshold, /*drop_kept=*/!settles, check.keep);
 }
 
 // An edge of every camera settles its learned backgrounds as `occmap run` does: the same pass,

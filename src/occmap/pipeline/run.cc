@@ -64,22 +64,16 @@ constexpr int kSlots = 4;
 // Learned backgrounds: each pixel's two candidates checked against the other cameras' view of
 // its floor cell (pipeline/background_maintenance.h), before the first frame set.
 void ResolveBackgrounds(const Site& site, const GroundLut& lut, std::vector<CameraState>& cams, RunSummary& summary) {
+  const LearnedCheck check = LearnedCheckOf(cams, cams.size());
+  if (!check.any_alternative) return;
   std::vector<BackgroundModel*> models;
-  std::vector<bool> keep;  // entries a running model wrote: they vote, and are left as they are
-  bool any_alternative = false;
-  for (auto& c : cams) {
-    models.push_back(c.model.get());
-    keep.push_back(c.background_from_model);
-    any_alternative |= !c.background_from_model &&
-                       (c.info.background.starts_with("learned") || c.info.background.starts_with("reused"));
-  }
-  if (!any_alternative) return;
+  for (auto& c : cams) models.push_back(c.model.get());
   std::vector<const CameraModel*> cameras;
   for (const auto& c : cams) cameras.push_back(c.cam->camera.get());
   const bool settles = std::any_of(cams.begin(), cams.end(), [](const CameraState& c) { return c.settles; });
   const ConsensusResult r =
       ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold,
-                                site.backgrounds.chroma_threshold, /*drop_kept=*/!settles, keep);
+                                site.backgrounds.chroma_threshold, /*drop_kept=*/!settles, check.keep);
   summary.consensus_pixels_checked = r.pixels_checked;
   summary.consensus_pixels_swapped = r.pixels_swapped;
   summary.consensus_pixels_settled = r.pixels_settled;

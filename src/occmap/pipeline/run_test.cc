@@ -346,6 +346,26 @@ TEST_F(RunFixture, AStartUpCacheThatCannotBeWrittenIsSaidAndTheRunGoesOn) {
   }
 }
 
+// What the start's check across cameras is given: learned and reused-learned backgrounds have
+// alternatives to decide, given ones none; entries a running model wrote are kept (they vote
+// only) and have none; an edge's cameras land at their places among the site's.
+TEST(LearnedCheck, LearnedOnesAreCheckedModelWrittenOnesKept) {
+  std::vector<CameraState> cams(3);  // given, learned (or reused learned), written by a model
+  cams[1].background_learned = true;
+  cams[2].background_learned = true;
+  cams[2].background_from_model = true;
+  LearnedCheck check = LearnedCheckOf(cams, 3);
+  EXPECT_TRUE(check.any_alternative);
+  EXPECT_EQ(check.keep, (std::vector<bool>{false, false, true}));
+  // Without the learned one, nothing is left to decide.
+  cams[1].background_learned = false;
+  EXPECT_FALSE(LearnedCheckOf(cams, 3).any_alternative);
+  // An edge's cameras 2, 0 and 4 of a site of 5.
+  check = LearnedCheckOf(cams, 5, {2, 0, 4});
+  EXPECT_FALSE(check.any_alternative);
+  EXPECT_EQ(check.keep, (std::vector<bool>{false, false, false, false, true}));
+}
+
 // What a refresh writes: the model as it is now, over the entry, the planes swapped in whole.
 TEST_F(RunFixture, RefreshWritesTheModelNow) {
   const Site site = LoadSiteText(SiteText(/*with_backgrounds=*/false));
