@@ -13,7 +13,11 @@ namespace {
 bool HiddenAt(const Eigen::Vector2d& p, size_t d, const std::vector<Eigen::Vector2d>& points,
               const std::vector<Viewer>& viewers, const GhostOptions& options, const std::vector<bool>& can_occlude) {
   int seeing = 0, clear = 0, clear_of_bodies = 0;
+  const int needed = options.min_clear_views > 1 ? options.min_clear_views : 0;
   for (const Viewer& v : viewers) {
+    // Decided: a clear view and the clear views asked (min(seeing, n) <= n), whatever the other
+    // viewers see. At 64 cameras, asking every view took a quarter of a fuse's time.
+    if (clear > 0 && clear_of_bodies >= needed) return false;
     if (!v.sees_point(p)) continue;
     ++seeing;
     const Eigen::Vector2d c = v.center_m.head<2>();
@@ -37,6 +41,7 @@ bool HiddenAt(const Eigen::Vector2d& p, size_t d, const std::vector<Eigen::Vecto
       if (height > options.occluder_height_m) continue;
       is_blocked |= miss_m <= options.occluder_radius_m;
       passes_a_body |= miss_m <= options.clear_radius_m;
+      if (is_blocked && passes_a_body) break;  // nothing further changes this view
     }
     clear += !is_blocked;
     clear_of_bodies += !passes_a_body;
