@@ -61,7 +61,11 @@ inline OccupancyMap FloorWithDiscs(const FloorGrid& grid, const std::vector<Eige
   std::normal_distribution<double> jitter(0.0, 1.0);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   for (const Eigen::Vector2d& c : centres_m) {
-    const Eigen::Vector2d moved = c + noise.position_sigma_m * Eigen::Vector2d(jitter(rng), jitter(rng));
+    // One draw a statement: a call's arguments have no set order (GCC takes them right to left
+    // on x86-64, left to right on aarch64), and the tests' expectations hold for this sequence.
+    const double dy = jitter(rng);
+    const double dx = jitter(rng);
+    const Eigen::Vector2d moved = c + noise.position_sigma_m * Eigen::Vector2d(dx, dy);
     MarkDisc(map, moved, radius_m + noise.radius_jitter_m * unit(rng));
   }
   std::uniform_int_distribution<int64_t> any_cell(0, grid.num_cells() - 1);
