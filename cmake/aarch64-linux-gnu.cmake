@@ -23,8 +23,11 @@ set(CMAKE_FIND_ROOT_PATH_MODE_LIBRARY ONLY)
 set(CMAKE_FIND_ROOT_PATH_MODE_INCLUDE BOTH)
 set(CMAKE_FIND_ROOT_PATH_MODE_PACKAGE ONLY)
 set(CMAKE_LIBRARY_ARCHITECTURE aarch64-linux-gnu)
-# (A few arm64 packages, libarmadillo11 and libogdi4.1 among them, put their libraries in /usr/lib.)
-set(libdirs "${sysroot}/usr/lib/aarch64-linux-gnu" "${sysroot}/lib/aarch64-linux-gnu" "${sysroot}/usr/lib")
+# (A few arm64 packages, libarmadillo11 and libogdi4.1 among them, put their libraries in /usr/lib;
+# libpulse, which FFmpeg's libavdevice needs, finds libpulsecommon by its RUNPATH, which a cross
+# linker does not follow.)
+set(libdirs "${sysroot}/usr/lib/aarch64-linux-gnu" "${sysroot}/lib/aarch64-linux-gnu" "${sysroot}/usr/lib"
+  "${sysroot}/usr/lib/aarch64-linux-gnu/pulseaudio")
 string(REPLACE ";" ",-rpath-link," rpath_link "${libdirs}")
 string(REPLACE ";" ":" ld_library_path "${libdirs}")
 set(CMAKE_EXE_LINKER_FLAGS_INIT "-Wl,-rpath-link,${rpath_link}")
@@ -32,4 +35,9 @@ set(CMAKE_SHARED_LINKER_FLAGS_INIT "-Wl,-rpath-link,${rpath_link}")
 # Debian's libopencv-dev (its CMake package) cannot be co-installed for two architectures and
 # lists every module; this one names the modules the build asks for in the sysroot.
 set(OpenCV_DIR "${CMAKE_CURRENT_LIST_DIR}/aarch64")
+# pkg-config (FFmpeg, libmosquitto, cpp-httplib) reads the sysroot's .pc files only, and puts
+# the sysroot in front of the paths they name.
+set(ENV{PKG_CONFIG_LIBDIR} "${sysroot}/usr/lib/aarch64-linux-gnu/pkgconfig:${sysroot}/usr/share/pkgconfig")
+set(ENV{PKG_CONFIG_SYSROOT_DIR} "${sysroot}")
+unset(ENV{PKG_CONFIG_PATH})
 set(CMAKE_CROSSCOMPILING_EMULATOR qemu-aarch64 -L "${sysroot}" -E "LD_LIBRARY_PATH=${ld_library_path}")
