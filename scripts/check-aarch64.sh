@@ -104,44 +104,75 @@ echo "check-aarch64: core suites $((SECONDS - start)) s"
 [ "$program" = 1 ] && [ "${OCCMAP_AARCH64_RUN:-1}" = 1 ] || exit $suites
 
 # 5. The program under qemu-user on the lab scene (4 cameras, 20 frames, H.264 encoded and decoded
-# on arm64): --version, synth, run, eval; the x86 build's run on the same videos with the
-# portable kernels (OCCMAP_KERNELS=portable), whose outputs must equal Arm's byte for byte; and
-# the deployment of issue 17, an Arm `occmap edge` publishing to a host mosquitto and an x86
-# `occmap fuse`, whose outputs must equal the run's. The x86 parts need OCCMAP_X86 (default
-# build/release/occmap) and mosquitto; they are skipped without them.
+# on arm64): --version, synth, run, eval, serve (its web page and API); the x86 build's run on
+# the same videos with the portable kernels (OCCMAP_KERNELS=portable), whose outputs must equal
+# Arm's byte for byte; and the deployment of issue 17, an Arm `occmap edge` publishing to a host
+# mosquitto and an x86 `occmap fuse`, whose outputs must equal the run's. The x86 parts need
+# OCCMAP_X86 (default build/release/occmap) and mosquitto; they are skipped without them.
 set +e
 source "$source_dir/tests/test_lib.sh"
 tl_init
-ld_path="$sysroot/usr/lib/aarch64-linux-gnu:$sysroot/lib/aarch64-linux-gnu:$sysroot/usr/lib:$sysroot/usr/lib/aarch64-linux-gnu/pulseaudio"
+lib=$sysroot/usr/lib/aarch64-linux-gnu
+ld_path="$lib:$sysroot/lib/aarch64-linux-gnu:$sysroot/usr/lib:$lib/pulseaudio"
 arm="$work/occmap-arm"
 printf '#!/bin/sh\nexec nice -n 19 qemu-aarch64 -L "%s" -E "LD_LIBRARY_PATH=%s" "%s" "$@"\n' \
   "$sysroot" "$ld_path" "$build/occmap" >"$arm"
 chmod +x "$arm"
 x86=${OCCMAP_X86:-$source_dir/build/release/occmap}
 exec 3>&1  # the timings, while the commands' output goes to their logs
-timed() { local t=$SECONDS what=$1; shift; "$@"; local code=$?; echo "check-aarch64: $((SECONDS - t)) s: $what" >&3; return $code; }
+timed() {  # timed WHAT COMMAND...
+  local t=$SECONDS what=$1 code
+  shift
+  "$@"
+  code=$?
+  echo "check-aarch64: $((SECONDS - t)) s: $what" >&3
+  return $code
+}
 outputs="detections.jsonl tracks.jsonl tracks_mot.csv"
 same_outputs() {  # same_outputs DIR_A DIR_B WHAT
   local f
   for f in $outputs; do
-    if [ -s "$1/$f" ] && cmp -s "$1/$f" "$2/$f"; then ok; else fail "$3: $f differs ($(lines "$1/$f") vs $(lines "$2/$f") lines)"; fi
+    if [ -s "$1/$f" ] && cmp -s "$1/$f" "$2/$f"; then
+      ok
+    else
+      fail "$3: $f differs ($(lines "$1/$f") vs $(lines "$2/$f") lines)"
+    fi
   done
 }
-moda() { "$python" -c "import json, sys; print(json.load(open(sys.argv[1]))['detection']['moda'])" "$1/evaluation.json" 2>/dev/null; }
+moda() {
+  "$python" -c "import json, sys; print(json.load(open(sys.argv[1]))['detection']['moda'])" "$1/evaluation.json" 2>/dev/null
+}
 
 version=$("$arm" --version 2>&1) && [ -n "$version" ] && ok || fail "occmap --version: $version"
 echo "check-aarch64: occmap --version: $version ($(file -b "$build/occmap" | cut -d, -f1-2))"
 common=(--no-cache --threads 2)
 timed "aarch64 synth" "$arm" synth --scene lab --frames 20 --video --out "$work/lab" >"$work/synth.log" 2>&1 ||
   { fail "occmap synth: $(tail -2 "$work/synth.log")"; tl_finish check-aarch64; exit 1; }
-timed "aarch64 run" "$arm" run "$work/lab/site.yaml" --out "$work/arm-run" --no-wall-clock --occupancy-pngs "${common[@]}" >"$work/arm-run.log" 2>&1 &&
+timed "aarch64 run" "$arm" run "$work/lab/site.yaml" --out "$work/arm-run" --no-wall-clock --occupancy-pngs \
+  "${common[@]}" >"$work/arm-run.log" 2>&1 &&
   ok || fail "occmap run: $(tail -2 "$work/arm-run.log")"
 [ -s "$work/arm-run/mosaic.mp4" ] && ok || fail "occmap run wrote no mosaic.mp4"
-"$arm" eval "$work/lab" "$work/arm-run" >"$work/arm-eval.log" 2>&1 && ok || fail "occmap eval: $(tail -2 "$work/arm-eval.log")"
+"$arm" eval "$work/lab" "$work/arm-run" >"$work/arm-eval.log" 2>&1 && ok ||
+  fail "occmap eval: $(tail -2 "$work/arm-eval.log")"
 echo "check-aarch64: aarch64 MODA $(moda "$work/arm-run")"
+# `occmap serve`: the embedded web bundle as built on the host, the API, a clean SIGTERM.
+"$arm" serve "$work/lab/site.yaml" --listen 127.0.0.1:0 --out "$work/serve" --no-video "${common[@]}" \
+  >"$work/serve.log" 2>&1 &
+serve_pid=$!
+tl_track $serve_pid
+tl_wait_for "$work/serve.log" "listening on" 60
+port=$(sed -n 's#.*listening on http://127.0.0.1:\([0-9]*\)/.*#\1#p' "$work/serve.log" | head -1)
+for page in index.html app.js; do
+  curl -sf "http://127.0.0.1:$port/${page#index.html}" | cmp -s - "$build/web-dist/$page" && ok ||
+    fail "occmap serve: /$page is not web-dist's ($(tail -2 "$work/serve.log"))"
+done
+curl -sf "http://127.0.0.1:$port/api/site" | grep -q '"id":"cam4"' && ok || fail "occmap serve: /api/site has no cam4"
+kill -TERM $serve_pid
+wait $serve_pid && ok || fail "occmap serve: exit $? at SIGTERM: $(tail -2 "$work/serve.log")"
 
 if [ -x "$x86" ]; then
-  OCCMAP_KERNELS=portable timed "x86 run" "$x86" run "$work/lab/site.yaml" --out "$work/x86-run" --no-wall-clock --occupancy-pngs "${common[@]}" >"$work/x86-run.log" 2>&1 &&
+  OCCMAP_KERNELS=portable timed "x86 run" "$x86" run "$work/lab/site.yaml" --out "$work/x86-run" --no-wall-clock \
+    --occupancy-pngs "${common[@]}" >"$work/x86-run.log" 2>&1 &&
     ok || fail "x86 occmap run: $(tail -2 "$work/x86-run.log")"
   "$x86" eval "$work/lab" "$work/x86-run" >/dev/null 2>&1
   echo "check-aarch64: x86 (portable kernels) MODA $(moda "$work/x86-run")"
