@@ -678,6 +678,12 @@ add("cli_run_frames_negative", ["{bin}", "run", "{w}/lab/site.yaml", "--frames",
 add("cli_run_frames_zero", ["{bin}", "run", "{w}/lab/site.yaml", "--frames", "0", "--out", "{c}/o"], ["--frames", "0"])
 add("cli_run_frames_text", ["{bin}", "run", "{w}/lab/site.yaml", "--frames", "ten", "--out", "{c}/o"], ["--frames"])
 add("cli_run_start_negative", ["{bin}", "run", "{w}/lab/site.yaml", "--start", "-3", "--out", "{c}/o"], ["--start", "-3"])
+add("cli_fuse_token_without_listen", ["{bin}", "fuse", "{w}/lab/site.yaml", "--token", "t0ken", "--out", "{c}/o"],
+    ["--token", "--listen"])
+add("cli_fuse_listen_beyond_loopback", ["{bin}", "fuse", "{w}/lab/site.yaml", "--listen", "0.0.0.0:0", "--out", "{c}/o"],
+    ["--listen", "0.0.0.0:0", "--token"])
+add("cli_fuse_listen_bad_port", ["{bin}", "fuse", "{w}/lab/site.yaml", "--listen", "127.0.0.1:99999", "--out", "{c}/o"],
+    ["--listen", "99999"])
 add("cli_run_sync", ["{bin}", "run", "{w}/lab/site.yaml", "--sync", "clock", "--out", "{c}/o"], ["--sync", "clock"])
 add("cli_run_summary_every", ["{bin}", "run", "{w}/lab/site.yaml", "--summary-every-s", "-1", "--frames", "1", "--out", "{c}/o"],
     ["summary"])
