@@ -211,22 +211,6 @@ class EdgeBackgrounds {
   std::vector<ImageView<uint8_t>> check_changes_;                      // per site camera
 };
 
-// Learned backgrounds checked against each other through the floor, as `occmap run` does
-// before its first frame set, over this edge's cameras (the others' models null).
-ConsensusResult ResolveAtEdge(const Site& site, const GroundLut& lut, std::vector<CameraState>& cams,
-                              const std::vector<size_t>& index) {
-  const LearnedCheck check = LearnedCheckOf(cams, site.cameras.size(), index);
-  if (!check.any_alternative) return {};
-  std::vector<BackgroundModel*> models(site.cameras.size(), nullptr);
-  for (size_t k = 0; k < cams.size(); ++k) models[index[k]] = cams[k].model.get();
-  std::vector<const CameraModel*> cameras;
-  for (const SiteCamera& c : site.cameras) cameras.push_back(c.camera.get());
-  // Settling reads the alternatives of the kept pixels too (run.cc's ResolveBackgrounds).
-  const bool settles = std::any_of(cams.begin(), cams.end(), [](const CameraState& c) { return c.settles; });
-  return ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold,
-                                   site.backgrounds.chroma_threshold, /*drop_kept=*/!settles, check.keep);
-}
-
 // An edge of every camera settles its learned backgrounds as `occmap run` does: the same pass,
 // its cameras in the site's order (as the run's tables and fusion stage hold them).
 Status SettleAtEdge(const Site& site, const RunOptions& options, const FusionPlan& plan, const GroundLut& lut,
@@ -374,7 +358,7 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& given, Context&
       WarnCacheNotWritten(o.run.warning, "table cache", SiteLutPath(site, o.run.cache_dir), cached.write_error);
     }
     lut.emplace(std::move(cached));
-    const ConsensusResult r = ResolveAtEdge(site, lut->lut, cams, index);
+    const ConsensusResult r = CheckLearnedBackgrounds(site, lut->lut, cams, index);  // over this edge's cameras
     summary.consensus_pixels_checked = r.pixels_checked;
     summary.consensus_pixels_swapped = r.pixels_swapped;
     OCCMAP_RETURN_IF_ERROR(SettleAtEdge(site, open_options, plan, lut->lut, cams, index, ctx, summary));

@@ -61,24 +61,6 @@ constexpr int64_t kWarmUpFrames = 10;
 // Frame sets in the ring: one per stage that holds a slot (reader, fusion, detect/track) + 1 spare.
 constexpr int kSlots = 4;
 
-// Learned backgrounds: each pixel's two candidates checked against the other cameras' view of
-// its floor cell (pipeline/background_maintenance.h), before the first frame set.
-void ResolveBackgrounds(const Site& site, const GroundLut& lut, std::vector<CameraState>& cams, RunSummary& summary) {
-  const LearnedCheck check = LearnedCheckOf(cams, cams.size());
-  if (!check.any_alternative) return;
-  std::vector<BackgroundModel*> models;
-  for (auto& c : cams) models.push_back(c.model.get());
-  std::vector<const CameraModel*> cameras;
-  for (const auto& c : cams) cameras.push_back(c.cam->camera.get());
-  const bool settles = std::any_of(cams.begin(), cams.end(), [](const CameraState& c) { return c.settles; });
-  const ConsensusResult r =
-      ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold,
-                                site.backgrounds.chroma_threshold, /*drop_kept=*/!settles, check.keep);
-  summary.consensus_pixels_checked = r.pixels_checked;
-  summary.consensus_pixels_swapped = r.pixels_swapped;
-  summary.consensus_pixels_settled = r.pixels_settled;
-}
-
 // backgrounds/<camera>.png: the background each camera starts from.
 Status WriteBackgrounds(const fs::path& out, const std::vector<CameraState>& cams, bool colour,
                         std::vector<std::string>& written) {
@@ -152,7 +134,12 @@ Result<RunSummary> RunSite(const Site& site, const RunOptions& options, Context&
   summary.lut_cache = ToString(cached.outcome);
   summary.lut_seconds = Since(t_lut);
   const GroundLut& lut = cached.lut;
-  if (plan.adaptive) ResolveBackgrounds(site, lut, cams, summary);
+  if (plan.adaptive) {  // each learned pixel's two candidates checked against the other cameras' view
+    const ConsensusResult r = CheckLearnedBackgrounds(site, lut, cams);
+    summary.consensus_pixels_checked = r.pixels_checked;
+    summary.consensus_pixels_swapped = r.pixels_swapped;
+    summary.consensus_pixels_settled = r.pixels_settled;
+  }
   const double fps = cams[0].source->fps().value_or(10.0);
   OCCMAP_ASSIGN_OR_RETURN(const SettleFigures settled, SettleLearnedBackgrounds(site, options, plan, lut, cams, fps, ctx));
   summary.settle_frame_sets = settled.frame_sets;

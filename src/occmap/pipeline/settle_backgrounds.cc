@@ -12,6 +12,19 @@
 
 namespace occmap {
 
+ConsensusResult CheckLearnedBackgrounds(const Site& site, const GroundLut& lut, std::vector<CameraState>& cams,
+                                        const std::vector<size_t>& index) {
+  const LearnedCheck check = LearnedCheckOf(cams, site.cameras.size(), index);
+  if (!check.any_alternative) return {};
+  std::vector<BackgroundModel*> models(site.cameras.size(), nullptr);
+  for (size_t k = 0; k < cams.size(); ++k) models[index.empty() ? k : index[k]] = cams[k].model.get();
+  std::vector<const CameraModel*> cameras;
+  for (const SiteCamera& c : site.cameras) cameras.push_back(c.camera.get());
+  const bool settles = std::any_of(cams.begin(), cams.end(), [](const CameraState& c) { return c.settles; });
+  return ResolveLearnedBackgrounds(lut, cameras, site.plane_height_m, models, site.detection.threshold,
+                                   site.backgrounds.chroma_threshold, /*drop_kept=*/!settles, check.keep);
+}
+
 Result<SettleFigures> SettleLearnedBackgrounds(const Site& site, const RunOptions& options, const FusionPlan& plan,
                                                const GroundLut& lut, std::vector<CameraState>& cams, double fps,
                                                Context& ctx) {

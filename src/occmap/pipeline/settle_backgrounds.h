@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "occmap/lut/ground_lut.h"
+#include "occmap/pipeline/background_maintenance.h"
 #include "occmap/pipeline/camera_inputs.h"
 #include "occmap/pipeline/fusion_path.h"
 #include "occmap/pipeline/run.h"
@@ -36,6 +37,13 @@ struct SettleFigures {
   int64_t frame_sets = 0;  // 0: nothing to settle
   double seconds = 0;
 };
+
+// The start's check of learned backgrounds across cameras (ResolveLearnedBackgrounds, before
+// settling and the first frame set): cams are the site's cameras, or with `index` an edge's
+// (cams[k] is site camera index[k]; the others take no part). Nothing to do without learned
+// alternatives. Settling reads the alternatives of the kept pixels too: they stay then.
+ConsensusResult CheckLearnedBackgrounds(const Site& site, const GroundLut& lut, std::vector<CameraState>& cams,
+                                        const std::vector<size_t>& index = {});
 
 // Settles the models of the cameras marked CameraState::settles (learned by this run, sources
 // that are files: camera_inputs.h, SettlesLearnedBackgrounds); the other cameras' models take
