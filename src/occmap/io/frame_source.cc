@@ -31,6 +31,12 @@ Status FrameSourceOptions::Validate() const {
   if (stream_timeout_ms <= 0) {
     return InvalidInput(fmt::format("stream_timeout_ms: expected > 0, found {}", stream_timeout_ms));
   }
+  for (size_t i = 0; i < image_times_s.size(); ++i) {
+    if (!std::isfinite(image_times_s[i]) || (i > 0 && !(image_times_s[i] > image_times_s[i - 1]))) {
+      return InvalidInput(fmt::format("image_times_s[{}]: expected a finite time after the one before, found {}", i,
+                                      image_times_s[i]));
+    }
+  }
   return Status::Ok();
 }
 
@@ -66,8 +72,13 @@ Result<std::unique_ptr<FrameSource>> OpenFrameSource(const FrameSourceSpec& spec
   if (!std::isfinite(spec.fps) || spec.fps < 0) {
     return InvalidInput(fmt::format("{} source: fps: expected a finite value >= 0, found {}", ToString(spec.kind), spec.fps));
   }
+  if (spec.fps > 0 && !spec.timestamps_s.empty()) {
+    return InvalidInput(fmt::format("{} source '{}': expected fps or timestamps, found both", ToString(spec.kind),
+                                    spec.location));
+  }
   FrameSourceOptions with_fps = options;
   if (spec.fps > 0) with_fps.image_fps = spec.fps;
+  if (!spec.timestamps_s.empty()) with_fps.image_times_s = spec.timestamps_s;
   switch (spec.kind) {
     case FrameSourceSpec::Kind::kImages:
       return OpenImageSequence(spec.location, /*masks=*/false, with_fps);

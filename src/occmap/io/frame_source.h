@@ -51,6 +51,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "occmap/geometry/camera_model.h"
 #include "occmap/util/image.h"
@@ -68,6 +69,9 @@ struct FrameSourceSpec {
   // Image sequences and masks: their frame rate (> 0 gives timestamps index / fps, overriding
   // FrameSourceOptions::image_fps); 0: none. Video and streams keep their own.
   double fps = 0;
+  // Image sequences and masks: each image's time in seconds (io/frame_times.h), from image 0;
+  // empty: none. Exclusive with fps.
+  std::vector<double> timestamps_s = {};
 };
 
 const char* ToString(FrameSourceSpec::Kind kind);
@@ -87,6 +91,9 @@ struct FrameSourceOptions {
   // Image sequences and masks: timestamp_s = index / image_fps when > 0 (fps() reports it);
   // NaN otherwise. Video and streams take their own timestamps and ignore it.
   double image_fps = 0;
+  // Image sequences and masks: timestamp_s = image_times_s[index] when not empty (an image
+  // beyond its end is an error), and fps() their mean rate; overrides image_fps.
+  std::vector<double> image_times_s = {};
   // Streams: an open or a read that blocks longer than this fails (kIoError) rather than hang.
   int stream_timeout_ms = 10000;
   // Streams: when set and true, a blocked open or read gives up at once (kIoError), so that a

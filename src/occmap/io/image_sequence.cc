@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "occmap/io/frame_source.h"
+#include "occmap/io/frame_times.h"
 #include "occmap/util/image_io.h"
 #include "occmap/util/yuv.h"
 
@@ -139,6 +140,7 @@ class ImageSequence final : public FrameSource {
         colour_(options.colour && !masks),
         chroma_(options.chroma && !masks),
         image_fps_(options.image_fps),
+        image_times_s_(options.image_times_s),
         files_(std::move(files)) {
     const char* what = masks_ ? "mask" : "image";
     if (std::holds_alternative<Numbered>(files_)) {
@@ -168,6 +170,7 @@ class ImageSequence final : public FrameSource {
   }
   ImageSize size() const override { return size_; }
   std::optional<double> fps() const override {
+    if (image_times_s_.size() >= 2) return MeanRateHz(image_times_s_);
     if (image_fps_ > 0) return image_fps_;
     return std::nullopt;
   }
@@ -180,6 +183,10 @@ class ImageSequence final : public FrameSource {
   Result<bool> Read(Frame& frame) override {
     const int64_t index = next_;
     if (!Exists(index)) return false;
+    if (!image_times_s_.empty() && index >= static_cast<int64_t>(image_times_s_.size())) {
+      return InvalidInput(fmt::format("{}: frame {}: its timestamps give the times of {} images, none for this one",
+                                      name_, index, image_times_s_.size()));
+    }
     if (index == 0 && have_first_) {
       frame.gray = std::move(first_.gray);
       frame.rgb = std::move(first_.rgb);
@@ -195,7 +202,11 @@ class ImageSequence final : public FrameSource {
       frame.v = Image<uint8_t>();
     }
     frame.index = index;
-    frame.timestamp_s = image_fps_ > 0 ? static_cast<double>(index) / image_fps_ : std::nan("");
+    if (!image_times_s_.empty()) {
+      frame.timestamp_s = image_times_s_[static_cast<size_t>(index)];
+    } else {
+      frame.timestamp_s = image_fps_ > 0 ? static_cast<double>(index) / image_fps_ : std::nan("");
+    }
     next_ = index + 1;
     return true;
   }
@@ -260,6 +271,7 @@ class ImageSequence final : public FrameSource {
   bool colour_;
   bool chroma_;
   double image_fps_;
+  std::vector<double> image_times_s_;  // empty: none
   std::variant<Files, Numbered> files_;
   ImageSize size_;
   int64_t next_ = 0;

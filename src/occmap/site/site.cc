@@ -16,6 +16,7 @@
 #include "occmap/geometry/homography_camera.h"
 #include "occmap/geometry/pinhole_camera.h"
 #include "occmap/geometry/tsai_camera.h"
+#include "occmap/io/frame_times.h"
 #include "occmap/util/file_util.h"
 #include "occmap/util/safe_files.h"
 #include "occmap/util/image_io.h"
@@ -251,8 +252,32 @@ Result<Image<uint8_t>> ParseMask(const YamlField& field, const PathContext& ctx,
   return RasterizePolygons(polygons, size);
 }
 
+// `timestamps: FILE` (seconds) or `timestamps: {file: FILE, fps: 25}` (frame numbers of that
+// rate): io/frame_times.h.
+Result<std::vector<double>> ParseTimestamps(const YamlField& field, const PathContext& ctx) {
+  std::string file;
+  double numbers_fps = 0;
+  const YamlField* file_field = &field;
+  std::optional<YamlField> inner;
+  if (field.IsMap()) {
+    OCCMAP_RETURN_IF_ERROR(field.CheckKeys({"file", "fps"}));
+    OCCMAP_ASSIGN_OR_RETURN(inner, field.Get("file"));
+    file_field = &*inner;
+    OCCMAP_ASSIGN_OR_RETURN(numbers_fps, field.GetDouble("fps", 0.0));
+    if (!(numbers_fps > 0 && numbers_fps <= 1e6)) {
+      return field.Find("fps")->Error(fmt::format("expected the frame numbers' rate, 0 < fps <= 1e6, found {}", numbers_fps));
+    }
+  }
+  OCCMAP_ASSIGN_OR_RETURN(file, file_field->AsString());
+  if (file.empty()) return file_field->Error("expected a timestamps file, found an empty text");
+  const fs::path path = ResolvePath(ctx.data_root, file);
+  auto times = ReadFrameTimes(path, numbers_fps);
+  if (!times.ok()) return times.status().WithContext(file_field->Where());
+  return std::move(times).value();
+}
+
 Result<FrameSourceSpec> ParseSource(const YamlField& field, const PathContext& ctx) {
-  OCCMAP_RETURN_IF_ERROR(field.CheckKeys({"images", "video", "stream", "masks", "fps"}));
+  OCCMAP_RETURN_IF_ERROR(field.CheckKeys({"images", "video", "stream", "masks", "fps", "timestamps"}));
   const size_t kinds = field.Has("images") + field.Has("video") + field.Has("stream") + field.Has("masks");
   if (kinds != 1) return field.Error("expected exactly one of images, video, stream or masks");
   FrameSourceSpec spec;
@@ -264,6 +289,13 @@ Result<FrameSourceSpec> ParseSource(const YamlField& field, const PathContext& c
   if (!(spec.fps >= 0)) return field.Find("fps")->Error(fmt::format("expected frames per second >= 0, found {}", spec.fps));
   if (spec.fps > 0 && key != "images" && key != "masks") {
     return field.Find("fps")->Error(fmt::format("fps is for images and masks ({} has its own timestamps)", key));
+  }
+  if (auto t = field.Find("timestamps")) {
+    if (key != "images" && key != "masks") {
+      return t->Error(fmt::format("timestamps are for images and masks ({} has its own)", key));
+    }
+    if (spec.fps > 0) return t->Error("expected fps or timestamps, found both");
+    OCCMAP_ASSIGN_OR_RETURN(spec.timestamps_s, ParseTimestamps(*t, ctx));
   }
   OCCMAP_ASSIGN_OR_RETURN(std::string value, field.GetString(key));
   if (value.empty()) return field.Error(fmt::format("{}: expected a location, found an empty text", key));
