@@ -610,11 +610,11 @@ int main(int argc, char** argv) {
   eval_cmd->add_option("--threshold-m", eval.threshold_m, "match distance")->capture_default_str();
   eval_cmd->add_flag("--json", eval.json_to_stdout, "print the report as JSON");
   eval_cmd->add_option("--format", eval.format,
-                       "annotations: wildtrack or multiviewx (auto: from the file names, 8 or 5 digits)")
-      ->check(CLI::IsMember({"auto", "wildtrack", "multiviewx"}))
+                       "annotations: wildtrack, multiviewx or terrace (auto: from the file names, 8, 5 or 6 digits)")
+      ->check(CLI::IsMember({"auto", "wildtrack", "multiviewx", "terrace"}))
       ->capture_default_str();
   eval_cmd->add_option("--frame-step", eval.frame_step,
-                       "annotations: annotation numbers per run frame, N or P/Q (default wildtrack 5, multiviewx 1: "
+                       "annotations: annotation numbers per run frame, N or P/Q (default wildtrack 5, multiviewx and terrace 1: "
                        "a run over the distributed images; 1 for 10 fps WILDTRACK frames)");
   eval_cmd->add_option("--first-frame", eval.first_frame,
                        "annotations: the annotation number of run frame 0 (default 0; file = F + step x frame)")

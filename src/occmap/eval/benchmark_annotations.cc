@@ -44,6 +44,20 @@ const BenchmarkGrid kMultiviewXGrid{.title = "MultiviewX",
                                     .views = 6,
                                     .file_digits = 5,
                                     .default_frame_step = 1};
+// The EPFL terrace sequence as ../shared/datasets/terrace-video ships it: a 25 cm grid whose
+// ids name cell centres, in the Tsai calibration's world (millimetres / 1000).
+const BenchmarkGrid kTerraceGrid{.title = "EPFL terrace",
+                                 .cells_x = 30,
+                                 .cells_y = 44,
+                                 .origin_x_m = -0.5,
+                                 .origin_y_m = -1.5,
+                                 .cell_size_m = 0.25,
+                                 .views = 4,
+                                 .file_digits = 6,
+                                 .default_frame_step = 1,
+                                 .at_cell_centre = true};
+constexpr BenchmarkFormat kFormats[] = {BenchmarkFormat::kWildtrack, BenchmarkFormat::kMultiviewX,
+                                        BenchmarkFormat::kTerrace};
 
 // How a value (or its absence) reads in a message: its JSON text, shortened.
 std::string Found(const json* value) {
@@ -152,17 +166,29 @@ Result<std::pair<int64_t, int64_t>> ParseIntegerPair(std::string_view text, char
 }  // namespace
 
 std::string_view BenchmarkFormatName(BenchmarkFormat format) {
-  return format == BenchmarkFormat::kWildtrack ? "wildtrack" : "multiviewx";
+  switch (format) {
+    case BenchmarkFormat::kWildtrack: return "wildtrack";
+    case BenchmarkFormat::kMultiviewX: return "multiviewx";
+    case BenchmarkFormat::kTerrace: return "terrace";
+  }
+  return "?";
 }
 
 Result<BenchmarkFormat> ParseBenchmarkFormat(std::string_view text, std::string_view field) {
-  if (text == "wildtrack") return BenchmarkFormat::kWildtrack;
-  if (text == "multiviewx") return BenchmarkFormat::kMultiviewX;
-  return InvalidInput(fmt::format("{}: expected wildtrack or multiviewx, found '{}'", field, text));
+  for (BenchmarkFormat f : kFormats) {
+    if (text == BenchmarkFormatName(f)) return f;
+  }
+  return InvalidInput(fmt::format("{}: expected wildtrack, multiviewx or terrace, found '{}'", field, text));
 }
 
 const BenchmarkGrid& GridOf(BenchmarkFormat format) {
-  return format == BenchmarkFormat::kWildtrack ? kWildtrackGrid : kMultiviewXGrid;
+  switch (format) {
+    case BenchmarkFormat::kWildtrack: return kWildtrackGrid;
+    case BenchmarkFormat::kMultiviewX: return kMultiviewXGrid;
+    case BenchmarkFormat::kTerrace: return kTerraceGrid;
+  }
+  OCCMAP_CHECK(false, "unknown benchmark format");
+  return kWildtrackGrid;
 }
 
 Eigen::Vector2d BenchmarkPositionM(BenchmarkFormat format, int64_t position_id) {
@@ -174,7 +200,12 @@ Eigen::Vector2d BenchmarkPositionM(BenchmarkFormat format, int64_t position_id) 
     return {0.01 * (-300.0 + 2.5 * static_cast<double>(position_id % 480)),
             0.01 * (-900.0 + 2.5 * static_cast<double>(position_id / 480))};
   }
-  return {static_cast<double>(position_id % 1000) / 40.0, static_cast<double>(position_id / 1000) / 40.0};
+  if (format == BenchmarkFormat::kMultiviewX) {
+    return {static_cast<double>(position_id % 1000) / 40.0, static_cast<double>(position_id / 1000) / 40.0};
+  }
+  const double offset = g.at_cell_centre ? 0.5 : 0.0;
+  return {g.origin_x_m + g.cell_size_m * (static_cast<double>(position_id % g.cells_x) + offset),
+          g.origin_y_m + g.cell_size_m * (static_cast<double>(position_id / g.cells_x) + offset)};
 }
 
 Result<std::vector<AnnotatedPerson>> ParseAnnotationFile(std::string_view text, std::string_view source_name,
@@ -278,7 +309,7 @@ Result<BenchmarkAnnotations> ReadBenchmarkAnnotations(const fs::path& folder, st
     }
   }
   if (!format) {
-    for (BenchmarkFormat f : {BenchmarkFormat::kWildtrack, BenchmarkFormat::kMultiviewX}) {
+    for (BenchmarkFormat f : kFormats) {
       if (names_by_digits.size() == 1 && names_by_digits.begin()->first == static_cast<size_t>(GridOf(f).file_digits)) {
         format = f;
       }
@@ -289,7 +320,7 @@ Result<BenchmarkAnnotations> ReadBenchmarkAnnotations(const fs::path& folder, st
         found += fmt::format("{}{} digits ({})", found.empty() ? "" : ", ", digits, name);
       }
       return InvalidInput(fmt::format(
-          "{}: format: expected file names of 8 digits (WILDTRACK) or 5 digits (MultiviewX), found {}; give the format",
+          "{}: format: expected file names of 8 digits (WILDTRACK), 5 digits (MultiviewX) or 6 digits (EPFL terrace), found {}; give the format",
           folder.string(), found));
     }
   }

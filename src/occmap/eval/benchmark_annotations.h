@@ -21,7 +21,11 @@
 //               (480 x 1440 cells of 2.5 cm from (-3, -9) m; ids 0..691199; 7 views)
 //   MultiviewX  x = (id % 1000) / 40, y = (id / 1000) / 40
 //               (1000 x 640 cells of 2.5 cm from (0, 0) m; ids 0..639999; 6 views)
-// (integer division). The formulas give a cell's corner, as the datasets' own evaluation uses.
+//   terrace     x = -0.5 + 0.25 (id % 30 + 0.5), y = -1.5 + 0.25 (id / 30 + 0.5)
+//               (the EPFL terrace sequence: 30 x 44 cells of 25 cm; ids 0..1319; 4 views;
+//               files of 6 digits numbered by the frames' index, 000000.json, one per image)
+// (integer division). WILDTRACK's and MultiviewX's formulas give a cell's corner, as the
+// datasets' own evaluation uses; the terrace's its centre (its positions project onto the feet).
 //
 // Frames (BenchmarkMapping): a run numbers its frames 0, 1, ... from its sources' first image
 // (`occmap run --start K` starts at K). Annotation file n holds run frame k when
@@ -59,9 +63,9 @@
 
 namespace occmap {
 
-enum class BenchmarkFormat { kWildtrack, kMultiviewX };
+enum class BenchmarkFormat { kWildtrack, kMultiviewX, kTerrace };
 
-// "wildtrack", "multiviewx".
+// "wildtrack", "multiviewx", "terrace".
 std::string_view BenchmarkFormatName(BenchmarkFormat format);
 // The name as BenchmarkFormatName gives it; anything else is an error naming `field`.
 Result<BenchmarkFormat> ParseBenchmarkFormat(std::string_view text, std::string_view field = "format");
@@ -74,6 +78,7 @@ struct BenchmarkGrid {
   int views = 0;             // cameras: viewNum 0 .. views - 1
   int file_digits = 0;       // digits of a file name (written; detection by file names)
   int64_t default_frame_step = 1;  // annotation numbers per run frame over the distributed images
+  bool at_cell_centre = false;     // an id names its cell's centre (else its corner)
 };
 const BenchmarkGrid& GridOf(BenchmarkFormat format);
 

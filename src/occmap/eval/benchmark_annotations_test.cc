@@ -238,7 +238,7 @@ TEST(ReadBenchmarkAnnotations, BadFoldersAreErrorsNamingTheFolderOrFile) {
   testing::WriteText(dir / "000005.json", "[]");
   read = ReadBenchmarkAnnotations(dir.path());
   EXPECT_EQ(read.status().message(),
-            d + ": format: expected file names of 8 digits (WILDTRACK) or 5 digits (MultiviewX), found 6 digits "
+            d + ": format: expected file names of 8 digits (WILDTRACK), 5 digits (MultiviewX) or 6 digits (EPFL terrace), found 6 digits "
                 "(000005.json), 8 digits (00000000.json); give the format");
   read = ReadBenchmarkAnnotations(dir.path(), BenchmarkFormat::kMultiviewX);
   ASSERT_TRUE(read.ok()) << read.status().message();
@@ -307,7 +307,7 @@ TEST(ParseFrameStepAndRange, AcceptWholeNumbersFractionsAndRanges) {
   }
   EXPECT_EQ(*ParseBenchmarkFormat("multiviewx"), BenchmarkFormat::kMultiviewX);
   EXPECT_EQ(ParseBenchmarkFormat("WILDTRACK", "--format").status().message(),
-            "--format: expected wildtrack or multiviewx, found 'WILDTRACK'");
+            "--format: expected wildtrack, multiviewx or terrace, found 'WILDTRACK'");
 }
 
 // A WILDTRACK-style dataset of four annotated frames (files 0, 5, 10, 15: one image each, run
@@ -579,6 +579,25 @@ TEST(ReadBenchmarkAnnotations, ReadsTheSharedWildtrackAnnotations) {
   EXPECT_EQ(report->detection->gt, 9518);
   EXPECT_DOUBLE_EQ(report->detection->moda, 1.0);
   EXPECT_EQ(report->annotations->files_outside_range, 0);
+}
+
+// The EPFL terrace's ids name the centres of 25 cm cells, and its files are the images' indices.
+TEST(TerraceAnnotations, IdsNameCellCentresAndTheDatasetReads) {
+  EXPECT_EQ(BenchmarkPositionM(BenchmarkFormat::kTerrace, 0), Eigen::Vector2d(-0.375, -1.375));
+  EXPECT_EQ(BenchmarkPositionM(BenchmarkFormat::kTerrace, 639), Eigen::Vector2d(-0.5 + 0.25 * 9.5, -1.5 + 0.25 * 21.5));
+  auto people = ParseAnnotationFile(R"([{"personID": 1, "positionID": 1320}])", "t/000008.json", BenchmarkFormat::kTerrace);
+  ASSERT_FALSE(people.ok());
+  EXPECT_NE(people.status().message().find("positionID"), std::string::npos) << people.status().message();
+  EXPECT_EQ(*ParseBenchmarkFormat("terrace"), BenchmarkFormat::kTerrace);
+  OCCMAP_REQUIRE_DATASETS(root);
+  auto read = ReadBenchmarkAnnotations(root / "terrace-video" / "annotations_positions");
+  ASSERT_TRUE(read.ok()) << read.status().message();
+  EXPECT_EQ(read->format, BenchmarkFormat::kTerrace);  // told from the 6-digit names
+  ASSERT_EQ(read->frames.size(), 291u);
+  size_t people_total = 0;
+  for (const AnnotationFrame& f : read->frames) people_total += f.people.size();
+  EXPECT_EQ(people_total, 1355u);
+  EXPECT_EQ(read->frames.front().number, 8);
 }
 
 }  // namespace
