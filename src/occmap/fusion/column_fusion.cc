@@ -21,9 +21,11 @@ Status ColumnFusionOptions::Validate(double column_height_m, int num_cameras) co
     return InvalidInput(fmt::format("radius_m: expected a radius in (0, 1] m, found {}", radius_m));
   if (!(min_changed > 0 && min_changed <= 1))
     return InvalidInput(fmt::format("min_changed: expected a fraction in (0, 1], found {}", min_changed));
-  if (max_free_views < 0 || max_free_views >= std::max(1, num_cameras))
-    return InvalidInput(fmt::format("max_free_views: expected 0 to {}, found {}", std::max(0, num_cameras - 1),
+  if (max_free_views < 0 || max_free_views > std::max(1, num_cameras - 1))
+    return InvalidInput(fmt::format("max_free_views: expected 0 to {}, found {}", std::max(1, num_cameras - 1),
                                     max_free_views));
+  if (min_changed_views < 1)
+    return InvalidInput(fmt::format("min_changed_views: expected at least 1, found {}", min_changed_views));
   if (max_rows < 1) return InvalidInput(fmt::format("max_rows: expected at least 1, found {}", max_rows));
   return Status::Ok();
 }
@@ -171,9 +173,11 @@ int RowStride(const ColumnSpans& s, int max_rows) {
 
 constexpr int kCoarseRows = 4;
 
-CellState Decide(int tested, int free_votes, int k) {
+CellState Decide(int tested, int free_votes, const ColumnFusionOptions& o) {
   if (tested == 0) return CellState::kUnseen;
-  return free_votes <= k && free_votes < tested ? CellState::kOccupied : CellState::kFree;
+  if (free_votes == 0) return CellState::kOccupied;
+  return free_votes <= o.max_free_views && tested - free_votes >= o.min_changed_views ? CellState::kOccupied
+                                                                                        : CellState::kFree;
 }
 
 // Candidate k's state with the changed-pixel count of a span given by count(camera, y, x0, x1):
@@ -219,7 +223,7 @@ CellState CandidateState(const ColumnLut& columns, int64_t k, const std::vector<
       if (free_votes > o.max_free_views) return CellState::kFree;
     }
   }
-  return Decide(tested, free_votes, o.max_free_views);
+  return Decide(tested, free_votes, o);
 }
 
 }  // namespace
@@ -329,7 +333,7 @@ void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector
         if (++free_votes > o.max_free_views) return CellState::kFree;
       }
     }
-    return Decide(tested, free_votes, o.max_free_views);
+    return Decide(tested, free_votes, o);
   };
   ParallelFor(
       ctx, 0, grid.num_cells(),

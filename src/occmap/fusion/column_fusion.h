@@ -3,12 +3,17 @@
 // every active camera that sees it sees change over at least min_changed of the image of the
 // column's band (z from band_low_m to band_high_m, radius_m around the axis); cameras whose
 // view of it a static occluder hides, or whose image holds less than half of the band's rows,
-// abstain. Tri-state and vote as the floor AND (Fusion): unseen when no camera tests it,
-// occupied when at most max_free_views of the testing cameras (and fewer than all) say free.
+// abstain. Tri-state as the floor AND (Fusion): unseen when no camera tests it, occupied when
+// every testing camera says changed, or when at most max_free_views say free and at least
+// min_changed_views others say changed.
 //
 // Why: legs leave the floor cell under a person unchanged in some views (the floor AND misses
 // the person), while the band above it is a torso in every view that sees it; a static occluder
-// in front of a person turns one camera's "unchanged" into "cannot tell".
+// in front of a person turns one camera's "unchanged" into "cannot tell". The vote: a coat of the
+// wall's colour behind it leaves a torso unchanged in one view (real footage: a dark jacket
+// against a dark parapet), which the strict AND turns into a missed person; two other views that
+// see the torso changed outvote it. The ghosts this lets in (where two views' silhouettes cross)
+// are what the views' explanation removes (view_explainer.h).
 //
 // Counting: each camera's changes are summed along rows once per frame (ChangeRowSums), so a
 // row of a span costs two reads; at most max_rows rows of the band are read per camera (evenly
@@ -46,7 +51,8 @@ struct ColumnFusionOptions {
   double band_high_m = 1.5;
   double radius_m = 0.1;      // its half-width
   double min_changed = 0.5;   // the fraction of its pixels that must have changed
-  int max_free_views = 0;     // the vote, as FusionOptions::max_free_views
+  int max_free_views = 1;     // views that may say free (0 .. max(1, cameras - 1)) ...
+  int min_changed_views = 2;  // ... when at least this many say changed
   int max_rows = 24;          // rows of the band read per camera (evenly spaced)
   Status Validate(double column_height_m, int num_cameras) const;
 };

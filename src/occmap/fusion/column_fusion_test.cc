@@ -132,10 +132,41 @@ TEST(ColumnFusionTest, ACameraHiddenByAnOccluderAbstains) {
     ColumnFusion fusion(scene.columns);
     Context ctx(1);
     OccupancyMap map;
-    fusion.Fuse(scene.Sums(), std::vector<bool>(4, true), ColumnFusionOptions{}, ctx, map);
+    ColumnFusionOptions strict;  // the AND: no view outvoted
+    strict.max_free_views = 0;
+    fusion.Fuse(scene.Sums(), std::vector<bool>(4, true), strict, ctx, map);
     EXPECT_EQ(map.state(scene.columns.candidates().CellAt(2.0, 1.5)),
               with_occluder ? CellState::kOccupied : CellState::kFree);
   }
+}
+
+// A coat of the background's colour leaves a person's torso unchanged in one view: two or more
+// views that see it changed outvote it (the default), one does not.
+TEST(ColumnFusionTest, OneCamouflagedViewIsOutvotedByTwoThatSeeTheTorso) {
+  testing::PeopleRoom scene;
+  scene.Paint(2.0, 1.5);
+  for (int y = 0; y < 240; ++y) std::fill_n(scene.changes[0].row(y), 320, uint8_t{0});
+  ColumnFusion fusion(scene.columns);
+  Context ctx(1);
+  const int64_t cell = scene.columns.candidates().CellAt(2.0, 1.5);
+  const auto state = [&](const ColumnFusionOptions& o, const std::vector<bool>& active) {
+    OccupancyMap fast, reference;
+    fusion.Fuse(scene.Sums(), active, o, ctx, fast);
+    fusion.FuseReference(scene.Views(), active, o, reference);
+    EXPECT_EQ(fast, reference);
+    return fast.state(cell);
+  };
+  const ColumnFusionOptions vote;
+  EXPECT_EQ(vote.max_free_views, 1);
+  EXPECT_EQ(state(vote, {true, true, true, true}), CellState::kOccupied);
+  // With two cameras off, one changed view is left against the camouflaged one: free.
+  EXPECT_EQ(state(vote, {true, true, false, false}), CellState::kFree);
+  ColumnFusionOptions strict = vote;
+  strict.max_free_views = 0;
+  EXPECT_EQ(state(strict, {true, true, true, true}), CellState::kFree);
+  // Two views unchanged are too many for the default.
+  for (int y = 0; y < 240; ++y) std::fill_n(scene.changes[1].row(y), 320, uint8_t{0});
+  EXPECT_EQ(state(vote, {true, true, true, true}), CellState::kFree);
 }
 
 TEST(ColumnFusionTest, FastEqualsReferenceAndOneThreadEqualsTwo) {
@@ -181,6 +212,10 @@ TEST(ColumnFusionTest, OptionsAreChecked) {
   EXPECT_FALSE(o.Validate(1.7, 4).ok());
   o = {};
   o.max_free_views = 4;
+  EXPECT_FALSE(o.Validate(1.7, 4).ok());
+  o.max_free_views = 1;  // one view may be outvoted whatever the cameras (min_changed_views decides)
+  EXPECT_TRUE(o.Validate(1.7, 1).ok());
+  o.min_changed_views = 0;
   EXPECT_FALSE(o.Validate(1.7, 4).ok());
 }
 

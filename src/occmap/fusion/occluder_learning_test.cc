@@ -55,6 +55,14 @@ std::vector<Eigen::Vector2d> People(std::mt19937& rng, int near, int anywhere) {
   return people;
 }
 
+// The column fusion's AND (no view outvoted): the learning is about one camera's unchanged view,
+// which the default vote of column_fusion.h overrules where two others see the torso.
+ColumnFusionOptions StrictColumns() {
+  ColumnFusionOptions o;
+  o.max_free_views = 0;
+  return o;
+}
+
 // The people the views' explanation finds, as a run does (the default detector).
 std::vector<ExplainedPerson> Explained(testing::PeopleRoom& scene) {
   ColumnFusion fusion(scene.columns);
@@ -62,7 +70,7 @@ std::vector<ExplainedPerson> Explained(testing::PeopleRoom& scene) {
   Context ctx(1);
   OccupancyMap map;
   const std::vector<bool> active(4, true);
-  fusion.Fuse(scene.Sums(), active, ColumnFusionOptions{}, ctx, map);
+  fusion.Fuse(scene.Sums(), active, StrictColumns(), ctx, map);
   std::vector<ExplainedPerson> people;
   explainer.Explain(scene.Views(), scene.Sums(), active, map, ExplainOptions{}, ctx, people);
   return people;
@@ -88,7 +96,7 @@ TEST(OccluderLearningTest, APersonHiddenByAPillarIsFoundOnceItsViewIsLearned) {
   walk.Paint(scene, {{2.0, 1.5}});
   EXPECT_EQ(ExplainedNear(scene, 2.0, 1.5), 0);
 
-  OccluderLearner learner(scene.columns, ColumnFusionOptions{}, TestOptions());
+  OccluderLearner learner(scene.columns, StrictColumns(), TestOptions());
   std::mt19937 rng(3);
   Context ctx(2);
   int64_t blocked_at = -1;
@@ -119,7 +127,7 @@ TEST(OccluderLearningTest, APersonHiddenByAPillarIsFoundOnceItsViewIsLearned) {
 TEST(OccluderLearningTest, NothingIsLearnedInARoomWithoutOccluders) {
   const Walk walk(/*pillar=*/false);
   testing::PeopleRoom scene;
-  OccluderLearner learner(scene.columns, ColumnFusionOptions{}, TestOptions());
+  OccluderLearner learner(scene.columns, StrictColumns(), TestOptions());
   std::mt19937 rng(5);
   std::uniform_int_distribution<int> px(0, 319), py(0, 239);
   Context ctx(2);
@@ -137,7 +145,7 @@ TEST(OccluderLearningTest, APersonStandingStillInFrontOfAnotherIsNotLearned) {
   // Camera 0 sees a person standing at (1.0, 0.7) for the whole run; others walk behind them.
   const Walk walk(/*pillar=*/false);
   testing::PeopleRoom scene;
-  OccluderLearner learner(scene.columns, ColumnFusionOptions{}, TestOptions());
+  OccluderLearner learner(scene.columns, StrictColumns(), TestOptions());
   std::mt19937 rng(9);
   Context ctx(1);
   for (int frame = 0; frame < 200; ++frame) {
@@ -164,16 +172,17 @@ TEST(OccluderLearningTest, GivenStaticsStayAndLearnedBlocksMoveTheColumnFusion) 
   Context ctx(1);
   OccupancyMap map;
   const std::vector<bool> active(4, true);
-  fusion.Fuse(scene.Sums(), active, ColumnFusionOptions{}, ctx, map);
+  const ColumnFusionOptions strict = StrictColumns();
+  fusion.Fuse(scene.Sums(), active, strict, ctx, map);
   EXPECT_EQ(map.state(k), CellState::kFree);
   scene.columns.SetLearnedBlocked(0, k, true);
-  fusion.Fuse(scene.Sums(), active, ColumnFusionOptions{}, ctx, map);
+  fusion.Fuse(scene.Sums(), active, strict, ctx, map);
   EXPECT_EQ(map.state(k), CellState::kOccupied);
   OccupancyMap reference;
-  fusion.FuseReference(scene.Views(), active, ColumnFusionOptions{}, reference);
+  fusion.FuseReference(scene.Views(), active, strict, reference);
   EXPECT_EQ(map, reference);
   scene.columns.SetLearnedBlocked(0, k, false);
-  fusion.Fuse(scene.Sums(), active, ColumnFusionOptions{}, ctx, map);
+  fusion.Fuse(scene.Sums(), active, strict, ctx, map);
   EXPECT_EQ(map.state(k), CellState::kFree);
 }
 
@@ -187,7 +196,7 @@ class OccluderFileTest : public ::testing::Test {
   // A learner that has learned camera 0's view behind the pillar, saved to `path`.
   void Learn(testing::PeopleRoom& scene, const fs::path& path) {
     const Walk walk(true);
-    OccluderLearner learner(scene.columns, ColumnFusionOptions{}, TestOptions());
+    OccluderLearner learner(scene.columns, StrictColumns(), TestOptions());
     std::mt19937 rng(3);
     Context ctx(1);
     for (int frame = 0; frame < 150; ++frame) {
@@ -204,7 +213,7 @@ TEST_F(OccluderFileTest, SavedAndLoadedAgain) {
   testing::PeopleRoom scene;
   Learn(scene, dir_ / "a.txt");
   testing::PeopleRoom fresh;
-  OccluderLearner loaded(fresh.columns, ColumnFusionOptions{}, TestOptions());
+  OccluderLearner loaded(fresh.columns, StrictColumns(), TestOptions());
   ASSERT_TRUE(loaded.Load(dir_ / "a.txt").ok());
   const FloorGrid& g = scene.columns.candidates();
   for (int c = 0; c < 4; ++c)
@@ -219,7 +228,7 @@ TEST_F(OccluderFileTest, MissingStaleAndMalformedFilesAreNamed) {
   Learn(scene, dir_ / "a.txt");
   const std::string good = ReadFileToString(dir_ / "a.txt").value();
   {
-    OccluderLearner l(scene.columns, ColumnFusionOptions{}, TestOptions());
+    OccluderLearner l(scene.columns, StrictColumns(), TestOptions());
     EXPECT_EQ(l.Load(dir_ / "none.txt").code(), StatusCode::kNotFound);
   }
   {  // another table: the candidates of 0.2 m
@@ -230,7 +239,7 @@ TEST_F(OccluderFileTest, MissingStaleAndMalformedFilesAreNamed) {
     ColumnLutOptions coarse;
     coarse.step_m = 0.2;
     ColumnLut columns = BuildColumnLut(in, other.room.grid, 0.0, coarse, {}, ctx).value();
-    OccluderLearner l(columns, ColumnFusionOptions{}, TestOptions());
+    OccluderLearner l(columns, StrictColumns(), TestOptions());
     bool stale = false;
     const Status s = l.Load(dir_ / "a.txt", &stale);
     EXPECT_EQ(s.code(), StatusCode::kDataLoss);
@@ -272,7 +281,7 @@ TEST_F(OccluderFileTest, MissingStaleAndMalformedFilesAreNamed) {
     const fs::path p = dir_ / "bad.txt";
     ASSERT_TRUE(WriteFileAtomic(p, c.text).ok());
     testing::PeopleRoom fresh;
-    OccluderLearner l(fresh.columns, ColumnFusionOptions{}, TestOptions());
+    OccluderLearner l(fresh.columns, StrictColumns(), TestOptions());
     const Status s = l.Load(p);
     EXPECT_EQ(s.code(), StatusCode::kDataLoss) << c.text.substr(0, 200);
     EXPECT_NE(s.message().find("bad.txt" + c.where), std::string::npos) << s.message();
