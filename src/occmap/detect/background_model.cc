@@ -18,6 +18,8 @@ namespace {
 constexpr int kBinLevels = 8;  // background levels per bin of the transfer fit
 constexpr int kBins = 256 / kBinLevels;
 constexpr double kFitOutlierLevels = 12;
+constexpr double kMinWhiteBalanceShift = 3;  // chroma levels on grey floor
+constexpr double kMinFitShare = 0.5;  // of the grid's samples left by the map's protection
 
 uint8_t Clamp8(double v) { return static_cast<uint8_t>(std::clamp(std::lround(v), 0L, 255L)); }
 int ClampInt(double v, int lo, int hi) { return static_cast<int>(std::clamp(std::lround(v), static_cast<long>(lo), static_cast<long>(hi))); }
@@ -224,40 +226,39 @@ Status BackgroundOptions::Validate() const {
   return shadows.Validate();
 }
 
-PhotometricTransfer EstimateTransfer(ImageView<const uint8_t> background_y, ImageView<const uint8_t> frame_y,
-                                     int step_px) {
-  OCCMAP_CHECK(background_y.width() == frame_y.width() && background_y.height() == frame_y.height(),
-               "transfer: sizes differ");
-  OCCMAP_CHECK(step_px >= 1, "transfer: step must be >= 1");
-  // Per background bin, a histogram of the frame's levels.
-  std::vector<uint32_t> hist(static_cast<size_t>(kBins) * 256, 0);
+namespace {
+
+// Pairs of background and frame levels, per background bin a histogram of the frame's levels.
+struct LevelPairs {
+  std::vector<uint32_t> hist = std::vector<uint32_t>(static_cast<size_t>(kBins) * 256, 0);
   std::array<uint32_t, kBins> counts{};
   std::array<double, kBins> sum_b{};
   int total = 0;
-  for (int y = step_px / 2; y < frame_y.height(); y += step_px) {
-    const uint8_t* b = background_y.row(y);
-    const uint8_t* f = frame_y.row(y);
-    for (int x = step_px / 2; x < frame_y.width(); x += step_px) {
-      if (b[x] < 8 || b[x] > 247) continue;
-      const int bin = b[x] / kBinLevels;
-      ++hist[static_cast<size_t>(bin) * 256 + f[x]];
-      ++counts[static_cast<size_t>(bin)];
-      sum_b[static_cast<size_t>(bin)] += b[x];
-      ++total;
-    }
+  // Background levels under 8 or over 247 say nothing of the slope (clipped).
+  void Add(int background, int frame) {
+    if (background < 8 || background > 247) return;
+    const int bin = background / kBinLevels;
+    ++hist[static_cast<size_t>(bin) * 256 + static_cast<size_t>(frame)];
+    ++counts[static_cast<size_t>(bin)];
+    sum_b[static_cast<size_t>(bin)] += background;
+    ++total;
   }
-  PhotometricTransfer t;
-  t.samples = total;
-  const uint32_t min_count = std::max<uint32_t>(16, static_cast<uint32_t>(total / 500));
+};
+
+// The line frame = a background + b through the bins' medians (weighted by their counts),
+// refitted twice without the bins further than kFitOutlierLevels from it; false when fewer than
+// two bins have enough pairs, or the slope is not a photometric change.
+bool FitMedianLine(const LevelPairs& pairs, double* a_out, double* b_out) {
+  const uint32_t min_count = std::max<uint32_t>(16, static_cast<uint32_t>(pairs.total / 500));
   std::vector<std::array<double, 3>> points;  // background level, frame median, weight
   for (int bin = 0; bin < kBins; ++bin) {
-    const uint32_t n = counts[static_cast<size_t>(bin)];
+    const uint32_t n = pairs.counts[static_cast<size_t>(bin)];
     if (n < min_count) continue;
     const uint32_t half = (n + 1) / 2;
     uint32_t acc = 0;
     int median = 0;
     for (int level = 0; level < 256; ++level) {
-      acc += hist[static_cast<size_t>(bin) * 256 + level];
+      acc += pairs.hist[static_cast<size_t>(bin) * 256 + static_cast<size_t>(level)];
       if (acc >= half) {
         median = level;
         break;
@@ -265,11 +266,11 @@ PhotometricTransfer EstimateTransfer(ImageView<const uint8_t> background_y, Imag
     }
     // A clipped median says nothing of the slope (the frame saturates there).
     if (median <= 4 || median >= 251) continue;
-    points.push_back({sum_b[static_cast<size_t>(bin)] / n, static_cast<double>(median), static_cast<double>(n)});
+    points.push_back({pairs.sum_b[static_cast<size_t>(bin)] / n, static_cast<double>(median), static_cast<double>(n)});
   }
-  if (points.size() < 2) return t;
+  if (points.size() < 2) return false;
   double a = 1, b = 0;
-  if (!FitLine(points, &a, &b)) return t;
+  if (!FitLine(points, &a, &b)) return false;
   // Bins far from the line (a crowd of one colour over one floor level) are left out, twice.
   for (int round = 0; round < 2; ++round) {
     std::vector<std::array<double, 3>> inliers;
@@ -280,9 +281,113 @@ PhotometricTransfer EstimateTransfer(ImageView<const uint8_t> background_y, Imag
     if (!FitLine(inliers, &a, &b)) break;
     points = std::move(inliers);
   }
-  if (!(a > 0.2 && a < 5)) return t;  // not a photometric change: leave it to the change test
+  if (!(a > 0.2 && a < 5)) return false;  // not a photometric change: leave it to the change test
+  *a_out = a;
+  *b_out = b;
+  return true;
+}
+
+// Full-range BT.601 (util/yuv.h): RGB from (Y, Cb - 128, Cr - 128) and back.
+constexpr double kRgbFromYcc[3][3] = {{1, 0, 1.402}, {1, -0.344136, -0.714136}, {1, 1.772, 0}};
+constexpr double kYccFromRgb[3][3] = {
+    {0.299, 0.587, 0.114}, {-0.168736, -0.331264, 0.5}, {0.5, -0.418688, -0.081312}};
+
+}  // namespace
+
+PhotometricTransfer EstimateTransfer(ImageView<const uint8_t> background_y, ImageView<const uint8_t> frame_y,
+                                     int step_px, ImageView<const uint8_t> exclude) {
+  OCCMAP_CHECK(background_y.width() == frame_y.width() && background_y.height() == frame_y.height(),
+               "transfer: sizes differ");
+  OCCMAP_CHECK(step_px >= 1, "transfer: step must be >= 1");
+  OCCMAP_CHECK(exclude.empty() || (exclude.width() == frame_y.width() && exclude.height() == frame_y.height()),
+               "transfer: exclusion size");
+  LevelPairs pairs;
+  for (int y = step_px / 2; y < frame_y.height(); y += step_px) {
+    const uint8_t* b = background_y.row(y);
+    const uint8_t* f = frame_y.row(y);
+    const uint8_t* e = exclude.empty() ? nullptr : exclude.row(y);
+    for (int x = step_px / 2; x < frame_y.width(); x += step_px) {
+      if (e == nullptr || e[x] == 0) pairs.Add(b[x], f[x]);
+    }
+  }
+  PhotometricTransfer t;
+  t.samples = pairs.total;
+  double a = 1, b = 0;
+  if (!FitMedianLine(pairs, &a, &b)) return t;
   t.gain = a;
   t.offset = b;
+  return t;
+}
+
+void ColourTransfer::DeriveChroma() {
+  // chroma rows of kYccFromRgb diag(gain) kRgbFromYcc, and of kYccFromRgb offset.
+  for (int k = 0; k < 2; ++k) {
+    for (int j = 0; j < 3; ++j) {
+      double sum = 0;
+      for (int c = 0; c < 3; ++c) sum += kYccFromRgb[k + 1][c] * gain[static_cast<size_t>(c)] * kRgbFromYcc[c][j];
+      chroma[static_cast<size_t>(k)][static_cast<size_t>(j)] = sum;
+    }
+    double o = 0;
+    for (int c = 0; c < 3; ++c) o += kYccFromRgb[k + 1][c] * offset[static_cast<size_t>(c)];
+    chroma_offset[static_cast<size_t>(k)] = o;
+  }
+}
+
+std::array<int32_t, 2> ColourTransfer::InvertChroma(int background_y, int u, int v, double luma_gain) const {
+  if (!fitted) {
+    return {ClampInt((128 + (u - 128) / luma_gain) * 256, 0, 65535), ClampInt((128 + (v - 128) / luma_gain) * 256, 0, 65535)};
+  }
+  // Solve the chroma rows for the background's Cb, Cr given its luma.
+  const double ru = (u - 128) - chroma_offset[0] - chroma[0][0] * background_y;
+  const double rv = (v - 128) - chroma_offset[1] - chroma[1][0] * background_y;
+  const double a = chroma[0][1], b = chroma[0][2], c = chroma[1][1], d = chroma[1][2];
+  const double det = a * d - b * c;
+  if (std::abs(det) < 1e-6) return {ClampInt(u * 256.0, 0, 65535), ClampInt(v * 256.0, 0, 65535)};
+  const double bu = (d * ru - b * rv) / det, bv = (-c * ru + a * rv) / det;
+  return {ClampInt((128 + bu) * 256, 0, 65535), ClampInt((128 + bv) * 256, 0, 65535)};
+}
+
+ColourTransfer EstimateColourTransfer(ImageView<const uint8_t> background_y, ImageView<const uint8_t> background_u,
+                                      ImageView<const uint8_t> background_v, const YuvView& frame,
+                                      ImageView<const uint8_t> exclude, int step_px) {
+  OCCMAP_CHECK(frame.has_chroma(), "colour transfer: the frame has no chroma");
+  OCCMAP_CHECK(step_px >= 2 && step_px % 2 == 0, "colour transfer: step must be even");
+  std::array<LevelPairs, 3> pairs;
+  const int cw = background_u.width(), chh = background_u.height();
+  const int cstep = step_px / 2;
+  for (int cy = cstep / 2; cy < chh; cy += cstep) {
+    const int y = 2 * cy;
+    const uint8_t* by = background_y.row(y);
+    const uint8_t* fy = frame.y.row(y);
+    const uint8_t* e = exclude.empty() ? nullptr : exclude.row(y);
+    for (int cx = cstep / 2; cx < cw; cx += cstep) {
+      const int x = 2 * cx;
+      if (e != nullptr && e[x] != 0) continue;
+      const double bcb = background_u(cx, cy) - 128.0, bcr = background_v(cx, cy) - 128.0;
+      const double fcb = frame.u(cx, cy) - 128.0, fcr = frame.v(cx, cy) - 128.0;
+      for (int c = 0; c < 3; ++c) {
+        const double b = by[x] + kRgbFromYcc[c][1] * bcb + kRgbFromYcc[c][2] * bcr;
+        const double f = fy[x] + kRgbFromYcc[c][1] * fcb + kRgbFromYcc[c][2] * fcr;
+        pairs[static_cast<size_t>(c)].Add(ClampInt(b, 0, 255), ClampInt(f, 0, 255));
+      }
+    }
+  }
+  ColourTransfer t;
+  t.samples = pairs[1].total;
+  for (int c = 0; c < 3; ++c) {
+    if (!FitMedianLine(pairs[static_cast<size_t>(c)], &t.gain[static_cast<size_t>(c)], &t.offset[static_cast<size_t>(c)])) {
+      return ColourTransfer{};
+    }
+  }
+  t.fitted = true;
+  t.DeriveChroma();
+  // The richer model only where the data asks for it: channels that moved alike (exposure alone)
+  // leave grey floor's chroma where the luma's gain puts it, and the fit's noise is not taken.
+  double shift = 0;
+  for (double level : {64.0, 128.0, 192.0}) {
+    for (size_t k = 0; k < 2; ++k) shift = std::max(shift, std::abs(t.chroma[k][0] * level + t.chroma_offset[k]));
+  }
+  if (shift < kMinWhiteBalanceShift) return ColourTransfer{};
   return t;
 }
 
@@ -504,7 +609,6 @@ BackgroundModel::BackgroundModel(const BackgroundOptions& options, double fps) :
   OCCMAP_CHECK(fps > 0, "background model: fps must be > 0");
   for (int level = 0; level < 256; ++level) {
     pred_[level] = level;
-    pred_c_[level] = level;
     shadow_lo_[level] = 256;
     shadow_hi_[level] = -1;
   }
@@ -551,6 +655,8 @@ void BackgroundModel::Reset(const YuvImage& background) {
   ratio_histogram_.assign(kRatioBins, 0.0);
   learning_ = ShadowLearning{};
   shadow_lessons_ = 0;
+  colour_ = ColourTransfer{};
+  have_exclude_ = false;
 }
 
 bool BackgroundModel::BackgroundIsShadowOfAlternative(int x, int y) const {
@@ -676,14 +782,11 @@ BackgroundLearner::Alternative BackgroundModel::CurrentAlternative(uint8_t suppo
 
 // The class of one pixel from its frame values and its background's 8-bit levels, under the
 // current transfer (the reference's formulas; DetectChanges reads the same from tables).
-uint8_t BackgroundModel::Classify(int y, int u, int v, int by, int bu, int bv, int threshold) const {
+uint8_t BackgroundModel::Classify(int y, int u, int v, int by, int eu, int ev, int threshold) const {
   const int expected = ExpectedLuma(by);
   const int d = y - expected;
   bool changed = std::abs(d) > threshold;
-  int eu = 0, ev = 0;
   if (chroma_) {
-    eu = ClampInt(128 + transfer_.gain * (bu - 128), 0, 255);
-    ev = ClampInt(128 + transfer_.gain * (bv - 128), 0, 255);
     if (options_.chroma_threshold > 0) {
       changed |= std::abs(u - eu) > options_.chroma_threshold || std::abs(v - ev) > options_.chroma_threshold;
     }
@@ -817,8 +920,11 @@ BackgroundModel::PixelLevels BackgroundModel::LevelsAt(const YuvView& frame, int
   if (chroma_) {
     p.u = frame.u(x / 2, y / 2);
     p.v = frame.v(x / 2, y / 2);
-    p.bu = std::min(255, (bu_[c] + 128) >> 8);
-    p.bv = std::min(255, (bv_[c] + 128) >> 8);
+    const size_t top_left = static_cast<size_t>(y & ~1) * width_ + static_cast<size_t>(x & ~1);
+    const auto e = ExpectedChroma(std::min(255, (by_[top_left] + 128) >> 8), std::min(255, (bu_[c] + 128) >> 8),
+                                  std::min(255, (bv_[c] + 128) >> 8));
+    p.eu = e[0];
+    p.ev = e[1];
   }
   return p;
 }
@@ -830,7 +936,7 @@ void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold
   for (int y = 0; y < height_; ++y) {
     for (int x = 0; x < width_; ++x) {
       const PixelLevels p = LevelsAt(frame, x, y);
-      uint8_t cls = Classify(p.y, p.u, p.v, p.by, p.bu, p.bv, threshold);
+      uint8_t cls = Classify(p.y, p.u, p.v, p.by, p.eu, p.ev, threshold);
       if (cls == kShadow && !TextureLikeBackground(frame.y, x, y)) cls = kChanged;
       changes(x, y) = cls == kChanged ? 1 : 0;
       classes(x, y) = cls;
@@ -879,7 +985,7 @@ void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold
         }
         if (!next_to_change) continue;
         const PixelLevels p = LevelsAt(frame, x, y);
-        if (WeakChange(p.y, p.u, p.v, p.by, p.bu, p.bv, tl, tcl)) changes(x, y) = seeds(x, y) = 1;
+        if (WeakChange(p.y, p.u, p.v, p.by, p.eu, p.ev, tl, tcl)) changes(x, y) = seeds(x, y) = 1;
       }
     }
   }
@@ -894,12 +1000,39 @@ int BackgroundModel::GrowThreshold(int threshold) const {
   return std::max(1, static_cast<int>(std::lround(options_.grow_threshold_share * threshold)));
 }
 
-bool BackgroundModel::WeakChange(int y, int u, int v, int by, int bu, int bv, int tl, int tcl) const {
+bool BackgroundModel::WeakChange(int y, int u, int v, int by, int eu, int ev, int tl, int tcl) const {
   if (std::abs(y - ExpectedLuma(by)) > tl) return true;
   if (tcl <= 0) return false;
-  const int eu = ClampInt(128 + transfer_.gain * (bu - 128), 0, 255);
-  const int ev = ClampInt(128 + transfer_.gain * (bv - 128), 0, 255);
   return std::abs(u - eu) > tcl || std::abs(v - ev) > tcl;
+}
+
+std::array<int, 2> BackgroundModel::ExpectedChroma(int block_y, int bu, int bv) const {
+  if (!colour_.fitted) {
+    return {ClampInt(128 + transfer_.gain * (bu - 128), 0, 255), ClampInt(128 + transfer_.gain * (bv - 128), 0, 255)};
+  }
+  std::array<int, 2> e{};
+  for (size_t k = 0; k < 2; ++k) {
+    const auto& r = colour_.chroma[k];
+    e[k] = ClampInt(128 + r[0] * block_y + r[1] * (bu - 128) + r[2] * (bv - 128) + colour_.chroma_offset[k], 0, 255);
+  }
+  return e;
+}
+
+void BackgroundModel::ExpectChroma() {
+  expected_u_.resize(static_cast<size_t>(cw_) * ch_);
+  expected_v_.resize(static_cast<size_t>(cw_) * ch_);
+  for (int cy = 0; cy < ch_; ++cy) {
+    const uint8_t* b8 = bg8_.row(2 * cy);
+    const uint8_t* bu = bgu8_.row(cy);
+    const uint8_t* bv = bgv8_.row(cy);
+    uint8_t* eu = expected_u_.data() + static_cast<size_t>(cy) * cw_;
+    uint8_t* ev = expected_v_.data() + static_cast<size_t>(cy) * cw_;
+    for (int cx = 0; cx < cw_; ++cx) {
+      const auto e = ExpectedChroma(b8[2 * cx], bu[cx], bv[cx]);
+      eu[cx] = static_cast<uint8_t>(e[0]);
+      ev[cx] = static_cast<uint8_t>(e[1]);
+    }
+  }
 }
 
 int64_t BackgroundModel::GrowChanges(const YuvView& frame, int threshold, ImageView<uint8_t> changes) {
@@ -953,8 +1086,7 @@ int64_t BackgroundModel::GrowChanges(const YuvView& frame, int threshold, ImageV
         bool weak = std::abs(fy[x] - pred_[b8[x]]) > tl;
         if (!weak && tcl > 0) {
           const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
-          const int eu = pred_c_[std::min(255, (bu_[c] + 128) >> 8)], ev = pred_c_[std::min(255, (bv_[c] + 128) >> 8)];
-          weak = std::abs(frame.u(x / 2, y / 2) - eu) > tcl || std::abs(frame.v(x / 2, y / 2) - ev) > tcl;
+          weak = std::abs(frame.u(x / 2, y / 2) - expected_u_[c]) > tcl || std::abs(frame.v(x / 2, y / 2) - expected_v_[c]) > tcl;
         }
         if (!weak) continue;
         o[x] = 1;
@@ -1002,8 +1134,8 @@ void BackgroundModel::LearnShadows(const YuvView& frame, ImageView<const uint8_t
       int eu = 0, ev = 0, u = 0, v = 0;
       if (chroma_) {
         const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
-        eu = pred_c_[std::min(255, (bu_[c] + 128) >> 8)];
-        ev = pred_c_[std::min(255, (bv_[c] + 128) >> 8)];
+        eu = expected_u_[c];
+        ev = expected_v_[c];
         u = frame.u(x / 2, y / 2);
         v = frame.v(x / 2, y / 2);
       }
@@ -1020,7 +1152,28 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
   // The transfer against the current background's luma (8-bit).
   if (bg8_.width() != width_ || bg8_.height() != height_) bg8_ = Image<uint8_t>(width_, height_);
   for (int y = 0; y < height_; ++y) RoundRow(by_.data() + static_cast<size_t>(y) * width_, width_, bg8_.row(y));
-  transfer_ = EstimateTransfer(bg8_.view(), frame.y);
+  const ImageView<const uint8_t> exclude = have_exclude_ ? fit_exclude_.view() : ImageView<const uint8_t>{};
+  transfer_ = EstimateTransfer(bg8_.view(), frame.y, 4, exclude);
+  // A map that protects most of the view (or wrongly, after a bad fit) must not starve the fit.
+  if (!exclude.empty() && transfer_.samples < kMinFitShare * (width_ / 4) * (height_ / 4)) transfer_ = EstimateTransfer(bg8_.view(), frame.y, 4);
+  colour_ = ColourTransfer{};
+  if (chroma_) {
+    if (bgu8_.width() != cw_ || bgu8_.height() != ch_) {
+      bgu8_ = Image<uint8_t>(cw_, ch_);
+      bgv8_ = Image<uint8_t>(cw_, ch_);
+    }
+    for (int y = 0; y < ch_; ++y) {
+      RoundRow(bu_.data() + static_cast<size_t>(y) * cw_, cw_, bgu8_.row(y));
+      RoundRow(bv_.data() + static_cast<size_t>(y) * cw_, cw_, bgv8_.row(y));
+    }
+    if (options_.white_balance) {
+      colour_ = EstimateColourTransfer(bg8_.view(), bgu8_.view(), bgv8_.view(), frame, exclude);
+      if (!exclude.empty() && colour_.samples < kMinFitShare * (cw_ / 2) * (ch_ / 2)) {
+        colour_ = EstimateColourTransfer(bg8_.view(), bgu8_.view(), bgv8_.view(), frame, {});
+      }
+    }
+    ExpectChroma();
+  }
   threshold_ = threshold;
   if (learning_.pending) {  // the previous frame's shadows
     LearnShadowLook(learning_);
@@ -1032,7 +1185,6 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
   for (int level = 0; level < 256; ++level) {
     const int expected = ExpectedLuma(level);
     pred_[level] = expected;
-    pred_c_[level] = ClampInt(128 + transfer_.gain * (level - 128), 0, 255);
     shadow_lo_[level] = static_cast<int>(std::ceil(s.min_ratio * expected));
     shadow_hi_[level] = static_cast<int>(std::floor(s.max_ratio * expected));
     if (!s.enabled || expected <= 0) {
@@ -1059,16 +1211,15 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
     const uint8_t* b8 = bg8_.row(y);
     const uint8_t* fu = chroma_ ? frame.u.row(y / 2) : nullptr;
     const uint8_t* fv = chroma_ ? frame.v.row(y / 2) : nullptr;
-    const uint16_t* rbu = chroma_ ? bu_.data() + static_cast<size_t>(y / 2) * cw_ : nullptr;
-    const uint16_t* rbv = chroma_ ? bv_.data() + static_cast<size_t>(y / 2) * cw_ : nullptr;
+    const uint8_t* reu = chroma_ ? expected_u_.data() + static_cast<size_t>(y / 2) * cw_ : nullptr;
+    const uint8_t* rev = chroma_ ? expected_v_.data() + static_cast<size_t>(y / 2) * cw_ : nullptr;
     uint8_t* cls = class_.data() + static_cast<size_t>(y) * width_;
     uint8_t* rat = ratio_.data() + static_cast<size_t>(y) * width_;
     uint8_t* out = changes.row(y);
     uint8_t* cc = chroma_changed_.data();
     if (tc > 0 && y % 2 == 0) {
       for (int x = 0; x < cw_; ++x) {
-        const int eu = pred_c_[std::min(255, (rbu[x] + 128) >> 8)], ev = pred_c_[std::min(255, (rbv[x] + 128) >> 8)];
-        const uint8_t c = std::abs(fu[x] - eu) > tc || std::abs(fv[x] - ev) > tc ? 1 : 0;
+        const uint8_t c = std::abs(fu[x] - reu[x]) > tc || std::abs(fv[x] - rev[x]) > tc ? 1 : 0;
         cc[2 * x] = c;
         if (2 * x + 1 < width_) cc[2 * x + 1] = c;
       }
@@ -1098,8 +1249,8 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
       rat[x] = static_cast<uint8_t>(std::min(255, (fy[x] * 255 + expected / 2) / expected));
       int eu = 0, ev = 0, u = 0, v = 0;
       if (chroma_) {
-        eu = pred_c_[std::min(255, (rbu[x >> 1] + 128) >> 8)];
-        ev = pred_c_[std::min(255, (rbv[x >> 1] + 128) >> 8)];
+        eu = reu[x >> 1];
+        ev = rev[x >> 1];
         u = fu[x >> 1];
         v = fv[x >> 1];
       }
@@ -1128,6 +1279,20 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
     inv_y[static_cast<size_t>(level)] = ClampInt(transfer_.Invert(level) * 256, 0, 65535);
     inv_c[static_cast<size_t>(level)] = ClampInt((128 + (level - 128) / transfer_.gain) * 256, 0, 65535);
   }
+  // A chroma block's frame chroma brought back to the background's (the block's top-left pixel
+  // reads it, before that pixel's luma is updated).
+  const auto back = [&](size_t i, int u, int v) -> std::array<int32_t, 2> {
+    if (!colour_.fitted) return {inv_c[static_cast<size_t>(u)], inv_c[static_cast<size_t>(v)]};
+    return colour_.InvertChroma(std::min(255, (by_[i] + 128) >> 8), u, v, transfer_.gain);
+  };
+  // What the map protects stays out of the next frame's transfer fits.
+  if (fit_exclude_.width() != width_ || fit_exclude_.height() != height_) fit_exclude_ = Image<uint8_t>(width_, height_);
+  for (int y = 0; y < height_; ++y) {
+    const uint8_t* prot = protection.row(y);
+    uint8_t* e = fit_exclude_.row(y);
+    for (int x = 0; x < width_; ++x) e[x] = prot[x] != kFree;
+  }
+  have_exclude_ = true;
   // Exponential forgetting with time constant adapt_s, in 1/65536.
   const int32_t alpha = std::max<int32_t>(1, static_cast<int32_t>(std::lround(65536.0 / std::max(1.0, options_.adapt_s * fps_))));
   const int relight = std::max(1, static_cast<int>(std::lround(options_.relight_s * fps_)));
@@ -1167,8 +1332,9 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
               alt_v_[c] = static_cast<uint8_t>(std::min(255, (bv_[c] + 128) >> 8));
             }
             if (chroma_here) {
-              bu_[c] = static_cast<uint16_t>(inv_c[fu[x >> 1]]);
-              bv_[c] = static_cast<uint16_t>(inv_c[fv[x >> 1]]);
+              const auto b = back(i, fu[x >> 1], fv[x >> 1]);
+              bu_[c] = static_cast<uint16_t>(b[0]);
+              bv_[c] = static_cast<uint16_t>(b[1]);
             }
             alt_y_[i] = old;
             alt_frames_[i] = 0;
@@ -1190,8 +1356,9 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
         if (prot[x] != kFree) continue;
         by_[i] = static_cast<uint16_t>(by_[i] + ((inv_y[static_cast<size_t>(level)] - by_[i]) * alpha + 32768) / 65536);
         if (chroma_here) {
-          bu_[c] = static_cast<uint16_t>(bu_[c] + ((inv_c[fu[x >> 1]] - bu_[c]) * alpha + 32768) / 65536);
-          bv_[c] = static_cast<uint16_t>(bv_[c] + ((inv_c[fv[x >> 1]] - bv_[c]) * alpha + 32768) / 65536);
+          const auto b = back(i, fu[x >> 1], fv[x >> 1]);
+          bu_[c] = static_cast<uint16_t>(bu_[c] + ((b[0] - bu_[c]) * alpha + 32768) / 65536);
+          bv_[c] = static_cast<uint16_t>(bv_[c] + ((b[1] - bv_[c]) * alpha + 32768) / 65536);
         }
         MarkSet(i, f);
         continue;
@@ -1212,8 +1379,9 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
         }
         by_[i] = static_cast<uint16_t>(inv_y[static_cast<size_t>(level)]);
         if (chroma_here) {
-          bu_[c] = static_cast<uint16_t>(inv_c[fu[x >> 1]]);
-          bv_[c] = static_cast<uint16_t>(inv_c[fv[x >> 1]]);
+          const auto b = back(i, fu[x >> 1], fv[x >> 1]);
+          bu_[c] = static_cast<uint16_t>(b[0]);
+          bv_[c] = static_cast<uint16_t>(b[1]);
         }
         steady_frames_[i] = 0;
         MarkSet(i, f);

@@ -133,6 +133,11 @@ struct BackgroundOptions {
   double absorb_s = 30;        // still objects that are not people become background after this
   double person_height_m = 1.2;  // a detection changed up to this height is a person
   int chroma_threshold = 16;   // Cb/Cr difference that is a change by itself (0: luma only)
+  // The photometric transfer per colour channel (ColourTransfer: the camera's white balance
+  // follows the scene) rather than the luma's gain for the chroma too; with chroma only. Off by
+  // default: on the real terrace footage it removes false chroma changes where a camera
+  // rebalances, but the people's edges it also gives back cost the detector 0.01 of MODA.
+  bool white_balance = false;
   // Hysteresis: a pixel next to a change (8-connected, repeated grow_steps_px times) is a change
   // at grow_threshold_share of the luma and chroma thresholds. A person's edges, blurred by the
   // lens and the codec, and clothing near the floor's shade fall under the threshold; next to
@@ -153,13 +158,44 @@ struct PhotometricTransfer {
   double Apply(double background) const { return gain * background + offset; }
   double Invert(double frame) const { return (frame - offset) / gain; }
 };
+
+// The camera's white balance as well as its exposure: frame ~ gain_c * background + offset_c
+// for each of R, G and B (full-range BT.601, util/yuv.h), which moves the chroma of grey floor
+// in proportion to its brightness when the camera rebalances its channels (a view filled with
+// dark clothing). In Y'CbCr it is an affine map of (Y, Cb - 128, Cr - 128); its chroma rows
+// give a pixel's expected chroma from its background's luma and chroma. `fitted` false: the
+// luma transfer's gain applied to the chroma alone (a grey camera, or too few samples).
+struct ColourTransfer {
+  bool fitted = false;
+  std::array<double, 3> gain{1, 1, 1}, offset{0, 0, 0};  // R, G, B
+  // Cb - 128 and Cr - 128 of the frame = chroma[k][0] Y + chroma[k][1] (Cb - 128) +
+  // chroma[k][2] (Cr - 128) + chroma_offset[k] of the background (k = 0: Cb, 1: Cr).
+  std::array<std::array<double, 3>, 2> chroma{{{0, 1, 0}, {0, 0, 1}}};
+  std::array<double, 2> chroma_offset{0, 0};
+  int samples = 0;  // chroma blocks used
+  // From per-channel gains and offsets (the fields above them).
+  void DeriveChroma();
+  // The background's chroma (8-bit Cb, Cr) of a frame's chroma given the background's luma: the
+  // inverse of the chroma rows (luma's gain alone when not fitted), in 8.8 fixed point, clamped.
+  std::array<int32_t, 2> InvertChroma(int background_y, int u, int v, double luma_gain) const;
+};
+// Fitted from the chroma blocks of a grid of step_px pixels, where `exclude` is zero (when not
+// empty: the pixels the fused map protected in the last frame, people and objects, so that a
+// view filling with people does not drag the fit), the block's top-left luma with its chroma
+// taken as one RGB pixel of the background and of the frame: per channel the per-level median
+// line of EstimateTransfer. Not fitted when a channel has fewer than two usable bins, or when the
+// channels moved alike (grey floor's chroma moves by less than 3 levels from 64 to 192 of luma:
+// exposure alone, which the luma's gain models).
+ColourTransfer EstimateColourTransfer(ImageView<const uint8_t> background_y, ImageView<const uint8_t> background_u,
+                                      ImageView<const uint8_t> background_v, const YuvView& frame,
+                                      ImageView<const uint8_t> exclude, int step_px = 4);
 // Fitted from the pixels of a grid of step_px: per background level bin (8 levels) the median
 // frame level, then a weighted least-squares line through the bins' medians, refitted without
 // the bins further than 12 levels from it. Background levels under 8 or over 247 and bins
 // whose frame median is clipped (under 5, over 250) are left out. Identity when fewer than two
 // bins have enough pixels.
 PhotometricTransfer EstimateTransfer(ImageView<const uint8_t> background_y, ImageView<const uint8_t> frame_y,
-                                     int step_px = 4);
+                                     int step_px = 4, ImageView<const uint8_t> exclude = {});
 
 // Learns a background from frames of a busy scene (see the top of this file).
 class BackgroundLearner {
@@ -296,15 +332,18 @@ class BackgroundModel {
   // first updated frame), at frame_index.
   double MeanAgeS(int64_t frame_index) const;
   const PhotometricTransfer& transfer() const { return transfer_; }
+  const ColourTransfer& colour_transfer() const { return colour_; }
   const ShadowLook& shadow_look() const { return look_; }
 
  private:
   size_t Index(int x, int y) const { return static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x); }
 
-  uint8_t Classify(int y, int u, int v, int by, int bu, int bv, int threshold) const;
-  // Pixel (x, y)'s frame levels and its background's 8-bit levels (128 for chroma without it).
+  // eu, ev: the pixel's expected chroma (ExpectedChroma).
+  uint8_t Classify(int y, int u, int v, int by, int eu, int ev, int threshold) const;
+  // Pixel (x, y)'s frame levels, its background's 8-bit luma and its expected chroma (128
+  // without chroma).
   struct PixelLevels {
-    int y, u, v, by, bu, bv;
+    int y, u, v, by, eu, ev;
   };
   PixelLevels LevelsAt(const YuvView& frame, int x, int y) const;
   // The thresholds of the hysteresis, from the detection's (at least 1 level; chroma 0: none).
@@ -312,7 +351,12 @@ class BackgroundModel {
   int64_t GrowSeedMinPixels() const;
   // Whether a pixel is changed at the hysteresis' thresholds (tl luma, tcl chroma), from its
   // frame values and its background's 8-bit levels, under the current transfer.
-  bool WeakChange(int y, int u, int v, int by, int bu, int bv, int tl, int tcl) const;
+  bool WeakChange(int y, int u, int v, int by, int eu, int ev, int tl, int tcl) const;
+  // A chroma block's expected frame chroma under the current transfer, from its background's
+  // chroma (8-bit) and the luma of its top-left pixel; the same in the fast and the reference test.
+  std::array<int, 2> ExpectedChroma(int block_y, int bu, int bv) const;
+  // ExpectedChroma of every chroma block into expected_u_, expected_v_.
+  void ExpectChroma();
   // The hysteresis over DetectChanges' output and classes; returns the pixels added.
   int64_t GrowChanges(const YuvView& frame, int threshold, ImageView<uint8_t> changes);
   // The colour part of the shadow test for a darker pixel; adds it to the learning sums when
@@ -354,6 +398,12 @@ class BackgroundModel {
   Image<uint8_t> bg8_;                   // the luma background in 8 bits, for the transfer
   PhotometricTransfer transfer_;
   int threshold_ = 0;  // of the last DetectChanges
+  ColourTransfer colour_;                // of the last frame (fitted with white_balance and chroma)
+  Image<uint8_t> bgu8_, bgv8_;           // the chroma background in 8 bits, for its fit
+  std::vector<uint8_t> expected_u_, expected_v_;  // per chroma block, the last frame's
+  // Pixels the last Update's map protected (people, objects): left out of the transfers' fits.
+  Image<uint8_t> fit_exclude_;
+  bool have_exclude_ = false;
   // The transfer in 16.16 fixed point (the offset with the rounding half added): the expected
   // luma of a background level, the same in the fast and the reference test.
   int32_t gain_q16_ = 65536, offset_q16_ = 32768;
@@ -378,7 +428,6 @@ class BackgroundModel {
   BackgroundStats stats_;
   // Tables of the last frame's transfer, per background level.
   int pred_[256];          // expected frame luma
-  int pred_c_[256];        // expected frame chroma
   int shadow_lo_[256], shadow_hi_[256];  // luma range of a shadow
 };
 

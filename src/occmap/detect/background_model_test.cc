@@ -49,6 +49,27 @@ YuvImage Seen(const YuvImage& b, double gain, double offset, uint32_t seed, doub
   return f;
 }
 
+// The background seen by a camera whose exposure and white balance moved: each of R, G, B
+// times its gain (util/yuv.h's conversions both ways), with luma noise.
+YuvImage SeenRgb(const YuvImage& b, std::array<double, 3> gains, uint32_t seed, double noise = 1.5) {
+  Image<Rgb8> rgb = RgbFromYuv(b.view());
+  for (int y = 0; y < rgb.height(); ++y) {
+    for (int x = 0; x < rgb.width(); ++x) {
+      Rgb8& p = rgb(x, y);
+      p.r = Clamp(gains[0] * p.r);
+      p.g = Clamp(gains[1] * p.g);
+      p.b = Clamp(gains[2] * p.b);
+    }
+  }
+  YuvImage f = YuvFromRgb(rgb.view());
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0, noise);
+  for (int y = 0; y < f.y.height(); ++y) {
+    for (int x = 0; x < f.y.width(); ++x) f.y(x, y) = Clamp(f.y(x, y) + n(rng));
+  }
+  return f;
+}
+
 // Paints a block (luma and its chroma) with a colour.
 void Paint(YuvImage& f, int x0, int y0, int x1, int y1, uint8_t y, uint8_t u, uint8_t v) {
   for (int r = y0; r < y1; ++r) {
@@ -473,6 +494,93 @@ TEST(BackgroundModel, PreferLitAlternativesUndoesALearnedInShadow) {
   EXPECT_EQ(model_with(false)->PreferLitAlternatives(), 0);
 }
 
+TEST(ColourTransfer, RecoversEachChannelsGainWithAThirdOfThePixelsCovered) {
+  const YuvImage b = TexturedBackground(200, 150, 3);
+  YuvImage f = SeenRgb(b, {1.45, 1.32, 1.15}, 4);
+  // People in dark blue over a third of the view.
+  for (int k = 0; k < 10; ++k) Paint(f, 20 * k, 40, 20 * k + 8, 150, 45, 150, 120);
+  const YuvImage bg = b;
+  const ColourTransfer t = EstimateColourTransfer(bg.y.view(), bg.u.view(), bg.v.view(), f.view(), {});
+  ASSERT_TRUE(t.fitted);
+  EXPECT_NEAR(t.gain[0] * 128 + t.offset[0], 1.45 * 128, 4);
+  EXPECT_NEAR(t.gain[1] * 128 + t.offset[1], 1.32 * 128, 4);
+  EXPECT_NEAR(t.gain[2] * 128 + t.offset[2], 1.15 * 128, 4);
+  // Equal gains are the luma's gain on the chroma (the model without white balance).
+  ColourTransfer grey;
+  grey.gain = {1.2, 1.2, 1.2};
+  grey.offset = {5, 5, 5};
+  grey.DeriveChroma();
+  EXPECT_NEAR(grey.chroma[0][1], 1.2, 1e-5);
+  EXPECT_NEAR(grey.chroma[1][2], 1.2, 1e-5);
+  EXPECT_NEAR(grey.chroma[0][0], 0, 1e-5);
+  EXPECT_NEAR(grey.chroma[0][2], 0, 1e-5);
+  EXPECT_NEAR(grey.chroma_offset[0], 0, 1e-5);
+  // Its inverse brings the frame's chroma back.
+  const auto back = t.InvertChroma(120, 128 + static_cast<int>(std::lround(t.chroma[0][0] * 120 + t.chroma_offset[0])),
+                                   128 + static_cast<int>(std::lround(t.chroma[1][0] * 120 + t.chroma_offset[1])), 1.0);
+  EXPECT_NEAR(back[0] / 256.0, 128, 1.5);
+  EXPECT_NEAR(back[1] / 256.0, 128, 1.5);
+}
+
+// The camera rebalanced its channels as people filled its view: with the transfer per channel
+// the floor is no change, while a shirt of another colour at the floor's brightness is.
+TEST(BackgroundModel, AWhiteBalanceShiftIsNoChangeButAShirtOfAnotherColourIs) {
+  const YuvImage b = TexturedBackground(160, 120, 11);
+  // Warmer (no channel clipped: the linear model holds): grey floor's Cb drops by 0.09 of its luma.
+  YuvImage f = SeenRgb(b, {1.1, 1.0, 0.85}, 12);
+  const int tx = 60, ty = 40;  // a green shirt as bright as the floor under the rebalanced light
+  Paint(f, tx, ty, tx + 16, ty + 24, f.y(tx, ty), 100, 100);
+  for (bool white_balance : {false, true}) {
+    BackgroundOptions options;
+    options.white_balance = white_balance;
+    BackgroundModel model(options, 10);
+    model.Reset(b);
+    Image<uint8_t> changes(160, 120);
+    model.DetectChanges(f.view(), 20, changes.view());
+    int shirt = 0;
+    for (int y = ty; y < ty + 24; ++y) {
+      for (int x = tx; x < tx + 16; ++x) shirt += changes(x, y);
+    }
+    EXPECT_GT(shirt, 16 * 24 * 9 / 10) << "white balance " << white_balance;
+    if (white_balance) {
+      EXPECT_TRUE(model.colour_transfer().fitted);
+      EXPECT_LT(model.stats().changed_fraction, 0.05);
+    } else {
+      EXPECT_GT(model.stats().changed_fraction, 0.2);  // the luma's gain alone leaves the chroma shifted
+    }
+  }
+}
+
+// People who fill much of a view in one colour do not drag the transfer: the pixels the map
+// protected in the last frame are left out of the next frame's fits, as long as at least half of
+// the samples are left (a map that protects nearly everything, or wrongly after a bad fit, must
+// not starve it).
+TEST(BackgroundModel, TheTransferLeavesOutWhatTheMapProtected) {
+  const int w = 160, h = 120;
+  const YuvImage b = TexturedBackground(w, h, 21);
+  for (const int covered_x : {72, 120}) {  // 45 % of the view, then 75 %
+    YuvImage f = SeenRgb(b, {1.2, 1.2, 1.2}, 22);
+    Image<uint8_t> protection(w, h, BackgroundModel::kFree);
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < covered_x; ++x) protection(x, y) = BackgroundModel::kPerson;
+    }
+    Paint(f, 0, 0, covered_x, h, 100, 128, 128);  // people in mid-grey coats
+    BackgroundModel model(BackgroundOptions{}, 10);
+    model.Reset(b);
+    Image<uint8_t> changes(w, h);
+    model.DetectChanges(f.view(), 20, changes.view());
+    const double dragged = model.transfer().Apply(180);  // without the map (the first frame)
+    model.Update(f.view(), protection.view(), 0);
+    model.DetectChanges(f.view(), 20, changes.view());
+    if (covered_x == 72) {
+      EXPECT_GT(std::abs(dragged - 1.2 * 180), 4);
+      EXPECT_NEAR(model.transfer().Apply(180), 1.2 * 180, 2);
+    } else {
+      EXPECT_EQ(model.transfer().Apply(180), dragged);  // too few left: all pixels, as without the map
+    }
+  }
+}
+
 // Every kernel set this CPU has (util/simd.h): the AVX2 row test and the portable one.
 class BackgroundModelKernels : public KernelSetTest {};
 
@@ -483,7 +591,9 @@ TEST_P(BackgroundModelKernels, DetectChangesEqualsItsReference) {
     for (uint32_t seed = 0; seed < 4; ++seed) {
       const int w = 77, h = 53;  // odd sizes: the last chroma column and row cover one pixel
       YuvImage b = TexturedBackground(w, h, seed);
-      YuvImage f = Seen(b, 0.9 + 0.05 * seed, 5.0 * seed, 50 + seed, 4.0);
+      // Odd seeds: the white balance moved too (the colour transfer's chroma rows).
+      YuvImage f = seed % 2 == 0 ? Seen(b, 0.9 + 0.05 * seed, 5.0 * seed, 50 + seed, 4.0)
+                                 : SeenRgb(b, {1.3, 1.1 + 0.05 * seed, 0.95}, 50 + seed, 4.0);
       std::mt19937 rng(seed);
       for (int k = 0; k < 6; ++k) {
         const int x = static_cast<int>(rng() % 60), y = static_cast<int>(rng() % 40);
@@ -498,6 +608,7 @@ TEST_P(BackgroundModelKernels, DetectChangesEqualsItsReference) {
       // (some of the blocks), none.
       for (const auto& [steps, seed_share] : {std::pair{3, 1e-4}, std::pair{2, 0.02}, std::pair{0, 0.0}}) {
         BackgroundOptions options;
+        options.white_balance = true;
         options.grow_steps_px = steps;
         options.grow_seed_share = seed_share;
         BackgroundModel model(options, 10);

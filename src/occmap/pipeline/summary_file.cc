@@ -56,7 +56,7 @@ SummaryFile::SummaryFile(std::filesystem::path path, const Site& site, const Run
     s["backgrounds"] = {{"adaptive", true}, {"learning", ToString(bo.learning)}, {"learn_s", bo.learn_s},
                         {"learn_samples", bo.learn_samples}, {"refresh_cache_s", bo.refresh_cache_s}, {"adapt_s", bo.adapt_s}, {"relight_s", bo.relight_s},
                         {"absorb_s", bo.absorb_s}, {"person_height_m", bo.person_height_m},
-                        {"chroma", plan.chroma}, {"chroma_threshold", bo.chroma_threshold},
+                        {"chroma", plan.chroma}, {"chroma_threshold", bo.chroma_threshold}, {"white_balance", bo.white_balance},
                         {"grow", {{"steps_px", bo.grow_steps_px}, {"threshold_share", bo.grow_threshold_share},
                                   {"seed_share", bo.grow_seed_share}}},
                         {"shadows", {{"enabled", bo.shadows.enabled}, {"min_ratio", bo.shadows.min_ratio},
@@ -155,6 +155,10 @@ Status SummaryFile::WriteFinal(const RunSummary& summary, const RunStats& stats,
                           {"changed_fraction", st.changed_fraction}, {"shadow_fraction", st.shadow_fraction}}},
           {"shadow_look", {{"ratio", m->shadow_look().ratio}, {"pattern_rgb", m->shadow_look().pattern},
                            {"mass", m->shadow_look().mass}, {"peak_share", m->shadow_look().peak_share}}}};
+      if (m->colour_transfer().fitted) {
+        e["background_model"]["last_frame"]["rgb_gain"] = m->colour_transfer().gain;
+        e["background_model"]["last_frame"]["rgb_offset"] = m->colour_transfer().offset;
+      }
     }
     if (c.ended_at_frame) e["ended_at_frame"] = *c.ended_at_frame;
     if (!c.end_reason.empty()) e["end_reason"] = c.end_reason;

@@ -406,7 +406,7 @@ Status ParseDetection(const YamlField& f, ChangeDetectionOptions& d) {
 // the message placed at the section.
 Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
   OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"adaptive", "learning", "learn_s", "learn_samples", "refresh_cache_s", "mode_radius", "alternative_min_share", "settle", "adapt_s",
-                                      "relight_s", "absorb_s", "person_height_m", "chroma_threshold", "grow_steps_px",
+                                      "relight_s", "absorb_s", "person_height_m", "chroma_threshold", "white_balance", "grow_steps_px",
                                       "grow_threshold_share", "grow_seed_share", "shadows"}));
   OCCMAP_ASSIGN_OR_RETURN(b.adaptive, f.GetBool("adaptive", b.adaptive));
   OCCMAP_ASSIGN_OR_RETURN(std::string learning, f.GetString("learning", ToString(b.learning)));
@@ -427,6 +427,7 @@ Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
   OCCMAP_ASSIGN_OR_RETURN(b.person_height_m, f.GetDouble("person_height_m", b.person_height_m));
   OCCMAP_ASSIGN_OR_RETURN(int64_t tc, f.GetInt("chroma_threshold", b.chroma_threshold));
   b.chroma_threshold = static_cast<int>(std::clamp<int64_t>(tc, -1, 1000));
+  OCCMAP_ASSIGN_OR_RETURN(b.white_balance, f.GetBool("white_balance", b.white_balance));
   OCCMAP_ASSIGN_OR_RETURN(int64_t steps, f.GetInt("grow_steps_px", b.grow_steps_px));
   b.grow_steps_px = static_cast<int>(std::clamp<int64_t>(steps, -1, 1000));
   OCCMAP_ASSIGN_OR_RETURN(b.grow_threshold_share, f.GetDouble("grow_threshold_share", b.grow_threshold_share));
