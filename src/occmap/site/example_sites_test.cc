@@ -2,6 +2,10 @@
 // ../shared/datasets; skipped when absent).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <string>
+
 #include "occmap/site/site.h"
 #include "occmap/site/site_lut.h"
 #include "occmap/util/testing.h"
@@ -61,10 +65,34 @@ TEST_P(ExampleSite, LoadsAndEveryCellInViewHasAPixel) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Sites, ExampleSite,
-                         ::testing::Values("wildtrack.yaml", "multiviewx.yaml", "gopro4.yaml", "terrace.yaml"),
+                         ::testing::Values("wildtrack.yaml", "multiviewx.yaml", "gopro4.yaml", "terrace.yaml",
+                                           "terrace-video.yaml"),
                          [](const ::testing::TestParamInfo<const char*>& param_info) {
-                           return fs::path(param_info.param).stem().string();
+                           std::string name = fs::path(param_info.param).stem().string();
+                           std::replace(name.begin(), name.end(), '-', '_');
+                           return name;
                          });
+
+// The real terrace footage: its images were taken at irregular steps of a 25 fps video, and
+// each source carries their times from frame_numbers.txt.
+TEST(ExampleSite, TerraceVideoSourcesCarryTheirFrameTimes) {
+  OCCMAP_REQUIRE_DATASETS(root);
+  SiteLoadOptions options;
+  options.data_root = root;
+  auto site = LoadSite(SitePath("terrace-video.yaml"), options);
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  ASSERT_EQ(site->cameras.size(), 4u);
+  for (const SiteCamera& cam : site->cameras) {
+    const std::vector<double>& t = cam.source.timestamps_s;
+    ASSERT_EQ(t.size(), 300u) << cam.id;
+    EXPECT_DOUBLE_EQ(t[0], 10.0 / 25);
+    EXPECT_DOUBLE_EQ(t[1], 15.0 / 25);
+    for (size_t k = 1; k < t.size(); ++k) {
+      const double step = t[k] - t[k - 1];
+      EXPECT_TRUE(std::abs(step - 0.2) < 1e-9 || std::abs(step - 0.4) < 1e-9) << cam.id << " image " << k << ": " << step;
+    }
+  }
+}
 
 TEST(ExampleSite, WildtrackHasSevenFullHdTablesOnItsGrid) {
   OCCMAP_REQUIRE_DATASETS(root);
