@@ -369,6 +369,15 @@ def extr_xml(work, rvec=None, tvec=None):
 
 INTR = "calib/intr_cam1.xml"
 EXTR = "calib/extr_cam1.xml"
+# --- frame times (io/frame_times.h) -----------------------------------------------------------
+SRC = "source: {images: frames/cam1/%06d.png}"
+SRC_TIMES = "source: {images: frames/cam1/%06d.png, timestamps: times.txt}"
+bad_file("times_not_increasing", "times.txt", "0\n0.1\n0.1\n", [":3:", "expected times that increase"], frm=SRC, to=SRC_TIMES)
+bad_file("times_mixed_forms", "times.txt", "0 0.0\n0.1\n", [":2:", "'INDEX TIME' as on the first line"], frm=SRC, to=SRC_TIMES)
+bad_file("times_index_skipped", "times.txt", "0 0.0\n2 0.1\n", [":2:", "expected image index 1"], frm=SRC, to=SRC_TIMES)
+bad_file("times_not_a_number", "times.txt", "0\nsoon\n", [":2:", "expected a time in seconds", "soon"], frm=SRC, to=SRC_TIMES)
+bad_file("times_empty", "times.txt", "# nothing\n", ["expected a time per image, found none"], frm=SRC, to=SRC_TIMES)
+
 bad_file("opencv_intr_empty", INTR, "", ["empty file"])
 bad_file("opencv_intr_blank", INTR, "\n \n", ["empty file"])
 bad_file("opencv_intr_not_xml", INTR, "hello world", ["OpenCV FileStorage"])
