@@ -101,6 +101,11 @@ CLI::App* AddFuseCommand(CLI::App& app, FuseCommand& cmd) {
   c->add_option("--start-wait-s", cmd.options.start_wait_s,
                 "before the first frame set, wait this long for every camera's first message")
       ->capture_default_str();
+  c->add_option("--start", cmd.options.run.start_frame,
+                "aligned by frame index: the edges' first frame (their --start); the first frame set waits for it up "
+                "to --start-wait-s (later frames replayed before the edges started skip no frame)")
+      ->capture_default_str()
+      ->check(CLI::Range(int64_t{0}, int64_t{1'000'000'000'000}));
   c->add_flag("--occupancy-pngs", cmd.options.run.occupancy_pngs, "also write occupancy/NNNNNN.png per frame set");
   c->add_flag("--no-video", cmd.no_video, "do not write occupancy.mp4");
   c->add_flag("--no-wall-clock", cmd.no_wall_clock, "leave t_unix (wall-clock time) out of the JSON lines");

@@ -5,13 +5,16 @@
 // camera 0 64x48, camera 1 33x17 (the edge_message test's).
 //
 // Input: byte 0 picks the alignment (even: by frame index, odd: by timestamp), then records
-// [u8 topic camera][u16 length, little-endian][length bytes: one MQTT payload], each arriving
-// 10 ms after the one before. A message that decodes must encode back to the same message.
+// [u8 topic camera, its high bit: keep the checksum as it is][u16 length, little-endian][length
+// bytes: one MQTT payload], each arriving 10 ms after the one before. Without the high bit the
+// payload's checksum is made true (SealEdgeMessage), so that mutations reach the decoder. A
+// message that decodes must encode back to the same message.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -70,11 +73,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   double fps = 0;
   size_t at = 1;
   while (at + 3 <= size) {
-    const size_t topic = data[at];
+    const size_t topic = data[at] & 0x7f;
+    const bool keep_checksum = (data[at] & 0x80) != 0;
     const size_t length = data[at + 1] | (static_cast<size_t>(data[at + 2]) << 8);
     at += 3;
-    const std::string_view payload = occmap::fuzz::AsText(data + at, std::min(length, size - at));
-    at += payload.size();
+    std::string bytes(occmap::fuzz::AsText(data + at, std::min(length, size - at)));
+    at += bytes.size();
+    if (!keep_checksum) occmap::SealEdgeMessage(bytes);
+    const std::string_view payload = bytes;
     now += std::chrono::milliseconds(10);
     if (topic >= expect.camera_sizes.size()) continue;  // not a camera's topic: not read
     auto m = occmap::DecodeEdgeMessage(payload, expect, "occmap/edge/cam");

@@ -18,13 +18,21 @@ FrameSetAligner::FrameSetAligner(size_t cameras, const AlignOptions& options, Cl
       in_last_set_(cameras, false),
       last_heard_(cameras, start),
       last_taken_(cameras, -std::numeric_limits<double>::infinity()),
+      newest_(cameras, -std::numeric_limits<double>::infinity()),
       left_out_(cameras, 0),
       ended_frame_(cameras, 0),
-      late_(cameras, 0) {}
+      late_(cameras, 0),
+      duplicates_(cameras, 0) {}
 
 int64_t FrameSetAligner::late() const {
   int64_t total = 0;
   for (const int64_t n : late_) total += n;
+  return total;
+}
+
+int64_t FrameSetAligner::duplicates() const {
+  int64_t total = 0;
+  for (const int64_t n : duplicates_) total += n;
   return total;
 }
 
@@ -34,16 +42,23 @@ double FrameSetAligner::Key(const EdgeMessage& m) const {
 
 void FrameSetAligner::Add(EdgeMessage m, Clock::time_point arrival) {
   const size_t c = m.camera;
+  const double key = Key(m);
+  auto& q = pending_[c];
+  // A copy: it says nothing new about the camera (not even that it is alive: a replay).
+  if (key == last_taken_[c] || std::any_of(q.begin(), q.end(), [&](const Pending& p) { return p.key == key; })) {
+    ++duplicates_[c];
+    return;
+  }
   last_heard_[c] = arrival;
   heard_[c] = true;
-  ended_[c] = false;
-  const double key = Key(m);
   // Late: its set is fused already (without it), or it is not newer than what the camera gave.
+  // It does not revive an ended camera (a replay of an old message would hold sets up).
   if (key <= last_taken_[c] || (last_anchor_ && key <= *last_anchor_ + tolerance() && !in_last_set_[c])) {
     ++late_[c];
     return;
   }
-  auto& q = pending_[c];
+  ended_[c] = false;
+  newest_[c] = key;
   auto at = std::upper_bound(q.begin(), q.end(), key, [](double k, const Pending& p) { return k < p.key; });
   q.insert(at, Pending{std::move(m), key, arrival});
 }
@@ -77,14 +92,26 @@ std::optional<AlignedSet> FrameSetAligner::Next(Clock::time_point now) {
   for (const auto& q : pending_) {
     if (!q.empty()) anchor = std::min(anchor, q.front().key);
   }
+  // By index before the first set: the edges' first frame, or start_wait_s.
+  const bool first_by_index = sets_ == 0 && options_.sync == FrameSync::kIndex && !everything_ended;
+  if (first_by_index && anchor > static_cast<double>(options_.first_frame) && Seconds(now - start_) < options_.start_wait_s) {
+    return std::nullopt;
+  }
   bool complete = true;
   Clock::time_point first = Clock::time_point::max();
   for (size_t c = 0; c < n; ++c) {
-    if (!pending_[c].empty()) {
-      if (pending_[c].front().key <= anchor + tolerance()) first = std::min(first, pending_[c].front().arrival);
+    const auto& q = pending_[c];
+    if (!q.empty() && q.front().key <= anchor + tolerance()) {
+      first = std::min(first, q.front().arrival);
       continue;
     }
-    if (!ended_[c] && alive(c, now)) complete = false;
+    // Its last message is past the anchor: one per topic arrives in order, so the anchor's is
+    // lost. Not for the first set by index, where every camera starts at the same frame.
+    if (!q.empty() && newest_[c] > anchor + tolerance() && !first_by_index) continue;
+    // Silent is not dead before the first set by index (start_wait_s rules): a camera heard
+    // only from copies published long before its edge started is waited for.
+    const bool waited = first_by_index && Seconds(now - start_) < options_.start_wait_s;
+    if (!ended_[c] && (alive(c, now) || waited)) complete = false;
   }
   if (!complete && !everything_ended && Seconds(now - first) < options_.latency_budget_s) return std::nullopt;
   AlignedSet set;

@@ -12,6 +12,14 @@
 // then are left out (their cells unseen) and their messages for it, arriving later, are dropped
 // and counted. Before the first set every camera is waited for up to start_wait_s.
 //
+// The broker is not trusted to deliver each message once and in order (issue 39): a copy of a
+// message pending or just taken (a replay, a QoS 1 redelivery) is dropped and counted as a
+// duplicate, so no frame set is fused twice; "a later message decides a camera" reads the
+// camera's last accepted arrival, not any pending message (a replayed later frame that arrived
+// first decides nothing); and by index, the first set waits for the edges' first frame (its own
+// message from every camera, up to start_wait_s): replayed later frames published before the
+// edges started cost no genuine frame.
+//
 //   FrameSetAligner a(n_cams, options, Clock::now());
 //   a.Add(std::move(message), arrival);           // or a.End(camera, frame, arrival)
 //   while (auto set = a.Next(Clock::now())) fuse(*set);
@@ -36,6 +44,9 @@ struct AlignOptions {
   double latency_budget_s = 1.0;
   double dead_after_s = 3.0;
   double start_wait_s = 30.0;
+  // kIndex: the frame the edges start at (the run's start_frame). Before the first set, a set
+  // anchored after it waits until start_wait_s from the start.
+  int64_t first_frame = 0;
 };
 
 struct AlignedSet {
@@ -50,7 +61,8 @@ class FrameSetAligner {
   using Clock = std::chrono::steady_clock;
   FrameSetAligner(size_t cameras, const AlignOptions& options, Clock::time_point start);
 
-  // A kChanges message of camera m.camera (checked by the caller); a late one is dropped.
+  // A kChanges message of camera m.camera (checked by the caller); a late one or a copy of one
+  // pending or last taken (a duplicate) is dropped.
   void Add(EdgeMessage m, Clock::time_point arrival);
   // The camera reported the end of its source (a message it sends after that revives it).
   void End(size_t camera, int64_t frame, Clock::time_point arrival);
@@ -68,6 +80,8 @@ class FrameSetAligner {
   bool alive(size_t camera, Clock::time_point now) const;
   int64_t late() const;
   int64_t late(size_t camera) const { return late_[camera]; }
+  int64_t duplicates() const;
+  int64_t duplicates(size_t camera) const { return duplicates_[camera]; }
   // Sets fused without the camera (left out: late, lost, dead; not after its end).
   int64_t left_out(size_t camera) const { return left_out_[camera]; }
 
@@ -86,10 +100,11 @@ class FrameSetAligner {
   std::vector<bool> ended_, heard_, in_last_set_;
   std::vector<Clock::time_point> last_heard_;
   std::vector<double> last_taken_;
+  std::vector<double> newest_;  // the key of each camera's last accepted message (in arrival order)
   std::vector<int64_t> left_out_, ended_frame_;
   std::optional<double> last_anchor_;
   int64_t sets_ = 0;
-  std::vector<int64_t> late_;
+  std::vector<int64_t> late_, duplicates_;
 };
 
 }  // namespace occmap

@@ -161,5 +161,111 @@ TEST(FrameSetAligner, EndedCamerasAreDecidedAndAllEndedFlushes) {
   EXPECT_TRUE(a.idle());
 }
 
+// Every set fused from `a` at `now`: its frame and cameras.
+std::vector<std::pair<int64_t, std::vector<int>>> Drain(FrameSetAligner& a, Clock::time_point now) {
+  std::vector<std::pair<int64_t, std::vector<int>>> out;
+  while (auto s = a.Next(now)) out.emplace_back(s->frame, Cameras(*s));
+  return out;
+}
+
+std::vector<std::pair<int64_t, std::vector<int>>> Whole(int64_t first, int64_t last, std::vector<int> cameras) {
+  std::vector<std::pair<int64_t, std::vector<int>>> out;
+  for (int64_t f = first; f <= last; ++f) out.emplace_back(f, cameras);
+  return out;
+}
+
+// Issue 39: a copy of camera 1's frame 3 published before the edges start fused frame set 3 twice.
+TEST(FrameSetAligner, ACopyPublishedBeforeTheEdgesStartIsDroppedNotFusedTwice) {
+  const auto t0 = Clock::now();
+  AlignOptions o = Options(FrameSync::kIndex);
+  o.latency_budget_s = 100;
+  FrameSetAligner a(3, o, t0);
+  a.Add(Message(1, 3, 0.3), t0);  // the replay
+  std::vector<std::pair<int64_t, std::vector<int>>> fused;
+  auto t = t0 + milliseconds(10);
+  // The edges, camera 1's the slowest: its frame 0 comes after the others' frames 0 and 1.
+  for (int f = 0; f < 6; ++f) {
+    a.Add(Message(0, f, 0.1 * f), t);
+    a.Add(Message(2, f, 0.1 * f), t);
+    for (auto& s : Drain(a, t)) fused.push_back(s);
+    if (f >= 1) a.Add(Message(1, f - 1, 0.1 * (f - 1)), t);
+    for (auto& s : Drain(a, t)) fused.push_back(s);
+  }
+  a.Add(Message(1, 5, 0.5), t);
+  for (auto& s : Drain(a, t)) fused.push_back(s);
+  EXPECT_EQ(fused, Whole(0, 5, {0, 1, 2}));
+  EXPECT_EQ(a.duplicates(1), 1);
+  EXPECT_EQ(a.duplicates(), 1);
+  EXPECT_EQ(a.late(), 0);
+  EXPECT_EQ(a.left_out(1), 0);
+}
+
+// Issue 39: copies of every camera's frames 5-9 sent first made the fuse begin at frame 5 and
+// count the genuine frames 0-4 late.
+TEST(FrameSetAligner, LaterFramesSentBeforeTheEdgesStartCostNoGenuineFrame) {
+  const auto t0 = Clock::now();
+  AlignOptions o = Options(FrameSync::kIndex);
+  o.latency_budget_s = 0.1;
+  FrameSetAligner a(2, o, t0);
+  for (int f = 5; f < 10; ++f) {
+    a.Add(Message(0, f, 0.1 * f), t0);
+    a.Add(Message(1, f, 0.1 * f), t0);
+  }
+  // Every camera heard, the budget long past: the set of frame 5 still waits for the first frame.
+  EXPECT_FALSE(a.Next(t0 + milliseconds(4000)));
+  std::vector<std::pair<int64_t, std::vector<int>>> fused;
+  const auto t = t0 + milliseconds(4100);
+  for (int f = 0; f < 12; ++f) {
+    a.Add(Message(0, f, 0.1 * f), t);
+    for (auto& s : Drain(a, t)) fused.push_back(s);
+    a.Add(Message(1, f, 0.1 * f), t);
+    for (auto& s : Drain(a, t)) fused.push_back(s);
+  }
+  EXPECT_EQ(fused, Whole(0, 11, {0, 1}));
+  EXPECT_EQ(a.duplicates(0), 5);
+  EXPECT_EQ(a.duplicates(1), 5);
+  EXPECT_EQ(a.late(), 0);
+}
+
+TEST(FrameSetAligner, TheFirstSetByIndexGoesOnAfterTheStartWaitWhenTheFirstFrameNeverComes) {
+  const auto t0 = Clock::now();
+  FrameSetAligner a(2, Options(FrameSync::kIndex), t0);  // start_wait_s 5
+  a.Add(Message(0, 40, 4.0), t0);  // a fuse started after its edges: their frames go on from 40
+  a.Add(Message(1, 40, 4.0), t0);
+  EXPECT_FALSE(a.Next(t0 + milliseconds(4900)));
+  auto s = a.Next(t0 + milliseconds(5001));
+  ASSERT_TRUE(s);
+  EXPECT_EQ(s->frame, 40);
+  EXPECT_EQ(Cameras(*s), (std::vector<int>{0, 1}));
+}
+
+TEST(FrameSetAligner, AReplayedLaterFrameDecidesNothingAndACopyOfAFusedOneIsADuplicate) {
+  const auto t0 = Clock::now();
+  AlignOptions o = Options(FrameSync::kIndex);
+  o.latency_budget_s = 100;
+  o.dead_after_s = 100;
+  FrameSetAligner a(2, o, t0);
+  for (int f = 0; f < 3; ++f) {
+    a.Add(Message(0, f, 0), t0);
+    a.Add(Message(1, f, 0), t0);
+  }
+  EXPECT_EQ(Drain(a, t0), Whole(0, 2, {0, 1}));
+  a.Add(Message(0, 3, 0), t0);
+  // A replay of camera 1's frame 8, then its genuine frame 3.
+  a.Add(Message(1, 8, 0), t0);
+  a.Add(Message(1, 3, 0), t0);
+  EXPECT_EQ(Drain(a, t0), Whole(3, 3, {0, 1}));
+  a.Add(Message(1, 2, 0), t0);  // a copy of a fused frame: an old one, dropped
+  a.Add(Message(1, 3, 0), t0);  // a copy of the one just fused: a duplicate
+  EXPECT_EQ(a.duplicates(1), 1);
+  EXPECT_EQ(a.late(1), 1);
+  // Frame 4: camera 1's last accepted arrival is frame 3 (its 8 pending is no evidence that its 4
+  // is lost): undecided until its 4 comes.
+  a.Add(Message(0, 4, 0), t0);
+  EXPECT_FALSE(a.Next(t0 + milliseconds(50)));
+  a.Add(Message(1, 4, 0), t0);
+  EXPECT_EQ(Drain(a, t0), Whole(4, 4, {0, 1}));
+}
+
 }  // namespace
 }  // namespace occmap

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <optional>
 #include <set>
 #include <span>
@@ -590,23 +591,28 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   align.latency_budget_s = o.latency_budget_s;
   align.dead_after_s = o.dead_after_s;
   align.start_wait_s = o.start_wait_s;
+  align.first_frame = options.start_frame;
   FrameSetAligner aligner(n_cams, align, t_start);
   std::set<std::string> refused_topics;
+  std::vector<int64_t> refused(n_cams, 0);  // per camera: messages refused (damaged, foreign, broken rows)
   double fps = 0;
-  auto refuse = [&](const std::string& topic, const std::string& why) {
+  auto refuse = [&](size_t camera, const std::string& topic, const std::string& why) {
+    ++refused[camera];
     if (refused_topics.insert(topic).second) std::fputs(fmt::format("occmap fuse: refused: {}\n", why).c_str(), stderr);
   };
   auto receive = [&](const MqttReceived& r) {
     auto topic = camera_of_topic.find(r.topic);
     if (topic == camera_of_topic.end()) return;
     auto m = DecodeEdgeHeader(r.payload, expect, r.topic);
-    if (!m.ok()) return refuse(r.topic, m.status().message());
+    if (!m.ok()) return refuse(topic->second, r.topic, m.status().message());
     if (m->camera != topic->second) {
-      return refuse(r.topic, fmt::format("{}: camera index {} on camera {}'s topic", r.topic, m->camera, topic->second));
+      return refuse(topic->second, r.topic,
+                    fmt::format("{}: camera index {} on camera {}'s topic", r.topic, m->camera, topic->second));
     }
     if (m->kind == EdgeMessageKind::kEnd) return aligner.End(m->camera, m->frame, r.arrival);
     if (align.sync == FrameSync::kTimestamp && std::isnan(m->timestamp_s)) {
-      return refuse(r.topic, fmt::format("{}: a frame without a timestamp; align by frame index (--sync index)", r.topic));
+      return refuse(topic->second, r.topic,
+                    fmt::format("{}: a frame without a timestamp; align by frame index (--sync index)", r.topic));
     }
     if (fps == 0 && m->fps > 0) {
       fps = m->fps;
@@ -645,6 +651,8 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
     for (size_t n = 0; n < n_cams; ++n) {
       stats.cameras[n].active = !aligner.ended(n);
       stats.cameras[n].connected = aligner.alive(n, now);
+      // The fuse's drops are messages: late, duplicate or refused (summary.json has them apart).
+      stats.cameras[n].dropped = aligner.late(n) + aligner.duplicates(n) + refused[n];
       stats.cameras[n].background_age_s = std::numeric_limits<double>::quiet_NaN();
     }
     (void)r;
@@ -693,7 +701,7 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
           topic);
       if (!decoded.ok()) {  // a broken payload: the camera is left out of this set (its cells unseen)
         set.active[n] = false;
-        refuse(topic, decoded.message());
+        refuse(n, topic, decoded.message());
         continue;
       }
       if (std::isnan(set.timestamp_s)) set.timestamp_s = m.timestamp_s;
@@ -791,11 +799,21 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
     if (aligner.ended(n)) info.ended_at_frame = aligner.ended_at(n);
     info.left_out = aligner.left_out(n);
     info.late_messages = aligner.late(n);
+    info.duplicate_messages = aligner.duplicates(n);
+    info.refused_messages = refused[n];
     summary.cameras.push_back(info);
   }
   if (protections > 0) {
     std::fputs(fmt::format("occmap fuse: {} protections sent to the edges' adaptive backgrounds, {:.0f} bytes each\n",
                            protections, static_cast<double>(protection_bytes) / static_cast<double>(protections))
+                   .c_str(),
+               stderr);
+  }
+  const int64_t refused_total = std::accumulate(refused.begin(), refused.end(), int64_t{0});
+  if (aligner.duplicates() > 0 || refused_total > 0) {
+    std::fputs(fmt::format("occmap fuse: {} duplicate messages (copies of one pending or fused) and {} refused messages "
+                           "dropped\n",
+                           aligner.duplicates(), refused_total)
                    .c_str(),
                stderr);
   }

@@ -20,6 +20,12 @@ namespace {
 constexpr char kMagic[4] = {'O', 'C', 'M', 'E'};
 constexpr size_t kHeaderBytes = 4 + 2 + 2 + 8 + 8 + 4 + 4 + 4 + 8 + 8 + 8 + 8 + 4 + 4 + 2;
 constexpr size_t kModesAt = kHeaderBytes - 10, kBlockAt = kHeaderBytes - 2;
+// The trailer: HashBytes of every byte before it. A broker, a bridge or a disk in between that
+// damages a message (or a publisher of junk) is caught on arrival, before the message can take
+// a frame set's place (issue 39); a range decode on arrival would double the fuse's decoding.
+constexpr size_t kChecksumBytes = 8;
+
+uint64_t Checksum(std::string_view bytes) { return HashBytes(std::as_bytes(std::span(bytes.data(), bytes.size()))); }
 
 using wire::Get;
 using wire::Put;
@@ -434,7 +440,15 @@ std::string EncodeEdgeMessage(const EdgeMessage& m) {
   Put<uint8_t>(out, static_cast<uint8_t>(block_w));
   Put<uint8_t>(out, static_cast<uint8_t>(block_h));
   out += payload;
+  Put<uint64_t>(out, Checksum(out));
   return out;
+}
+
+void SealEdgeMessage(std::string& bytes) {
+  if (bytes.size() < kHeaderBytes + kChecksumBytes) return;
+  const size_t body = bytes.size() - kChecksumBytes;
+  const uint64_t sum = Checksum(std::string_view(bytes).substr(0, body));
+  std::memcpy(bytes.data() + body, &sum, kChecksumBytes);
 }
 
 void RestampEdgeMessage(std::string& bytes, int64_t frame, double timestamp_s, double t_unix) {
@@ -443,6 +457,7 @@ void RestampEdgeMessage(std::string& bytes, int64_t frame, double timestamp_s, d
   std::memcpy(bytes.data() + kFrameAt, &frame, 8);
   std::memcpy(bytes.data() + kFrameAt + 8, &timestamp_s, 8);
   std::memcpy(bytes.data() + kFrameAt + 16, &t_unix, 8);
+  SealEdgeMessage(bytes);
 }
 
 void RekeyEdgeMessage(std::string& bytes, uint64_t table_key, uint64_t settings_key, uint32_t camera, double fps) {
@@ -452,6 +467,7 @@ void RekeyEdgeMessage(std::string& bytes, uint64_t table_key, uint64_t settings_
   std::memcpy(bytes.data() + kKeysAt + 8, &settings_key, 8);
   std::memcpy(bytes.data() + kCameraAt, &camera, 4);
   std::memcpy(bytes.data() + kFpsAt, &fps, 8);
+  SealEdgeMessage(bytes);
 }
 
 Result<EdgeMessage> DecodeEdgeHeader(std::string_view bytes, const EdgeExpectation& expect, std::string_view source) {
@@ -465,8 +481,18 @@ Result<EdgeMessage> DecodeEdgeHeader(std::string_view bytes, const EdgeExpectati
     return bad(fmt::format("schema version {}, this occmap reads version {}: run edge and fuse of the same release",
                            version, kEdgeSchemaVersion));
   }
-  if (bytes.size() < kHeaderBytes) {
-    return bad(fmt::format("header: expected {} bytes, found {}", kHeaderBytes, bytes.size()));
+  if (bytes.size() < kHeaderBytes + kChecksumBytes) {
+    return bad(fmt::format("header: expected {} bytes, found {}", kHeaderBytes + kChecksumBytes, bytes.size()));
+  }
+  {
+    const size_t body = bytes.size() - kChecksumBytes;
+    size_t sum_at = body;
+    const uint64_t stated = Get<uint64_t>(bytes, sum_at);
+    if (const uint64_t sum = Checksum(bytes.substr(0, body)); sum != stated) {
+      return bad(fmt::format("checksum: expected {:016x} (of its {} bytes), found {:016x}: damaged on the way", sum, body,
+                             stated));
+    }
+    bytes = bytes.substr(0, body);  // what follows reads the header and payload alone
   }
   EdgeMessage m;
   const uint16_t kind = Get<uint16_t>(bytes, at);
@@ -525,11 +551,12 @@ Status DecodeEdgeChanges(std::string_view bytes, std::span<uint8_t> out, std::st
     std::memcpy(&block_w, bytes.data() + kBlockAt, 1);
     std::memcpy(&block_h, bytes.data() + kBlockAt + 1, 1);
   }
-  if (bytes.size() < kHeaderBytes || static_cast<size_t>(width) * height != out.size() || !ValidBlock(block_w, block_h)) {
+  if (bytes.size() < kHeaderBytes + kChecksumBytes || static_cast<size_t>(width) * height != out.size() ||
+      !ValidBlock(block_w, block_h)) {
     return InvalidInput(fmt::format("{}: edge message: expected a message of {} pixels, found {} bytes", source,
                                     out.size(), bytes.size()));
   }
-  const std::string_view payload = bytes.substr(kHeaderBytes);
+  const std::string_view payload = bytes.substr(kHeaderBytes, bytes.size() - kHeaderBytes - kChecksumBytes);
   const int w = static_cast<int>(width), h = static_cast<int>(height);
   if (block_w == 1 && block_h == 1) {
     const Status rows = DecodeRows(payload, n_modes, w, h, out.data());

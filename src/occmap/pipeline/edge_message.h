@@ -4,7 +4,7 @@
 // needs nothing else for the floor's AND, the vote rule, the elevated check and the people's
 // fusions: they all read the change buffer.
 //
-// Binary, little-endian, version 4:
+// Binary, little-endian, version 5:
 //   "OCME"  u16 schema version  u16 kind (0 changes, 1 end of the camera's source)
 //   u64 table key (GroundLutKey of the site: cameras, masks, grid)
 //   u64 settings key (the detection section: threshold, tolerance, colour, backgrounds)
@@ -12,12 +12,13 @@
 //   f64 timestamp_s (NaN: none)  f64 t_unix  f64 fps (the source's, 0: none)
 //   u32 number of modes  u32 payload bytes  u8 block width  u8 block height (detection.block_px,
 //   1 or 2 each: the changes come in blocks alike, coded one pixel per block)
-//   payload: the rows' T.6 modes (0 vertical 0, 1-3 vertical +1..+3, 4-6 vertical -1..-3,
+//   payload (below), then u64 checksum: HashBytes of every byte before it (version 5)
+//   the payload: the rows' T.6 modes (0 vertical 0, 1-3 vertical +1..+3, 4-6 vertical -1..-3,
 //   7 pass, 8 horizontal) and the horizontal modes' run lengths, coded by an adaptive binary
 //   range coder whose contexts are the colour and the mode that made b1 in the row above
 //   (docs/formats.md)
-// A fuse process refuses a message of another schema version, or built for other tables or
-// other detection settings, with a message naming what differs.
+// A fuse process refuses a message of another schema version, whose checksum does not match,
+// or built for other tables or other detection settings, with a message naming what differs.
 //
 //   std::string bytes = EncodeEdgeMessage(msg);                  // edge
 //   OCCMAP_ASSIGN_OR_RETURN(EdgeMessage m, DecodeEdgeMessage(bytes, expect, topic));   // fuse
@@ -35,7 +36,7 @@
 
 namespace occmap {
 
-constexpr uint16_t kEdgeSchemaVersion = 4;
+constexpr uint16_t kEdgeSchemaVersion = 5;
 
 enum class EdgeMessageKind : uint16_t { kChanges = 0, kEnd = 1 };
 
@@ -79,6 +80,9 @@ void RestampEdgeMessage(std::string& bytes, int64_t frame, double timestamp_s, d
 // Another site's keys, camera index and frame rate in an encoded message (the bench's simulated
 // cameras: one camera's recorded messages sent again as another camera of a larger site).
 void RekeyEdgeMessage(std::string& bytes, uint64_t table_key, uint64_t settings_key, uint32_t camera, double fps);
+// The checksum of a message whose bytes were changed in place made true again (Restamp and
+// Rekey do it; the fuzz target, to reach the decoder with its mutations).
+void SealEdgeMessage(std::string& bytes);
 // source names the message in errors (e.g. its topic).
 Result<EdgeMessage> DecodeEdgeMessage(std::string_view bytes, const EdgeExpectation& expect,
                                       std::string_view source);

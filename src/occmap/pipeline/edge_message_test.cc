@@ -78,6 +78,7 @@ TEST(EdgeMessage, BlocksOfTwoPixelsRoundTripAsBlocksInFewerBytes) {
   }
   std::string three = blocks;
   three[77] = 3;
+  SealEdgeMessage(three);
   auto refused = DecodeEdgeMessage(three, Expect(), "t");
   ASSERT_FALSE(refused.ok());
   EXPECT_EQ(refused.status().message(), "t: edge message: block: expected 1 or 2 pixels wide and high, found 2 x 3");
@@ -200,17 +201,23 @@ TEST(EdgeMessage, RefusesOtherTablesSettingsVersionsAndBrokenBytes) {
   refused(v1, Expect(), "schema version 1");
   refused("hello", Expect(), "expected an occmap edge message");
   refused(good.substr(0, 30), Expect(), "header");
-  refused(good.substr(0, good.size() - 1), Expect(), "payload");
-  std::string corrupt = good;
-  corrupt[corrupt.size() - 3] ^= 0x55;
-  corrupt[corrupt.size() - 8] ^= 0x55;
-  auto c = DecodeEdgeMessage(corrupt, Expect(), "t");  // the range coder has no checksum: may decode; never a crash
-  (void)c;
-  // Coded rows that are broken: each byte of a valid message's rows
-  // flipped in turn decodes to an error or to some mask, never a crash.
-  for (size_t k = 120; k < good.size(); ++k) {
+  refused(good.substr(0, good.size() - 1), Expect(), "checksum: expected");
+  std::string short_payload = good.substr(0, good.size() - 9) + good.substr(good.size() - 8);
+  SealEdgeMessage(short_payload);
+  refused(short_payload, Expect(), "payload: expected");
+  // Any byte damaged after the version, header or payload, is caught by the checksum (issue 39:
+  // a message with a valid header and a junk payload took a frame set's place).
+  for (size_t k = 8; k < good.size(); ++k) {
     std::string flipped = good;
     flipped[k] = static_cast<char>(flipped[k] ^ 0x5a);
+    refused(flipped, Expect(), "damaged on the way");
+  }
+  // Coded rows that are broken but sealed: each byte of a valid message's rows flipped in turn
+  // decodes to an error or to some mask, never a crash.
+  for (size_t k = 78; k + 8 < good.size(); ++k) {
+    std::string flipped = good;
+    flipped[k] = static_cast<char>(flipped[k] ^ 0x5a);
+    SealEdgeMessage(flipped);
     (void)DecodeEdgeMessage(flipped, Expect(), "t");
   }
   EdgeExpectation one = Expect();
@@ -244,12 +251,15 @@ TEST(EdgeMessage, TheFusesHalvesDecodeTheHeaderThenTheChangesIntoItsSlice) {
 TEST(EdgeMessage, TheChangesRefuseBrokenRowsThatTheHeaderLetThrough) {
   const std::string good = EncodeEdgeMessage(Sample());
   constexpr size_t kModesAt = 68, kPayloadAt = 72, kHeaderBytes = 78;
+  const std::string rows = good.substr(kHeaderBytes, good.size() - kHeaderBytes - 8);
   auto with = [&](uint32_t n_modes, std::string_view payload) {
     std::string b = good.substr(0, kHeaderBytes);
     std::memcpy(b.data() + kModesAt, &n_modes, 4);
     const auto n = static_cast<uint32_t>(payload.size());
     std::memcpy(b.data() + kPayloadAt, &n, 4);
-    return b + std::string(payload);
+    b += std::string(payload) + std::string(8, '\0');
+    SealEdgeMessage(b);
+    return b;
   };
   std::vector<uint8_t> out(33 * 17);
   struct Case {
@@ -258,8 +268,8 @@ TEST(EdgeMessage, TheChangesRefuseBrokenRowsThatTheHeaderLetThrough) {
   };
   const std::vector<Case> cases = {
       {with(17, ""), "src: edge message: payload: coded rows: row 0: expected more bytes, found the end"},
-      {with(17, good.substr(kHeaderBytes)), "more than the 17 modes stated"},
-      {with(33 * 17, good.substr(kHeaderBytes)), "modes decoded"},
+      {with(17, rows), "more than the 17 modes stated"},
+      {with(33 * 17, rows), "modes decoded"},
   };
   for (const Case& c : cases) {
     ASSERT_TRUE(DecodeEdgeHeader(c.bytes, Expect(), "src").ok()) << c.message;

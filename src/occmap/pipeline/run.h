@@ -137,8 +137,9 @@ struct CameraRunInfo {
   std::optional<int64_t> ended_at_frame;  // when its stream ended or failed before the run did
   std::string end_reason;
   // occmap fuse: frame sets fused without this camera (late, lost or silent), and its messages
-  // that came after their frame set was fused (dropped).
-  std::optional<int64_t> left_out, late_messages;
+  // dropped: those that came after their frame set was fused, copies of one pending or fused
+  // (replays, redeliveries), and those refused (damaged, for another site, broken rows).
+  std::optional<int64_t> left_out, late_messages, duplicate_messages, refused_messages;
   // A live camera whose cached background is refreshed: what the refreshes did, the stop's too.
   std::optional<BackgroundCacheFigures> background_cache{};
 };

@@ -164,6 +164,8 @@ Status SummaryFile::WriteFinal(const RunSummary& summary, const RunStats& stats,
     if (!c.end_reason.empty()) e["end_reason"] = c.end_reason;
     if (c.left_out) e["left_out"] = *c.left_out;
     if (c.late_messages) e["late_messages"] = *c.late_messages;
+    if (c.duplicate_messages) e["duplicate_messages"] = *c.duplicate_messages;
+    if (c.refused_messages) e["refused_messages"] = *c.refused_messages;
     if (c.background_cache) e["background_cache"] = BackgroundCacheJson(*c.background_cache);
     e["frames"] = stats.cameras[n].frames;
     e["dropped_frames"] = stats.cameras[n].dropped;
