@@ -64,6 +64,7 @@ class VideoWriterImpl final : public VideoWriter {
   Status Open(ImageSize size, double fps, const VideoWriterOptions& options);
   Status Write(ImageView<const Rgb8> frame) override;
   Status Close() override;
+  Status Finish() override;
   std::string codec_name() const override { return codec_name_; }
 
  private:
@@ -99,6 +100,7 @@ class VideoWriterImpl final : public VideoWriter {
   AVStream* stream_ = nullptr;  // owned by format_
   int64_t frames_written_ = 0;
   bool closed_ = false;
+  bool finished_ = false;  // Finish worked: the temporary is whole and synced, not renamed
   bool fragmented_ = false;  // VideoWriterOptions::fragmented: tmp_path_ is path_ itself
 };
 
@@ -238,7 +240,7 @@ Status VideoWriterImpl::Open(ImageSize size, double fps, const VideoWriterOption
 }
 
 Status VideoWriterImpl::Write(ImageView<const Rgb8> frame) {
-  if (closed_) return Internal(fmt::format("{}: Write after Close (or after a failed write)", Where()));
+  if (closed_ || finished_) return Internal(fmt::format("{}: Write after Finish or Close (or after a failed write)", Where()));
   if (frame.width() != size_.width || frame.height() != size_.height) {
     return InvalidInput(fmt::format("{}: frame {}: expected {}x{} (the size given to Open), found {}x{}", Where(),
                                     frames_written_, size_.width, size_.height, frame.width(), frame.height()));
@@ -296,8 +298,9 @@ Status VideoWriterImpl::Encode(const AVFrame* frame) {
   }
 }
 
-Status VideoWriterImpl::Close() {
-  if (closed_) return Internal(fmt::format("{}: Close called twice (or after a failed write)", Where()));
+Status VideoWriterImpl::Finish() {
+  if (closed_) return Internal(fmt::format("{}: Finish called after Close (or after a failed write)", Where()));
+  if (finished_) return Status::Ok();
   OCCMAP_RETURN_IF_ERROR(Encode(nullptr));
   int error = av_write_trailer(format_.get());
   if (error < 0) return Fail(IoError(fmt::format("{}: cannot finish the file: {}", Where(), AvErrorWithLog(error))));
@@ -305,6 +308,22 @@ Status VideoWriterImpl::Close() {
     error = avio_closep(&format_->pb);
     if (error < 0) return Fail(IoError(fmt::format("{}: cannot write: {}", Where(), AvErrorWithLog(error))));
   }
+  if (!fragmented_) {  // flush to disk before the rename, as WriteFileAtomic does
+    const int fd = ::open(tmp_path_.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0 || ::fsync(fd) != 0) {
+      const int err = errno;
+      if (fd >= 0) ::close(fd);
+      return Fail(IoError(fmt::format("{}: flush failed: {}", Where(), std::strerror(err))));
+    }
+    ::close(fd);
+  }
+  finished_ = true;
+  return Status::Ok();
+}
+
+Status VideoWriterImpl::Close() {
+  if (closed_) return Internal(fmt::format("{}: Close called twice (or after a failed write)", Where()));
+  OCCMAP_RETURN_IF_ERROR(Finish());
   if (fragmented_) {  // written in place: nothing to rename, and it stays
     tmp_path_.clear();
     codec_.reset();
@@ -312,14 +331,6 @@ Status VideoWriterImpl::Close() {
     closed_ = true;
     return Status::Ok();
   }
-  // Flush to disk before the rename, as WriteFileAtomic does.
-  const int fd = ::open(tmp_path_.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0 || ::fsync(fd) != 0) {
-    const int err = errno;
-    if (fd >= 0) ::close(fd);
-    return Fail(IoError(fmt::format("{}: flush failed: {}", Where(), std::strerror(err))));
-  }
-  ::close(fd);
   if (::rename(tmp_path_.c_str(), path_.c_str()) != 0) {
     return Fail(IoError(fmt::format("{}: cannot rename into place: {}", Where(), std::strerror(errno))));
   }

@@ -47,8 +47,11 @@ class VideoWriter {
   virtual ~VideoWriter() = default;
   virtual Status Write(ImageView<const Rgb8> frame) = 0;  // frame size == the size given to Open
   // Flushes the encoder, finalises the container, syncs the file and renames it into place.
-  // After a failed Write or Close the temporary file is already removed; call nothing more.
+  // After a failed Write, Finish or Close the temporary file is already removed; call nothing more.
   virtual Status Close() = 0;
+  // All of Close but the rename (a full disk is found here): outputs that appear together or
+  // not at all are each finished, then closed only when every one finished. Close then renames.
+  virtual Status Finish() = 0;
   virtual std::string codec_name() const = 0;  // the encoder: "libx264" or "mpeg4"
 };
 

@@ -83,18 +83,34 @@ TextOutput::~TextOutput() {
 Status TextOutput::Append(std::string_view text) {
   if (atomic_) return atomic_->Append(text);
   if (fd_ < 0) return Internal(fmt::format("'{}': append after close", path_.string()));
-  // One write for the whole text (a short write, which a full disk may give, is continued).
+  // One write for the whole text; a short write (a full disk gives one before ENOSPC) is
+  // continued, and a failure cuts the file back: a reader never sees a partial line.
   size_t written = 0;
   while (written < text.size()) {
     const ssize_t n = ::write(fd_, text.data() + written, text.size() - written);
     if (n < 0) {
       if (errno == EINTR) continue;
-      return IoError(fmt::format("'{}': write failed: {}", path_.string(), std::strerror(errno)));
+      const int err = errno;
+      const Status cut = TakeBack(size_);
+      return IoError(fmt::format("'{}': write failed: {}{}", path_.string(), std::strerror(err),
+                                 cut.ok() ? "" : fmt::format(" (and {})", cut.message())));
     }
     written += static_cast<size_t>(n);
   }
+  size_ += text.size();
   return Status::Ok();
 }
+
+Status TextOutput::TakeBack(uint64_t size) {
+  if (atomic_ || fd_ < 0) return Status::Ok();
+  if (::ftruncate(fd_, static_cast<off_t>(size)) != 0) {
+    return IoError(fmt::format("'{}': cannot cut back to {} bytes: {}", path_.string(), size, std::strerror(errno)));
+  }
+  size_ = size;
+  return Status::Ok();
+}
+
+Status TextOutput::Finish() { return atomic_ ? atomic_->Finish() : Status::Ok(); }
 
 Status TextOutput::Close() {
   if (atomic_) {
@@ -146,9 +162,21 @@ Status OutputFiles::Open(const SinkStart& start) {
 
 Status OutputFiles::Consume(const FrameRecord& r, const RunStats& stats) {
   (void)stats;
+  // A failure (a full disk) takes the frame set back from every line file: they end at the same
+  // frame set, each with a whole line, and the run stops with the error.
+  const std::unique_ptr<TextOutput>* line_files[] = {&detections_, &tracks_, &mot_, &events_};
+  uint64_t sizes[4] = {};
+  for (size_t k = 0; k < 4; ++k) sizes[k] = *line_files[k] ? (*line_files[k])->size() : 0;
   auto fail = [&](Status s) {
     failed_ = true;
-    return s;
+    if (options_.mode == OutputMode::kAtomic) return s;
+    std::string cut;
+    for (size_t k = 0; k < 4; ++k) {
+      if (!*line_files[k]) continue;
+      if (const Status t = (*line_files[k])->TakeBack(sizes[k]); !t.ok()) cut += "; " + t.message();
+    }
+    return IoError(fmt::format("{}: frame {} not written; the line files end at the frame set before it, whole{}",
+                               s.message(), r.frame, cut));
   };
   text_ = DetectionsJsonLine(r.frame, r.time_s, r.detections);
   if (options_.wall_clock_times) text_ = WithTUnix(text_, r.t_unix);
@@ -208,6 +236,18 @@ Status OutputFiles::Close(const RunStats& stats) {
   auto keep = [&](Status s) {
     if (first.ok() && !s.ok()) first = std::move(s);
   };
+  if (options_.mode == OutputMode::kAtomic) {  // all or nothing: every file finished before any is renamed
+    for (std::unique_ptr<TextOutput>* f : {&detections_, &tracks_, &mot_, &events_}) {
+      if (*f) keep((*f)->Finish());
+    }
+    for (std::unique_ptr<VideoWriter>* v : {&occupancy_video_, &mosaic_video_}) {
+      if (*v && first.ok()) keep((*v)->Finish());
+    }
+    if (!first.ok()) {
+      Abandon();
+      return IoError(fmt::format("{} (atomic outputs: none written)", first.message()));
+    }
+  }
   // The order of the outputs in the summary's list.
   if (detections_) {
     keep(detections_->Close());

@@ -11,10 +11,14 @@
 //   kLive    (the default of `occmap run`) each file is created at its final name when the run
 //            starts and every frame set's text is appended with one write(2) of whole lines, so
 //            a reader tailing the file never sees a partial line and a killed run (kill -9)
-//            leaves every file valid up to its last line. Videos are fragmented MP4 written in
-//            place, playable up to their last fragment (a key frame every 2 s).
+//            leaves every file valid up to its last line. A write that fails (a full disk: a
+//            short write, then ENOSPC) is taken back: the file is cut to its last whole line,
+//            and every line file to the frame set before (they agree), and the run stops with
+//            the error. Videos are fragmented MP4 written in place, playable up to their last
+//            fragment (a key frame every 2 s).
 //   kAtomic  every file goes to a temporary next to it and is renamed into place at Close: the
-//            outputs appear all at once, or (a failed run) not at all.
+//            outputs appear all at once, or (a failed run) not at all. Close finishes every
+//            file (flushed, synced: a full disk is found here) before it renames any.
 // Nothing is fsync'ed per frame set: what was written survives the process (kill -9), and Close
 // syncs each file once.
 //
@@ -59,8 +63,13 @@ class TextOutput {
   ~TextOutput();
   TextOutput(const TextOutput&) = delete;
   TextOutput& operator=(const TextOutput&) = delete;
-  // `text` is whole lines; in kLive mode they reach the file in one write.
+  // `text` is whole lines; in kLive mode they reach the file in one write, or (the write failed
+  // part way) the file is cut back to what it held before.
   Status Append(std::string_view text);
+  // kLive: the bytes in the file; TakeBack cuts it to `size` (an earlier size()).
+  uint64_t size() const { return size_; }
+  Status TakeBack(uint64_t size);
+  Status Finish();  // kAtomic: flushed, not renamed (AtomicFileWriter::Finish); kLive: nothing
   Status Close();
   const std::filesystem::path& path() const { return path_; }
 
@@ -69,6 +78,7 @@ class TextOutput {
   std::filesystem::path path_;
   std::unique_ptr<AtomicFileWriter> atomic_;
   int fd_ = -1;  // kLive
+  uint64_t size_ = 0;
 };
 
 struct OutputFilesOptions {

@@ -6,6 +6,9 @@
 #include <fmt/core.h>
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
+
+#include <csignal>
 #include <random>
 
 #include "occmap/eval/run_outputs.h"
@@ -209,6 +212,115 @@ TEST(OutputFiles, LiveVideoIsWrittenInPlace) {
   for (const auto& e : fs::directory_iterator(dir.path())) {
     EXPECT_NE(e.path().filename().string().rfind(".tmp-", 0), 0u) << e.path();
   }
+}
+
+// Files cannot grow past `bytes` while it lives (RLIMIT_FSIZE, SIGXFSZ ignored): a write across
+// the limit is short and the next fails (EFBIG), as a full disk gives a short write, then ENOSPC.
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(uint64_t bytes) {
+    ::getrlimit(RLIMIT_FSIZE, &old_);
+    old_handler_ = std::signal(SIGXFSZ, SIG_IGN);
+    rlimit limit = old_;
+    limit.rlim_cur = static_cast<rlim_t>(bytes);
+    EXPECT_EQ(::setrlimit(RLIMIT_FSIZE, &limit), 0);
+  }
+  ~FileSizeLimit() {
+    ::setrlimit(RLIMIT_FSIZE, &old_);
+    std::signal(SIGXFSZ, old_handler_);
+  }
+  FileSizeLimit(const FileSizeLimit&) = delete;
+  FileSizeLimit& operator=(const FileSizeLimit&) = delete;
+
+ private:
+  rlimit old_{};
+  void (*old_handler_)(int) = SIG_DFL;
+};
+
+// Frame sets with 30 tracks each: tracks.jsonl grows fastest.
+std::vector<FrameRecord> CrowdedRecords(const Site& site, int frames) {
+  std::vector<FrameRecord> records = RandomRecords(site, frames);
+  for (FrameRecord& r : records) {
+    r.tracks.clear();
+    for (int k = 0; k < 30; ++k) {
+      Track t;
+      t.id = 1 + k;
+      t.x_m = 0.1 * k + 0.01 * static_cast<double>(r.frame);
+      t.y_m = 0.2 * k;
+      t.object_class = "person";
+      r.tracks.push_back(t);
+    }
+    MakeJsonLines(r, /*wall_clock_times=*/true);
+  }
+  return records;
+}
+
+// Issue 39: on a full disk a live run ended with a partial last line in detections.jsonl,
+// tracks.jsonl and tracks_mot.csv, and the files disagreed by a line.
+TEST(OutputFiles, AWriteThatFailsPartWayLeavesEveryLineFileWholeAtTheSameFrameSet) {
+  const Site site = TinySite();
+  const std::vector<FrameRecord> records = CrowdedRecords(site, 5);
+  testing::TempDir dir;
+  OutputFiles files(TextOnly(OutputMode::kLive));
+  ASSERT_TRUE(files.Open(StartIn(site, dir.path())).ok());
+  for (int f = 0; f < 3; ++f) ASSERT_TRUE(files.Consume(records[f], RunStats{}).ok());
+  const uint64_t tracks_size = fs::file_size(dir.path() / "tracks.jsonl");
+  const uint64_t line = records[3].tracks_line.size();
+  Status s;
+  {
+    const FileSizeLimit limit(tracks_size + line / 2);  // frame 3's tracks line: half of it fits
+    s = files.Consume(records[3], RunStats{});
+  }
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.code(), StatusCode::kIoError);
+  EXPECT_NE(s.message().find("tracks.jsonl': write failed: File too large: frame 3 not written; the line files end at "
+                             "the frame set before it, whole"),
+            std::string::npos)
+      << s.message();
+  files.Abandon();
+  for (const char* name : {"detections.jsonl", "tracks.jsonl", "events.jsonl"}) {
+    const std::string text = *ReadFileToString(dir.path() / name);
+    ASSERT_FALSE(text.empty()) << name;
+    EXPECT_EQ(text.back(), '\n') << name;
+  }
+  auto detections = ReadDetections(dir.path() / "detections.jsonl");
+  ASSERT_TRUE(detections.ok()) << detections.status().message();
+  auto tracks = ReadTracks(dir.path() / "tracks.jsonl");
+  ASSERT_TRUE(tracks.ok()) << tracks.status().message();
+  EXPECT_EQ(detections->size(), 3u);
+  EXPECT_EQ(tracks->size(), 3u);
+  const std::string mot = *ReadFileToString(dir.path() / "tracks_mot.csv");
+  EXPECT_EQ(std::count(mot.begin(), mot.end(), '\n'), 3 * 30);
+  EXPECT_EQ(mot.back(), '\n');
+}
+
+// Issue 39: with --atomic-outputs a run whose video failed at its end (no space left) still
+// committed the other outputs.
+TEST(OutputFiles, AtomicOutputsWhoseVideoFailsAtCloseAreAllLeftOut) {
+  const Site site = TinySite();
+  const std::vector<FrameRecord> records = RandomRecords(site, 45);
+  testing::TempDir dir;
+  OutputFilesOptions o = TextOnly(OutputMode::kAtomic);
+  o.occupancy_video = true;
+  OutputFiles files(o);
+  SinkStart start = StartIn(site, dir.path());
+  start.fps = 10;
+  ASSERT_TRUE(files.Open(start).ok());
+  for (const FrameRecord& r : records) ASSERT_TRUE(files.Consume(r, RunStats{}).ok());
+  uint64_t video_size = 0;
+  for (const auto& e : fs::directory_iterator(dir.path())) {
+    if (e.path().filename().string().find("occupancy.mp4") != std::string::npos) video_size = fs::file_size(e.path());
+  }
+  Status closed;
+  {
+    const FileSizeLimit limit(video_size + 16);  // the video's end (its index) does not fit
+    closed = files.Close(RunStats{});
+  }
+  ASSERT_FALSE(closed.ok());
+  EXPECT_NE(closed.message().find("occupancy.mp4"), std::string::npos) << closed.message();
+  EXPECT_NE(closed.message().find("(atomic outputs: none written)"), std::string::npos) << closed.message();
+  EXPECT_TRUE(files.written().empty());
+  for (const auto& e : fs::directory_iterator(dir.path())) ADD_FAILURE() << "left behind: " << e.path();
 }
 
 }  // namespace

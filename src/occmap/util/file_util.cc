@@ -117,29 +117,38 @@ Result<std::unique_ptr<AtomicFileWriter>> AtomicFileWriter::Open(const fs::path&
 }
 
 AtomicFileWriter::~AtomicFileWriter() {
-  if (fd_ >= 0) {
-    ::close(fd_);
-    ::unlink(tmp_.c_str());
-  }
+  if (fd_ >= 0) ::close(fd_);
+  if (!tmp_.empty()) ::unlink(tmp_.c_str());
 }
 
 Status AtomicFileWriter::Append(std::string_view text) {
-  if (fd_ < 0) return Internal(fmt::format("'{}': append after commit", path_.string()));
+  if (fd_ < 0) return Internal(fmt::format("'{}': append after finish", path_.string()));
   return WriteAll(fd_, path_, text.data(), text.size());
 }
 
-Status AtomicFileWriter::Commit() {
-  if (fd_ < 0) return Internal(fmt::format("'{}': committed twice", path_.string()));
+Status AtomicFileWriter::Finish() {
+  if (finished_) return Status::Ok();
+  if (fd_ < 0) return Internal(fmt::format("'{}': finished after a failure", path_.string()));
   const int fd = fd_;
   fd_ = -1;
   if (::fsync(fd) != 0 || ::close(fd) != 0) {
     const int err = errno;
     ::unlink(tmp_.c_str());
+    tmp_.clear();
     return IoError(fmt::format("'{}': flush failed: {}", path_.string(), std::strerror(err)));
   }
-  if (::rename(tmp_.c_str(), path_.c_str()) != 0) {
+  finished_ = true;
+  return Status::Ok();
+}
+
+Status AtomicFileWriter::Commit() {
+  if (finished_ && tmp_.empty()) return Internal(fmt::format("'{}': committed twice", path_.string()));
+  OCCMAP_RETURN_IF_ERROR(Finish());
+  const fs::path tmp = std::move(tmp_);
+  tmp_.clear();
+  if (::rename(tmp.c_str(), path_.c_str()) != 0) {
     const int err = errno;
-    ::unlink(tmp_.c_str());
+    ::unlink(tmp.c_str());
     return IoError(fmt::format("'{}': cannot rename into place: {}", path_.string(), std::strerror(err)));
   }
   return Status::Ok();

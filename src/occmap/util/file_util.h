@@ -26,7 +26,9 @@ Status WriteFileAtomic(const std::filesystem::path& path, std::string_view text)
 
 // Streams an output to a temporary file next to `path`; Commit() flushes it to disk and renames
 // it into place. Destroyed without Commit(), it removes the temporary: a failed or interrupted
-// run never leaves a half-written file under the final name.
+// run never leaves a half-written file under the final name. Several outputs that appear
+// together or not at all: Finish() each (flushed to disk, a full disk found then), and Commit()
+// them only when every Finish worked.
 class AtomicFileWriter {
  public:
   static Result<std::unique_ptr<AtomicFileWriter>> Open(const std::filesystem::path& path);
@@ -34,14 +36,16 @@ class AtomicFileWriter {
   AtomicFileWriter(const AtomicFileWriter&) = delete;
   AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
   Status Append(std::string_view text);
-  Status Commit();
+  Status Finish();  // flushed and closed, not renamed yet; after a failure the temporary is gone
+  Status Commit();  // Finish (when not done) then the rename
   const std::filesystem::path& path() const { return path_; }
 
  private:
   AtomicFileWriter(std::filesystem::path path, std::filesystem::path tmp, int fd)
       : path_(std::move(path)), tmp_(std::move(tmp)), fd_(fd) {}
-  std::filesystem::path path_, tmp_;
+  std::filesystem::path path_, tmp_;  // tmp_ empty once renamed or removed
   int fd_ = -1;
+  bool finished_ = false;
 };
 
 // Creates the folder and its parents; an error names the folder.
