@@ -6,6 +6,7 @@
 #include <system_error>
 
 #include "occmap/util/file_util.h"
+#include "occmap/util/safe_files.h"
 
 namespace occmap {
 namespace {
@@ -133,9 +134,8 @@ Result<MqttOptions> ParseMqttOptions(const YamlField& field, const std::filesyst
     OCCMAP_ASSIGN_OR_RETURN(std::string file, f->AsString());
     if (options.username.empty()) return f->Error("expected a username with it");
     options.password_file = ResolvePath(site_dir, file);
-    if (std::error_code ec; !std::filesystem::is_regular_file(options.password_file, ec)) {
-      return Status(StatusCode::kNotFound, fmt::format("{}: file not found: '{}'", f->Where(), options.password_file.string()));
-    }
+    // A FIFO, a folder or a loop of links is said as what it is, not "not found" (issue 39).
+    if (Status s = CheckRegularFile(options.password_file); !s.ok()) return s.WithContext(f->Where());
   }
   if (auto f = field.Find("keepalive_s")) {
     OCCMAP_ASSIGN_OR_RETURN(int64_t k, f->AsInt());

@@ -2,9 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
+#include <filesystem>
 #include <fstream>
 
 #include "occmap/publish/mqtt_topics.h"
+#include "occmap/util/testing.h"
 
 namespace occmap {
 namespace {
@@ -93,6 +97,31 @@ TEST(ParseMqttOptions, ReadsEveryKey) {
   EXPECT_EQ(o->discovery_prefix, "ha");
   EXPECT_EQ(*ReadMqttPassword(password), "s3cret");
   std::filesystem::remove(password);
+}
+
+// Issue 39: a password file that is a FIFO, a folder or a loop of links was "file not found".
+TEST(ParseMqttOptions, APasswordFileThatIsNotAFileIsSaidAsWhatItIs) {
+  testing::TempDir dir;
+  ASSERT_EQ(::mkfifo((dir / "fifo").c_str(), 0600), 0);
+  std::filesystem::create_directory(dir / "folder");
+  std::filesystem::create_symlink(dir / "loop-b", dir / "loop-a");
+  std::filesystem::create_symlink(dir / "loop-a", dir / "loop-b");
+  const struct {
+    const char* name;
+    const char* found;
+  } cases[] = {
+      {"fifo", "expected a regular file, found a FIFO"},
+      {"folder", "expected a file, found a directory"},
+      {"loop-a", "cannot be read: Too many levels of symbolic links (a loop of symbolic links)"},
+  };
+  for (const auto& c : cases) {
+    const std::string path = (dir / c.name).string();
+    const Result<MqttOptions> r =
+        Parse("outputs:\n  mqtt:\n    url: mqtt://x\n    username: u\n    password_file: " + path);
+    ASSERT_FALSE(r.ok()) << c.name;
+    EXPECT_EQ(r.status().code(), StatusCode::kInvalidInput) << c.name;
+    EXPECT_EQ(r.status().message(), "site.yaml:5: outputs.mqtt.password_file: '" + path + "': " + c.found);
+  }
 }
 
 TEST(ParseMqttOptions, MalformedBlocksGiveLocatedMessages) {

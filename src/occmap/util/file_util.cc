@@ -17,10 +17,23 @@
 namespace occmap {
 namespace fs = std::filesystem;
 
-Result<std::string> ReadFileToString(const fs::path& path, uint64_t max_bytes) {
+Status CheckRegularFile(const fs::path& path) {
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
-  if (!fs::exists(st)) return NotFound(fmt::format("file not found: '{}'", path.string()));
+  if (st.type() == fs::file_type::not_found) {
+    std::error_code link_ec;
+    if (fs::is_symlink(fs::symlink_status(path, link_ec))) {
+      const fs::path target = fs::read_symlink(path, link_ec);
+      return NotFound(fmt::format("file not found: '{}' (a symbolic link to '{}', which does not exist)", path.string(),
+                                  target.string()));
+    }
+    return NotFound(fmt::format("file not found: '{}'", path.string()));
+  }
+  if (ec || st.type() == fs::file_type::none || st.type() == fs::file_type::unknown) {  // ELOOP, EACCES on a folder
+    const bool loop = ec == std::errc::too_many_symbolic_link_levels;
+    return InvalidInput(fmt::format("'{}': cannot be read: {}{}", path.string(), ec ? ec.message() : "unknown file type",
+                                    loop ? " (a loop of symbolic links)" : ""));
+  }
   if (fs::is_directory(st)) {
     return InvalidInput(fmt::format("'{}': expected a file, found a directory", path.string()));
   }
@@ -32,6 +45,12 @@ Result<std::string> ReadFileToString(const fs::path& path, uint64_t max_bytes) {
                                                    : "not a regular file";
     return InvalidInput(fmt::format("'{}': expected a regular file, found {}", path.string(), kind));
   }
+  return Status::Ok();
+}
+
+Result<std::string> ReadFileToString(const fs::path& path, uint64_t max_bytes) {
+  OCCMAP_RETURN_IF_ERROR(CheckRegularFile(path));
+  std::error_code ec;
   const auto size = fs::file_size(path, ec);
   if (!ec && size > max_bytes) {
     return ResourceExhausted(fmt::format("'{}': expected at most {} bytes, found {}", path.string(), max_bytes, size));

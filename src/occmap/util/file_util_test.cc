@@ -52,6 +52,42 @@ TEST(FileUtil, DirectoryIsNotAFile) {
   EXPECT_NE(r.status().message().find("expected a file, found a directory"), std::string::npos);
 }
 
+// Issue 39: a FIFO, a folder or a loop of links each said as what it is, never opened.
+TEST(FileUtil, CheckRegularFileSaysWhatAPathIsInstead) {
+  testing::TempDir dir;
+  ASSERT_EQ(::mkfifo((dir / "fifo").c_str(), 0600), 0);
+  fs::create_directory(dir / "folder");
+  fs::create_symlink(dir / "loop-b", dir / "loop-a");
+  fs::create_symlink(dir / "loop-a", dir / "loop-b");
+  fs::create_symlink(dir / "gone", dir / "dangling");
+  ASSERT_TRUE(WriteFileAtomic(dir / "file", "x").ok());
+  fs::create_symlink(dir / "file", dir / "link");
+  EXPECT_TRUE(CheckRegularFile(dir / "file").ok());
+  EXPECT_TRUE(CheckRegularFile(dir / "link").ok());
+  const struct {
+    std::string name;
+    StatusCode code;
+    std::string message;
+  } cases[] = {
+      {"fifo", StatusCode::kInvalidInput, "'{0}/fifo': expected a regular file, found a FIFO"},
+      {"folder", StatusCode::kInvalidInput, "'{0}/folder': expected a file, found a directory"},
+      {"loop-a", StatusCode::kInvalidInput,
+       "'{0}/loop-a': cannot be read: Too many levels of symbolic links (a loop of symbolic links)"},
+      {"dangling", StatusCode::kNotFound,
+       "file not found: '{0}/dangling' (a symbolic link to '{0}/gone', which does not exist)"},
+      {"missing", StatusCode::kNotFound, "file not found: '{0}/missing'"},
+  };
+  for (const auto& c : cases) {
+    const Status s = CheckRegularFile(dir / c.name);
+    EXPECT_EQ(s.code(), c.code) << c.name;
+    EXPECT_EQ(s.message(), fmt::format(fmt::runtime(c.message), dir.path().string())) << c.name;
+    // Every reader says the same (a FIFO without a writer would block: it is not opened).
+    EXPECT_EQ(ReadFileToString(dir / c.name).status().message(), s.message()) << c.name;
+  }
+  EXPECT_EQ(ExitCodeFor(CheckRegularFile(dir / "fifo")), 2);
+  EXPECT_EQ(ExitCodeFor(CheckRegularFile(dir / "loop-a")), 2);
+}
+
 TEST(AtomicFileWriter, NothingAppearsUntilCommit) {
   testing::TempDir dir;
   {

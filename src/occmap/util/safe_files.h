@@ -29,6 +29,13 @@ inline constexpr uint64_t kMaxTextFileBytes = uint64_t{64} << 20;  // 64 MiB
 // ReadFileToString(path) is this with kMaxReadBytes.
 Result<std::string> ReadFileToString(const std::filesystem::path& path, uint64_t max_bytes);
 
+// OK when `path` (symbolic links followed) is a regular file, checked without opening it; else
+// what it is, naming the path: "file not found: 'p'" (kNotFound; a symbolic link to a missing
+// file says so), "'p': expected a file, found a directory", "'p': expected a regular file, found
+// a FIFO" (a device, a socket), "'p': cannot be read: Too many levels of symbolic links (a loop
+// of symbolic links)" (kInvalidInput).
+Status CheckRegularFile(const std::filesystem::path& path);
+
 // Removes the '.tmp-<name>-<pid>-<n>' files that util/file_util and io/video_writer write, in
 // `dir` (and its sub-folders when `recursive`), whose process is gone: what a killed run
 // (kill -9) could not remove. Files of running processes and every other name are left alone.
