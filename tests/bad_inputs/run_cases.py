@@ -277,6 +277,53 @@ site("site_source_unknown", "source: {images: frames/cam1/%06d.png}", "source: {
      ["cameras[0].source", "unknown field 'image'"])
 site("site_source_video_missing", "source: {images: frames/cam1/%06d.png}", "source: {video: none.mp4}",
      ["cameras[0].source.video", "file not found", "none.mp4"])
+
+
+# --- files that are not files (issue 39): a FIFO with no writer would block an open forever -----
+def make_special(path, kind):
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "folder":
+        os.makedirs(path)
+    elif kind == "loop":  # path -> path.b -> path
+        os.symlink(path + ".b", path)
+        os.symlink(path, path + ".b")
+
+
+def special_site(name, kind, frm, to, words, cmd="check", args=(), code=2, timeout=30):
+    """A copy of the lab site with `frm` replaced by `to`, where {c}/special is made a `kind`."""
+    def setup(case_dir, work):
+        assert frm in LAB_SITE, f"{name}: '{frm}' is not in the lab site"
+        text = with_data_root(LAB_SITE.replace(frm, to, 1), "lab").replace("{w}", work).replace("{c}", case_dir)
+        with open(os.path.join(case_dir, "site.yaml"), "w") as f:
+            f.write(text)
+        make_special(os.path.join(case_dir, "special"), kind)
+    extra = list(args)
+    if cmd == "run":
+        extra = ["--frames", "2", "--no-video", "--no-cache", "--out", "{c}/out"] + extra
+    add(name, ["{bin}", cmd, "{c}/site.yaml"] + extra, ["site.yaml"] + words, code=code, setup=setup, timeout=timeout)
+
+
+for cmd in ("check", "run"):
+    special_site(f"site_source_video_fifo_{cmd}", "fifo", "source: {images: frames/cam1/%06d.png}",
+                 "source: {video: {c}/special}", ["cameras[0].source.video", "special': expected a regular file, found a FIFO"],
+                 cmd=cmd)
+special_site("site_source_video_loop", "loop", "source: {images: frames/cam1/%06d.png}", "source: {video: {c}/special}",
+             ["cameras[0].source.video", "Too many levels of symbolic links (a loop of symbolic links)"])
+# A stream from a FIFO nobody writes to: an error after the stream timeout (10 s), not a run
+# blocked for good.
+special_site("site_source_stream_fifo_no_writer", "fifo", "source: {images: frames/cam1/%06d.png}",
+             "source: {stream: {c}/special}", ["camera cam1", "no data within 10000 ms (the FIFO has no writer, or it is silent)"],
+             cmd="run", code=1, timeout=40)
+MQTT_OUT = "outputs:\n  mqtt:\n    url: mqtt://127.0.0.1:1\n    username: u\n    password_file: {c}/special\n"
+for kind, found in (("fifo", "expected a regular file, found a FIFO"), ("folder", "expected a file, found a directory"),
+                    ("loop", "(a loop of symbolic links)")):
+    special_site(f"site_mqtt_password_file_{kind}", kind, "cameras:", MQTT_OUT + "cameras:",
+                 ["outputs.mqtt.password_file", "special': " if kind != "loop" else "special': cannot be read", found])
+add("cli_calibrate_board_video_fifo",
+    ["{bin}", "calibrate", "--board-video", "{c}/board.fifo", "--board-size", "9x6", "--square-m", "0.03", "--out", "{c}/o"],
+    ["board.fifo", "expected a regular file, found a FIFO"], setup=lambda c, w: os.mkfifo(os.path.join(c, "board.fifo")),
+    timeout=20)
 site("site_source_fps_video", "source: {images: frames/cam1/%06d.png}", "source: {video: ../labvid/frames/cam1.mp4, fps: 5}",
      ["cameras[0].source.fps", "fps is for images and masks"])
 site("site_source_fps_negative", "source: {images: frames/cam1/%06d.png}", "source: {images: frames/cam1/%06d.png, fps: -5}",

@@ -13,7 +13,10 @@ extern "C" {
 #include <libswscale/swscale.h>
 }
 
+#include <fcntl.h>
 #include <fmt/core.h>
+#include <poll.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -30,6 +33,7 @@ extern "C" {
 #include "occmap/io/ffmpeg_util.h"
 #include "occmap/io/frame_source.h"
 #include "occmap/io/limited_range.h"
+#include "occmap/util/safe_files.h"
 #include "occmap/util/yuv.h"
 
 namespace occmap {
@@ -163,6 +167,14 @@ class VideoSource final : public FrameSource {
     name_ = fmt::format("{} '{}'", stream_ ? "stream" : "video", RedactUrl(location_));
   }
 
+  ~VideoSource() override {
+    codec_.reset();
+    format_.reset();
+    CloseFifo();
+  }
+  VideoSource(const VideoSource&) = delete;
+  VideoSource& operator=(const VideoSource&) = delete;
+
   Status Open();
 
   std::string Describe() const override {
@@ -225,6 +237,13 @@ class VideoSource final : public FrameSource {
     return DataLoss(fmt::format("{}: frame {}: {}", name_, index, what));
   }
 
+  // FFmpeg's pipe: protocol leaves the descriptor open: closed here, after the input.
+  void CloseFifo() {
+    if (fifo_fd_ < 0) return;
+    format_.reset();
+    ::close(fifo_fd_);
+    fifo_fd_ = -1;
+  }
   void ArmDeadline() {
     deadline_ = std::chrono::steady_clock::now() + std::chrono::milliseconds(options_.stream_timeout_ms);
   }
@@ -260,6 +279,7 @@ class VideoSource final : public FrameSource {
   std::string pending_error_;  // a read error to report once the decoder is drained
   std::chrono::steady_clock::time_point deadline_;
   int decode_errors_in_a_row_ = 0;
+  int fifo_fd_ = -1;  // a stream from a local FIFO (see OpenOnce)
 };
 
 Status VideoSource::OpenError(const char* what, int error) const {
@@ -268,6 +288,9 @@ Status VideoSource::OpenError(const char* what, int error) const {
     return IoError(fmt::format("{}: {}: no answer within {} ms", name_, what, options_.stream_timeout_ms));
   }
   if (error == AVERROR(ENOENT)) return NotFound(message);
+  if (fifo_fd_ >= 0 && error == AVERROR_EOF) {  // read(2) of a FIFO gives 0 once its writer is gone
+    return IoError(fmt::format("{}: {}: the FIFO's writer closed it", name_, what));
+  }
   if (error == AVERROR(ENOMEM)) return ResourceExhausted(message);
   if (error == AVERROR(EACCES) || error == AVERROR(EPERM)) return InvalidInput(message);
   if (stream_) return IoError(message);
@@ -282,6 +305,7 @@ Status VideoSource::Open() {
   if (!status.ok()) {  // leave nothing half-open behind (DecodeNext checks codec_)
     codec_.reset();
     format_.reset();
+    CloseFifo();
   }
   return status;
 }
@@ -305,10 +329,41 @@ Status VideoSource::OpenOnce() {
     });
     if (location_.starts_with("/dev/video")) input_format = av_find_input_format("video4linux2");
   } else {
+    // A FIFO (or a device) is refused without opening it: open(2) of a FIFO with no writer
+    // blocks for good, out of reach of FFmpeg's interrupt callback (issue 39).
     std::error_code ec;
-    if (!fs::exists(location_, ec)) return NotFound(fmt::format("file not found: '{}'", location_));
     if (fs::is_directory(location_, ec)) {
       return InvalidInput(fmt::format("{}: expected a video file, found a folder", name_));
+    }
+    if (Status s = CheckRegularFile(location_); !s.ok()) {
+      if (s.code() == StatusCode::kNotFound) return s;
+      std::string what = s.message();  // "'<location>': expected ..." -> "video '<location>': expected ..."
+      if (const std::string quoted = fmt::format("'{}': ", location_); what.starts_with(quoted)) what.erase(0, quoted.size());
+      return Status(s.code(), fmt::format("{}: {}", name_, what));
+    }
+  }
+
+  // A stream from a local FIFO (`ffmpeg ... -f mpegts cam.fifo`): opened here without blocking
+  // and given to FFmpeg as pipe:FD, so that waiting for a writer, or for data, polls the
+  // interrupt callback (the timeout, the run's stop) instead of blocking in open(2) or read(2).
+  std::string url = location_;
+  CloseFifo();
+  if (stream_ && location_.find("://") == std::string::npos) {
+    std::error_code ec;
+    if (fs::is_fifo(location_, ec)) {
+      fifo_fd_ = ::open(location_.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+      if (fifo_fd_ < 0) return IoError(fmt::format("{}: cannot open: {}", name_, std::strerror(errno)));
+      url = fmt::format("pipe:{}", fifo_fd_);
+      // Until a writer sends something: read(2) gives 0 (the end) while the FIFO has no writer.
+      ArmDeadline();
+      for (;;) {
+        pollfd ready{fifo_fd_, POLLIN, 0};
+        if (::poll(&ready, 1, 50) > 0) break;  // data, or a writer came and went (the end, told below)
+        if (Interrupt(this) != 0) {
+          return IoError(fmt::format("{}: cannot open: no data within {} ms (the FIFO has no writer, or it is silent)",
+                                     name_, options_.stream_timeout_ms));
+        }
+      }
     }
   }
 
@@ -319,7 +374,7 @@ Status VideoSource::OpenOnce() {
     raw->interrupt_callback.opaque = this;
   }
   ArmDeadline();
-  int error = avformat_open_input(&raw, location_.c_str(), input_format, nullptr);
+  int error = avformat_open_input(&raw, url.c_str(), input_format, nullptr);
   if (error < 0) return OpenError("cannot open", error);  // raw is freed by FFmpeg
   format_.reset(raw);
   if (!stream_) {

@@ -1,10 +1,15 @@
 #include <fmt/core.h>
 #include <gtest/gtest.h>
+#include <fcntl.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <thread>
 #include <cmath>
 #include <filesystem>
 #include <string>
@@ -591,6 +596,82 @@ TEST(StreamSource, SilentServerTimesOutInsteadOfHanging) {
   ASSERT_FALSE(source.ok());
   EXPECT_EQ(source.status().code(), StatusCode::kIoError);
   EXPECT_EQ(source.status().message(), fmt::format("stream '{}': cannot open: no answer within 300 ms", url));
+}
+
+// Issue 39: a FIFO where a video file is expected blocked `occmap run` and `calibrate
+// --board-video` for good (open(2) waits for a writer): refused without opening it.
+TEST(VideoSource, AFifoIsRefusedWithoutOpeningIt) {
+  testing::TempDir dir;
+  ASSERT_EQ(::mkfifo((dir / "c1.mp4").c_str(), 0600), 0);
+  auto source = OpenVideo(dir / "c1.mp4");
+  ASSERT_FALSE(source.ok());
+  EXPECT_EQ(source.status().code(), StatusCode::kInvalidInput);
+  EXPECT_EQ(source.status().message(),
+            fmt::format("video '{}': expected a regular file, found a FIFO", (dir / "c1.mp4").string()));
+}
+
+// A stream from a FIFO (another program writes MPEG-TS or Matroska into it): read as it comes,
+// to its end when the writer closes.
+TEST(StreamSource, AFifoIsReadUntilItsWriterCloses) {
+  testing::TempDir dir;
+  WriteClip(dir / "clip.mkv");
+  const std::string clip = *ReadFileToString(dir / "clip.mkv");
+  const fs::path fifo = dir / "cam.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // Read-write: a writer from the start (no race with the source's open), never a reader.
+  const int writer = ::open(fifo.c_str(), O_RDWR | O_CLOEXEC);
+  ASSERT_GE(writer, 0);
+  std::thread feed([&] {
+    for (size_t at = 0; at < clip.size();) {
+      const ssize_t n = ::write(writer, clip.data() + at, clip.size() - at);
+      if (n <= 0) break;
+      at += static_cast<size_t>(n);
+    }
+    ::close(writer);
+  });
+  auto source = OpenFrameSource({FrameSourceSpec::Kind::kStream, fifo.string()}, {});
+  ASSERT_TRUE(source.ok()) << source.status().message();
+  EXPECT_EQ(ReadAll(**source).size(), static_cast<size_t>(kFrames));
+  feed.join();
+}
+
+// Issue 39: a stream from a FIFO blocked in open(2) (no writer) or read(2) (a silent writer),
+// deaf to the stream timeout and to the run's stop (SIGTERM).
+TEST(StreamSource, AFifoWithoutAWriterOrWithASilentOneIsAnErrorNotAHang) {
+  testing::TempDir dir;
+  const fs::path fifo = dir / "cam.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  FrameSourceOptions options;
+  options.stream_timeout_ms = 300;
+  const std::string none =
+      fmt::format("stream '{}': cannot open: no data within 300 ms (the FIFO has no writer, or it is silent)", fifo.string());
+  auto alone = OpenFrameSource({FrameSourceSpec::Kind::kStream, fifo.string()}, options);
+  ASSERT_FALSE(alone.ok());
+  EXPECT_EQ(alone.status().code(), StatusCode::kIoError);
+  EXPECT_EQ(alone.status().message(), none);
+
+  const int writer = ::open(fifo.c_str(), O_RDWR | O_CLOEXEC);  // holds the FIFO open, writes nothing
+  ASSERT_GE(writer, 0);
+  auto silent = OpenFrameSource({FrameSourceSpec::Kind::kStream, fifo.string()}, options);
+  ASSERT_FALSE(silent.ok());
+  EXPECT_EQ(silent.status().message(), none);
+  // A few bytes, then silence: FFmpeg's reads wait without blocking, to the timeout.
+  ASSERT_EQ(::write(writer, "\x1a\x45\xdf\xa3", 4), 4);
+  auto stalled = OpenFrameSource({FrameSourceSpec::Kind::kStream, fifo.string()}, options);
+  ASSERT_FALSE(stalled.ok());
+  EXPECT_EQ(stalled.status().message(), fmt::format("stream '{}': cannot open: no answer within 300 ms", fifo.string()));
+  // A stop (the run's SIGTERM sets it) ends the wait however long the timeout.
+  std::atomic<bool> stop{false};
+  options.stream_timeout_ms = 3'600'000;
+  options.cancel = &stop;
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    stop = true;
+  });
+  auto stopped = OpenFrameSource({FrameSourceSpec::Kind::kStream, fifo.string()}, options);
+  stopper.join();
+  EXPECT_FALSE(stopped.ok());
+  ::close(writer);
 }
 
 TEST(VideoWriter, OddSizeIsPaddedToEven) {

@@ -315,10 +315,8 @@ Result<FrameSourceSpec> ParseSource(const YamlField& field, const PathContext& c
               : key == "video" ? FrameSourceSpec::Kind::kVideo
                                : FrameSourceSpec::Kind::kMasks;
   spec.location = ResolvePath(ctx.data_root, value).string();
-  if (key == "video" && !fs::exists(spec.location)) {
-    return Status(StatusCode::kNotFound,
-                  fmt::format("{}: file not found: '{}'", field.Find(key)->Where(), spec.location));
-  }
+  // A FIFO would block the run's open forever: refused here, without opening it (issue 39).
+  if (key == "video") OCCMAP_RETURN_IF_ERROR(CheckRegularFile(spec.location).WithContext(field.Find(key)->Where()));
   return spec;
 }
 
