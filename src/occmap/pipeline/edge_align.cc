@@ -44,9 +44,11 @@ void FrameSetAligner::Add(EdgeMessage m, Clock::time_point arrival) {
   const size_t c = m.camera;
   const double key = Key(m);
   auto& q = pending_[c];
-  // A copy: it says nothing new about the camera (not even that it is alive: a replay).
+  // A copy: dropped. If the first copy was a replay that came early, this one is the camera's
+  // own, in order: its stream has reached the key (no evidence that it is alive otherwise).
   if (key == last_taken_[c] || std::any_of(q.begin(), q.end(), [&](const Pending& p) { return p.key == key; })) {
     ++duplicates_[c];
+    if (key > newest_[c]) MoveStream(c, key, arrival);
     return;
   }
   last_heard_[c] = arrival;
@@ -58,9 +60,20 @@ void FrameSetAligner::Add(EdgeMessage m, Clock::time_point arrival) {
     return;
   }
   ended_[c] = false;
-  newest_[c] = key;
   auto at = std::upper_bound(q.begin(), q.end(), key, [](double k, const Pending& p) { return k < p.key; });
-  q.insert(at, Pending{std::move(m), key, arrival});
+  q.insert(at, Pending{std::move(m), key, arrival, std::nullopt});
+  MoveStream(c, key, arrival);
+}
+
+void FrameSetAligner::MoveStream(size_t c, double key, Clock::time_point arrival) {
+  for (Pending& p : pending_[c]) {
+    if (p.key > key) {
+      p.reached.reset();  // back (a message older than those that came first): not reached yet
+    } else if (!p.reached) {
+      p.reached = arrival;
+    }
+  }
+  newest_[c] = key;
 }
 
 void FrameSetAligner::End(size_t camera, int64_t frame, Clock::time_point arrival) {
@@ -101,8 +114,11 @@ std::optional<AlignedSet> FrameSetAligner::Next(Clock::time_point now) {
   Clock::time_point first = Clock::time_point::max();
   for (size_t c = 0; c < n; ++c) {
     const auto& q = pending_[c];
-    if (!q.empty() && q.front().key <= anchor + tolerance()) {
-      first = std::min(first, q.front().arrival);
+    // Its message for the anchor, and its stream has reached it (its last accepted arrival is
+    // not older): a message that came before older ones (a copy published early) waits for the
+    // camera's own, or for the budget counted from a message that did reach it.
+    if (!q.empty() && q.front().key <= anchor + tolerance() && q.front().reached) {
+      first = std::min(first, *q.front().reached);
       continue;
     }
     // Its last message is past the anchor: one per topic arrives in order, so the anchor's is

@@ -14,11 +14,12 @@
 //
 // The broker is not trusted to deliver each message once and in order (issue 39): a copy of a
 // message pending or just taken (a replay, a QoS 1 redelivery) is dropped and counted as a
-// duplicate, so no frame set is fused twice; "a later message decides a camera" reads the
-// camera's last accepted arrival, not any pending message (a replayed later frame that arrived
-// first decides nothing); and by index, the first set waits for the edges' first frame (its own
-// message from every camera, up to start_wait_s): replayed later frames published before the
-// edges started cost no genuine frame.
+// duplicate, so no frame set is fused twice. A camera's stream is where its last accepted
+// arrival is (a copy of a pending message moves it there too): a pending message counts for a
+// set once the stream has reached it, and "a later message decides a camera" once the stream
+// is past the anchor (copies of later frames that arrived first decide nothing). By index, the
+// first set waits for the edges' first frame (every camera's own message, up to start_wait_s):
+// copies of later frames published before the edges started cost no genuine frame.
 //
 //   FrameSetAligner a(n_cams, options, Clock::now());
 //   a.Add(std::move(message), arrival);           // or a.End(camera, frame, arrival)
@@ -93,7 +94,12 @@ class FrameSetAligner {
     EdgeMessage message;
     double key;
     Clock::time_point arrival;
+    // When the camera's stream reached it (its last accepted arrival not older); none while it
+    // has not: the budget counts from here.
+    std::optional<Clock::time_point> reached;
   };
+  // The camera's stream is at `key` (a message accepted, or a copy of a pending one past it).
+  void MoveStream(size_t camera, double key, Clock::time_point arrival);
   AlignOptions options_;
   Clock::time_point start_;
   std::vector<std::deque<Pending>> pending_;

@@ -49,6 +49,10 @@ TEST(FrameSetAligner, ByIndexWaitsForEveryCameraThenFusesInOrder) {
   EXPECT_FALSE(a.Next(t0 + milliseconds(10)));  // frame 1: cameras 1 and 2 undecided
   a.Add(Message(1, 1, 0.1), t0);
   a.Add(Message(2, 2, 0.2), t0);  // camera 2's frame 1 is lost: a later one decides it
+  // Camera 0's frame 1 came before its frame 0 (as a copy published early would): it counts
+  // once the camera's stream is past it.
+  EXPECT_FALSE(a.Next(t0 + milliseconds(10)));
+  a.Add(Message(0, 2, 0.2), t0);
   s = a.Next(t0 + milliseconds(10));
   ASSERT_TRUE(s);
   EXPECT_EQ(s->frame, 1);
