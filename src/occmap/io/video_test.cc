@@ -720,6 +720,31 @@ TEST(VideoWriter, CloseRenamesTheFinishedFileIntoPlace) {
   EXPECT_EQ(ReadAll(**source).size(), 3u);
 }
 
+TEST(VideoWriter, AHigherCrfGivesASmallerFileAndLargerErrors) {
+  testing::TempDir dir;
+  double previous_error = -1;
+  uintmax_t previous_size = 0;
+  for (int crf : {12, 28, 44}) {
+    const fs::path path = dir / fmt::format("crf{}.mp4", crf);
+    VideoWriterOptions options;
+    options.crf = crf;
+    WriteClip(path, kFrames, {kWidth, kHeight}, kFps, options);
+    auto source = OpenVideo(path, {.colour = true});
+    ASSERT_TRUE(source.ok()) << source.status().message();
+    const std::vector<Frame> frames = ReadAll(**source);
+    ASSERT_EQ(frames.size(), static_cast<size_t>(kFrames));
+    double error = 0;
+    for (int t = 0; t < kFrames; ++t) error += MeanAbsRgbError(frames[static_cast<size_t>(t)].rgb, ClipFrame(kWidth, kHeight, t));
+    const uintmax_t size = fs::file_size(path);
+    if (previous_error >= 0) {
+      EXPECT_GT(error, previous_error) << "crf " << crf;
+      EXPECT_LT(size, previous_size) << "crf " << crf;
+    }
+    previous_error = error;
+    previous_size = size;
+  }
+}
+
 TEST(VideoWriter, BadArgumentsAreErrorsNamingTheFile) {
   testing::TempDir dir;
   const std::string path = (dir / "x.mp4").string();
@@ -734,6 +759,10 @@ TEST(VideoWriter, BadArgumentsAreErrorsNamingTheFile) {
   writer = VideoWriter::Open(dir / "x.mp4", {kWidth, kHeight}, kFps, {.encoder = "vp9"});
   EXPECT_EQ(writer.status().message(),
             fmt::format("'{}': encoder: expected '', 'libx264' or 'mpeg4', found 'vp9'", path));
+  VideoWriterOptions bad_crf;
+  bad_crf.crf = 60;
+  writer = VideoWriter::Open(dir / "x.mp4", {kWidth, kHeight}, kFps, bad_crf);
+  EXPECT_EQ(writer.status().message(), fmt::format("'{}': crf: expected -1 (the default, 23) or 0..51, found 60", path));
   writer = VideoWriter::Open(dir / "no-such-folder" / "x.mp4", {kWidth, kHeight}, kFps);
   EXPECT_EQ(writer.status().code(), StatusCode::kIoError) << writer.status().message();
 

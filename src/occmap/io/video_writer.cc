@@ -122,6 +122,10 @@ Status VideoWriterImpl::Open(ImageSize size, double fps, const VideoWriterOption
     return InvalidInput(fmt::format("{}: expected a video file extension (.mp4, .mkv, .avi, .mov), found '{}'", Where(),
                                     path_.extension().string()));
   }
+  if (options.crf < -1 || options.crf > 51) {
+    return InvalidInput(
+        fmt::format("{}: crf: expected -1 (the default, {}) or 0..51, found {}", Where(), kX264Crf, options.crf));
+  }
   if (!options.encoder.empty() && options.encoder != "libx264" && options.encoder != "mpeg4") {
     return InvalidInput(
         fmt::format("{}: encoder: expected '', 'libx264' or 'mpeg4', found '{}'", Where(), options.encoder));
@@ -185,10 +189,13 @@ Status VideoWriterImpl::Open(ImageSize size, double fps, const VideoWriterOption
   Dictionary codec_options;
   if (codec_name_ == "libx264") {
     av_dict_set(&codec_options.dict, "preset", kX264Preset, 0);
-    av_dict_set_int(&codec_options.dict, "crf", kX264Crf, 0);
+    av_dict_set_int(&codec_options.dict, "crf", options.crf >= 0 ? options.crf : kX264Crf, 0);
   } else {
     codec_->flags |= AV_CODEC_FLAG_QSCALE;
-    codec_->global_quality = FF_QP2LAMBDA * kMpeg4QScale;
+    // A crf as a quantiser: x264's scale doubles the step every 6, from crf 23 at the default 4.
+    const int qscale = options.crf >= 0 ? std::clamp(static_cast<int>(std::lround(kMpeg4QScale * std::exp2((options.crf - kX264Crf) / 6.0))), 2, 31)
+                                        : kMpeg4QScale;
+    codec_->global_quality = FF_QP2LAMBDA * qscale;
   }
   error = avcodec_open2(codec_.get(), encoder, &codec_options.dict);
   if (error < 0) {

@@ -11,10 +11,10 @@
 //
 // The container comes from the file extension (.mp4, .mkv, .avi, .mov); MP4/MOV files have
 // their index in front ("faststart"). Pictures are stored as yuv420p, BT.601, limited range,
-// tagged as such; H.264 at constant quality (x264 crf 23, preset veryfast), MPEG-4 at a constant
-// quantiser of 4. Odd sizes are padded to even ones by repeating the last column / row, so a
-// reader sees the padded size. Frame i has the timestamp i / fps. FFmpeg's own log is kept
-// quiet (see frame_source.h). A writer is used from one thread at a time.
+// tagged as such; H.264 at constant quality (x264 crf 23 unless VideoWriterOptions::crf, preset
+// veryfast), MPEG-4 at a constant quantiser of 4. Odd sizes are padded to even ones by
+// repeating the last column / row, so a reader sees the padded size. Frame i has the timestamp
+// i / fps. FFmpeg's own log is kept quiet (see frame_source.h). A writer is used from one thread at a time.
 #pragma once
 
 #include <filesystem>
@@ -36,6 +36,9 @@ struct VideoWriterOptions {
   // last whole fragment while it is written and after the process dies (kill -9). Close then
   // only flushes the last fragment. For live runs (pipeline/output_files.h).
   bool fragmented = false;
+  // H.264's constant rate factor, 0 (lossless) .. 51 (worst); -1 = 23. MPEG-4 takes it as the
+  // quantiser 4 x 2^((crf - 23) / 6), within 2..31.
+  int crf = -1;
 };
 
 class VideoWriter {
