@@ -85,14 +85,15 @@ Result<cv::Mat> Decode(const fs::path& path, int flags) {
   return mat;
 }
 
-Status Encode(const fs::path& path, const cv::Mat& mat) {
+Status Encode(const fs::path& path, const cv::Mat& mat, const char* extension = ".png", const std::vector<int>& params = {}) {
   std::vector<uchar> buffer;
+  const char* format = std::string_view(extension) == ".png" ? "PNG" : "JPEG";
   try {
-    if (!cv::imencode(".png", mat, buffer)) {
-      return IoError(fmt::format("'{}': PNG encoding failed", path.string()));
+    if (!cv::imencode(extension, mat, buffer, params)) {
+      return IoError(fmt::format("'{}': {} encoding failed", path.string(), format));
     }
   } catch (const cv::Exception& e) {
-    return IoError(fmt::format("'{}': PNG encoding failed: {}", path.string(), e.what()));
+    return IoError(fmt::format("'{}': {} encoding failed: {}", path.string(), format, e.what()));
   }
   return WriteFileAtomic(path, std::as_bytes(std::span(buffer.data(), buffer.size())));
 }
@@ -123,14 +124,27 @@ Status WritePng(const fs::path& path, ImageView<const uint8_t> image) {
   return Encode(path, mat);
 }
 
-Status WritePng(const fs::path& path, ImageView<const Rgb8> image) {
+namespace {
+
+cv::Mat ToBgr(ImageView<const Rgb8> image) {
   cv::Mat bgr(image.height(), image.width(), CV_8UC3);
   for (int y = 0; y < image.height(); ++y) {
     const Rgb8* src = image.row(y);
     auto* dst = bgr.ptr<cv::Vec3b>(y);
     for (int x = 0; x < image.width(); ++x) dst[x] = cv::Vec3b(src[x].b, src[x].g, src[x].r);
   }
-  return Encode(path, bgr);
+  return bgr;
+}
+
+}  // namespace
+
+Status WritePng(const fs::path& path, ImageView<const Rgb8> image) { return Encode(path, ToBgr(image)); }
+
+Status WriteJpeg(const fs::path& path, ImageView<const Rgb8> image, int quality) {
+  if (quality < 1 || quality > 100) {
+    return InvalidInput(fmt::format("'{}': JPEG quality: expected 1..100, found {}", path.string(), quality));
+  }
+  return Encode(path, ToBgr(image), ".jpg", {cv::IMWRITE_JPEG_QUALITY, quality});
 }
 
 }  // namespace occmap

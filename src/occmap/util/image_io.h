@@ -22,5 +22,7 @@ Result<Image<Rgb8>> ReadRgbImage(const std::filesystem::path& path);
 
 Status WritePng(const std::filesystem::path& path, ImageView<const uint8_t> image);
 Status WritePng(const std::filesystem::path& path, ImageView<const Rgb8> image);
+// Baseline JPEG (4:2:0 chroma, OpenCV's libjpeg) at a quality of 1..100.
+Status WriteJpeg(const std::filesystem::path& path, ImageView<const Rgb8> image, int quality);
 
 }  // namespace occmap
