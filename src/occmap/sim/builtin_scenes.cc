@@ -95,7 +95,48 @@ Status BuiltinSceneOptions::Validate() const {
     return InvalidInput(
         fmt::format("sun elevation: expected 5..90 degrees (or -1 for the scene's default), found {}", sun_elevation_deg));
   }
+  if (overcast && sun_elevation_deg != -1) {
+    return InvalidInput(fmt::format("overcast: an overcast sky has no sun, found a sun elevation of {} degrees too",
+                                    sun_elevation_deg));
+  }
+  if (white_balance && !(*white_balance >= 0 && *white_balance <= 1)) {
+    return InvalidInput(fmt::format("white balance: expected a grey-world strength 0..1, found {}", *white_balance));
+  }
+  if (read_noise && !(*read_noise >= 0 && *read_noise <= 50)) {
+    return InvalidInput(fmt::format("read noise: expected 0..50 grey levels, found {}", *read_noise));
+  }
+  if (shot_noise && !(*shot_noise >= 0 && *shot_noise <= 10)) {
+    return InvalidInput(fmt::format("shot noise: expected 0..10 grey levels of variance per grey level, found {}", *shot_noise));
+  }
+  if (supersample && (*supersample < 1 || *supersample > 4)) {
+    return InvalidInput(fmt::format("supersample: expected 1..4 rays per pixel along each axis, found {}", *supersample));
+  }
+  if (jpeg_quality && (*jpeg_quality < 0 || *jpeg_quality > 100)) {
+    return InvalidInput(fmt::format("JPEG quality: expected 0 (PNG) or 1..100, found {}", *jpeg_quality));
+  }
+  if (video_crf && (*video_crf < -1 || *video_crf > 51)) {
+    return InvalidInput(fmt::format("video crf: expected -1 (the writer's default) or an H.264 crf 0..51, found {}", *video_crf));
+  }
+  if (contact_shadows && !(*contact_shadows >= 0 && *contact_shadows <= 1)) {
+    return InvalidInput(fmt::format("contact shadows: expected a strength 0..1, found {}", *contact_shadows));
+  }
   return Status::Ok();
+}
+
+void ApplyRealCameraPreset(PhotometrySpec& photometry) {
+  CameraResponseSpec& c = photometry.camera;
+  c.auto_exposure = true;
+  c.target_luma = 0;
+  c.max_gain = 4;
+  c.white_balance = 0.6;
+  c.time_constant_s = 0.4;
+  c.read_noise = 1.2;
+  c.shot_noise = 0.04;
+  c.supersample = 2;
+  c.jpeg_quality = 75;
+  c.video_crf = 28;
+  photometry.noise_sigma = 0;  // the sensor's noise instead
+  photometry.contact_shadows = ContactShadowSpec{.strength = 0.5, .radius_m = 0.22, .reach_m = 1.5};
 }
 
 namespace {
@@ -113,6 +154,9 @@ Status CheckNoPlazaOptions(const BuiltinSceneOptions& options, std::string_view 
   if (options.sun_elevation_deg != -1) {
     return InvalidInput(fmt::format("sun elevation: only the built-in plaza scene has a sun, found {} degrees for scene '{}'",
                                     options.sun_elevation_deg, scene));
+  }
+  if (options.overcast) {
+    return InvalidInput(fmt::format("overcast: only the built-in plaza scene has a sky to change, found it for scene '{}'", scene));
   }
   return Status::Ok();
 }
@@ -146,6 +190,20 @@ Status ApplyBuiltinOptions(const BuiltinSceneOptions& options, SceneSpec& spec) 
     }
   }
   if (options.num_frames > 0) spec.num_frames = options.num_frames;
+  PhotometrySpec& ph = spec.photometry;
+  if (options.real_camera == true) ApplyRealCameraPreset(ph);
+  if (options.real_camera == false) {
+    ph.camera = CameraResponseSpec{};
+    ph.contact_shadows = ContactShadowSpec{};
+  }
+  if (options.auto_exposure) ph.camera.auto_exposure = *options.auto_exposure;
+  if (options.white_balance) ph.camera.white_balance = *options.white_balance;
+  if (options.read_noise) ph.camera.read_noise = *options.read_noise;
+  if (options.shot_noise) ph.camera.shot_noise = *options.shot_noise;
+  if (options.supersample) ph.camera.supersample = *options.supersample;
+  if (options.jpeg_quality) ph.camera.jpeg_quality = *options.jpeg_quality;
+  if (options.video_crf) ph.camera.video_crf = *options.video_crf;
+  if (options.contact_shadows) ph.contact_shadows.strength = *options.contact_shadows;
   if (options.noise_sigma >= 0) spec.photometry.noise_sigma = options.noise_sigma;
   spec.photometry.shadows = spec.photometry.shadows || options.shadows;
   if (options.exposure_drift >= 0) spec.photometry.exposure_drift = options.exposure_drift;

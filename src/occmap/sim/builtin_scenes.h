@@ -15,7 +15,8 @@
 //              1280x720 pinhole cameras on poles at 2.6-3.5 m around it looking across (mild
 //              barrel distortion), pillars, planters, a kiosk and benches inside; a low sun
 //              (25 degrees by default) casting long dark shadows, bluish sky light in them,
-//              exposure drift; `people` people at a time (default 16), drawn from the seed:
+//              exposure drift (or an overcast sky: soft contact shadows only);
+//              `people` people at a time (default 16), drawn from the seed:
 //              some cross the square (entering and leaving beyond its edges), some meet in
 //              groups of 2-3 and talk for 10-40 s, some stand alone for 20-50 s, then leave;
 //              one object id per visit. Default 60 s at 10 fps (plaza_scene.cc).
@@ -26,6 +27,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -44,12 +46,36 @@ struct BuiltinSceneOptions {
   double noise_sigma = -1;      // -1: the scene's default (2 grey levels)
   bool shadows = false;          // true: cast shadows on (a scene may have them on already: plaza)
   double exposure_drift = -1;    // relative amplitude 0..0.5 (0 = off); -1: the scene's (plaza 0.1, else 0)
+  // A real camera and contact shadows (RealCameraPreset): nullopt keeps the scene's, true
+  // turns the preset on, false the ideal camera with no contact shadows.
+  std::optional<bool> real_camera;
+  // Single knobs, applied after real_camera (nullopt: as the scene or the preset has them;
+  // ranges as scene.h's CameraResponseSpec and ContactShadowSpec).
+  std::optional<bool> auto_exposure;
+  std::optional<double> white_balance;    // grey-world strength 0..1
+  std::optional<double> read_noise;       // grey levels
+  std::optional<double> shot_noise;       // variance per grey level
+  std::optional<int> supersample;         // 1..4
+  std::optional<int> jpeg_quality;        // 0 (PNG) .. 100
+  std::optional<int> video_crf;           // -1 .. 51
+  std::optional<double> contact_shadows;  // strength 0..1 (0 = off)
   // Plaza only (-1: its default; the other scenes reject any other value):
   int people = -1;                // people in the area at a time, 1..40 (default 16)
   double duration_s = -1;         // length of the scene, 1..3600 s (default 60; sets the frames)
   double sun_elevation_deg = -1;  // the sun above the horizon, 5..90 degrees (default 25)
+  // An overcast sky instead of the sun: no direct light, no cast shadows, the paving as bright
+  // (ambient 0.85, faintly blue), contact shadows on (RealCameraPreset's, unless set).
+  bool overcast = false;
   Status Validate() const;
 };
+
+// The real camera of `occmap synth --real-camera` (values near the EPFL terrace's cameras):
+// automatic exposure to the empty view's luma (gain 1/4..4), grey-world white balance of
+// strength 0.6, both with a time constant of 0.4 s; read noise 1.2 and shot noise 0.04 grey
+// levels (about 2.4 at mid grey; the renderer's Gaussian noise_sigma set to 0); rendered at
+// twice the size and area-averaged; JPEG quality 75 (H.264 crf 28 for videos); contact shadows
+// of strength 0.5 (radius 0.22 m, reach 1.5 m).
+void ApplyRealCameraPreset(PhotometrySpec& photometry);
 
 struct WildtrackSceneOptions {
   // The dataset folder (holding calibrations/ and annotations_positions/).
@@ -85,8 +111,9 @@ Result<std::vector<WildtrackAnnotation>> ReadWildtrackAnnotations(const std::fil
 // X = -300 + 2.5 (id % 480), Y = -900 + 2.5 (id / 480) centimetres, in metres.
 Eigen::Vector2d WildtrackPositionM(int64_t position_id);
 
-// Applies options common to all scenes (scale, frames, noise, shadows, drift) to a spec; the
-// plaza's own options (people, duration, sun) must be -1 (an error naming the option if not).
+// Applies options common to all scenes (scale, frames, the real camera and its knobs, noise,
+// shadows, drift) to a spec; the plaza's own options (people, duration, sun, overcast) must be
+// unset (an error naming the option if not).
 // Shadows given by the spec stay on; exposure drift -1 keeps the spec's.
 Status ApplyBuiltinOptions(const BuiltinSceneOptions& options, SceneSpec& spec);
 

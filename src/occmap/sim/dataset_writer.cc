@@ -28,6 +28,14 @@ double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock:
 
 std::string FrameName(int64_t frame) { return fmt::format("{:06d}.png", frame); }
 
+// Image sequences: PNG, or JPEG at the scene camera's quality.
+bool JpegFrames(const Scene& scene, const DatasetOptions& options) {
+  return options.frame_format == DatasetOptions::FrameFormat::kPng && scene.spec().photometry.camera.jpeg_quality > 0;
+}
+const char* FrameExtension(const Scene& scene, const DatasetOptions& options) {
+  return JpegFrames(scene, options) ? "jpg" : "png";
+}
+
 // Willson's angles of R = Rot_z(rz) Rot_y(ry) Rot_x(rx).
 void TsaiAngles(const Eigen::Matrix3d& r, double* rx, double* ry, double* rz) {
   *ry = std::asin(std::clamp(-r(2, 0), -1.0, 1.0));
@@ -73,7 +81,7 @@ nlohmann::json SceneJson(const Scene& scene, const DatasetOptions& options) {
   json statics = json::array();
   for (const StaticObjectSpec& s : spec.statics) statics.push_back(s.name);
   const PhotometrySpec& ph = spec.photometry;
-  return json{
+  json out = json{
       {"name", spec.name},
       {"description", spec.description},
       {"seed", spec.seed},
@@ -112,10 +120,27 @@ nlohmann::json SceneJson(const Scene& scene, const DatasetOptions& options) {
         {"masks", "255 = the pixel sees the monitored floor, 0 = walls, furniture, static occluders, nothing"},
         {"ids", "object ids of ground_truth.jsonl are the renderer's id-buffer values"}}},
   };
+  // Only when on: the files of scenes without them stay as they were.
+  if (ph.contact_shadows.enabled()) {
+    out["photometry"]["contact_shadows"] = {{"strength", ph.contact_shadows.strength},
+                                            {"radius_m", ph.contact_shadows.radius_m},
+                                            {"reach_m", ph.contact_shadows.reach_m}};
+  }
+  if (ph.camera != CameraResponseSpec{}) {
+    const CameraResponseSpec& c = ph.camera;
+    out["photometry"]["camera"] = {{"auto_exposure", c.auto_exposure}, {"target_luma", c.target_luma},
+                                   {"max_gain", c.max_gain},           {"white_balance", c.white_balance},
+                                   {"time_constant_s", c.time_constant_s}, {"read_noise", c.read_noise},
+                                   {"shot_noise", c.shot_noise},       {"supersample", c.supersample},
+                                   {"jpeg_quality", c.jpeg_quality},   {"video_crf", c.video_crf}};
+    if (JpegFrames(scene, options)) out["frames_format"] = "jpeg";
+  }
+  return out;
 }
 
 bool ShadowMasks(const Scene& scene, const DatasetOptions& options) {
-  return options.change_masks && scene.spec().photometry.shadows;
+  const PhotometrySpec& ph = scene.spec().photometry;
+  return options.change_masks && (ph.shadows || ph.contact_shadows.enabled());
 }
 
 bool InsideGrid(const FloorGrid& g, double x, double y) {
@@ -153,11 +178,15 @@ std::string ReadmeText(const Scene& scene, const DatasetOptions& options) {
       options.site_backgrounds ? ""
                                : "site.yaml gives no backgrounds: the run learns them from the frames (the empty "
                                  "scene is in backgrounds/, for comparison).\n",
-      options.frame_format == DatasetOptions::FrameFormat::kPng ? "<cam>/%06d.png RGB frames"
-                                                                 : "<cam>.mp4 videos (H.264 when available)",
-      ShadowMasks(scene, options) ? "  gt/shadows/<cam>/%06d.png 255 = a moving object's cast shadow darkens the static "
-                                    "floor (no object seen there)\n"
-                                  : "");
+      options.frame_format != DatasetOptions::FrameFormat::kPng ? "<cam>.mp4 videos (H.264 when available)"
+      : JpegFrames(scene, options) ? "<cam>/%06d.jpg RGB frames (JPEG)"
+                                   : "<cam>/%06d.png RGB frames",
+      !ShadowMasks(scene, options) ? ""
+      : spec.photometry.contact_shadows.enabled()
+          ? "  gt/shadows/<cam>/%06d.png 255 = a moving object's cast or contact shadow darkens the static floor "
+            "(no object seen there)\n"
+          : "  gt/shadows/<cam>/%06d.png 255 = a moving object's cast shadow darkens the static "
+            "floor (no object seen there)\n");
 }
 
 }  // namespace
@@ -195,6 +224,8 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
     OCCMAP_RETURN_IF_ERROR(EnsureDirectory(out / "gt" / "hull"));
   }
   const bool video = options.frame_format == DatasetOptions::FrameFormat::kVideo;
+  const bool jpeg = JpegFrames(scene, options);
+  const int jpeg_quality = scene.spec().photometry.camera.jpeg_quality;
   const int batch = std::max(2, 2 * ctx.num_threads());
   std::vector<Image<uint8_t>> masks;
   std::string site_cameras;
@@ -216,18 +247,24 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
     const fs::path frames_dir = out / "frames" / id;
     std::unique_ptr<VideoWriter> writer;
     if (video) {
-      OCCMAP_ASSIGN_OR_RETURN(writer, VideoWriter::Open(out / "frames" / (id + ".mp4"), renderer.size(), scene.spec().fps));
+      VideoWriterOptions video_options;
+      video_options.crf = scene.spec().photometry.camera.video_crf;
+      OCCMAP_ASSIGN_OR_RETURN(writer, VideoWriter::Open(out / "frames" / (id + ".mp4"), renderer.size(),
+                                                        scene.spec().fps, video_options));
     } else {
       OCCMAP_RETURN_IF_ERROR(EnsureDirectory(frames_dir));
     }
     summary.write_seconds += Since(t0);
     std::vector<RenderedView> views(static_cast<size_t>(batch));
+    // A real camera's exposure and white balance follow the frames in order.
+    CameraResponse response = renderer.NewResponse();
     std::vector<Status> statuses(static_cast<size_t>(batch));
     for (int64_t f0 = 0; f0 < n; f0 += batch) {
       const int count = static_cast<int>(std::min<int64_t>(batch, n - f0));
       t0 = Clock::now();
       for (int b = 0; b < count; ++b) {
-        renderer.Render(scene.StateAt(f0 + b), ctx, &views[static_cast<size_t>(b)], /*noise=*/true, shadow_masks);
+        renderer.Render(scene.StateAt(f0 + b), ctx, &views[static_cast<size_t>(b)], /*noise=*/true, shadow_masks,
+                        &response);
       }
       summary.render_seconds += Since(t0);
       t0 = Clock::now();
@@ -238,7 +275,11 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
         for (int64_t b = b0; b < b1; ++b) {
           const RenderedView& v = views[static_cast<size_t>(b)];
           Status s;
-          if (!video) s = WritePng(frames_dir / FrameName(f0 + b), v.rgb.view());
+          if (!video && jpeg) {
+            s = WriteJpeg(frames_dir / fmt::format("{:06d}.jpg", f0 + b), v.rgb.view(), jpeg_quality);
+          } else if (!video) {
+            s = WritePng(frames_dir / FrameName(f0 + b), v.rgb.view());
+          }
           if (s.ok() && options.change_masks) s = WritePng(changes_dir / FrameName(f0 + b), ChangeMask(v.ids).view());
           if (s.ok() && shadow_masks) s = WritePng(shadows_dir / FrameName(f0 + b), v.shadow.view());
           statuses[static_cast<size_t>(b)] = s;
@@ -253,7 +294,8 @@ Result<DatasetSummary> WriteDataset(const Scene& scene, const DatasetOptions& op
     masks.push_back(renderer.floor_mask());
     site_cameras += fmt::format(
         "  - id: {}\n    calibration: {}\n    mask: masks/{}.png\n    source: {{{}}}\n{}", id, calib_entry, id,
-        video ? fmt::format("video: frames/{}.mp4", id) : fmt::format("images: frames/{}/%06d.png", id),
+        video ? fmt::format("video: frames/{}.mp4", id)
+              : fmt::format("images: frames/{}/%06d.{}", id, FrameExtension(scene, options)),
         options.site_backgrounds ? fmt::format("    background: backgrounds/{}.png\n", id) : "");
   }
 

@@ -6,7 +6,10 @@
 //                                folder with a site.yaml is complete
 //   calib/intr_<cam>.xml, calib/extr_<cam>.xml   pinhole cameras (OpenCV FileStorage, metres)
 //   calib/tsai_<cam>.yaml        Tsai cameras (Willson's units, T in mm)
-//   frames/<cam>/%06d.png        RGB frames (or frames/<cam>.mp4, H.264 through io/VideoWriter)
+//   frames/<cam>/%06d.png        RGB frames (or frames/<cam>.mp4, H.264 through io/VideoWriter);
+//                                with a scene camera's jpeg_quality %06d.jpg, with its video_crf
+//                                that H.264 rate factor; a real camera's exposure and white
+//                                balance follow each camera's frames in order
 //   backgrounds/<cam>.png        the empty scene (its own noise stream, or none); written even
 //                                when site.yaml does not name them (for evaluation)
 //   masks/<cam>.png              floor mask: 255 where the pixel sees the monitored floor, 0 where
@@ -18,10 +21,11 @@
 //                                (both one pixel per cell, +x right, +y up: row 0 = cell row
 //                                cells_y - 1, as occmap's occupancy pictures)
 //   gt/changes/<cam>/%06d.png    perfect change masks: 255 where a moving object is seen
-//   gt/shadows/<cam>/%06d.png    with change masks and cast shadows on: 255 where a moving
-//                                object's shadow darkens a static floor pixel that no moving
-//                                object covers, else 0 (shadows are not objects: they are not
-//                                in gt/changes)
+//   gt/shadows/<cam>/%06d.png    with change masks and cast or contact shadows on: 255 where a
+//                                moving object's shadow darkens a static floor pixel that no
+//                                moving object covers (renderer.h: a contact shadow from 1/16
+//                                of the pixel's radiance), else 0 (shadows are not objects:
+//                                they are not in gt/changes)
 //   scene.yaml                   the scene (sim/scene_yaml.h): renders the same dataset again
 //   scene.json, README.txt       what the scene is, sizes, conventions, file list
 // Frame numbers in file names and in ground_truth.jsonl are the dataset's own, from 0 (the

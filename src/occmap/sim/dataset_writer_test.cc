@@ -2,8 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <fmt/core.h>
+
+#include <cmath>
+
 #include "occmap/io/frame_source.h"
+#include "occmap/sim/builtin_scenes.h"
 #include "occmap/sim/renderer.h"
+#include "occmap/sim/scene_yaml.h"
 #include "occmap/sim/sim_test_util.h"
 #include "occmap/site/site.h"
 #include "occmap/util/file_util.h"
@@ -167,6 +173,125 @@ TEST(DatasetWriter, ShadowMasksAndASiteWithoutBackgroundsOrWithItsOwnDetection) 
   options.out_dir = dir / "no-shadows";
   ASSERT_TRUE(WriteDataset(Scene::Create(spec).value(), options, ctx).ok());
   EXPECT_FALSE(std::filesystem::exists(options.out_dir / "gt" / "shadows"));
+}
+
+// Root mean square difference of the luma of two images (JPEG halves the chroma's resolution:
+// its error on the lab's thin, coloured book spines says little about the quality).
+double LumaRmsDifference(const Image<Rgb8>& a, const Image<Rgb8>& b) {
+  double sum = 0;
+  for (int y = 0; y < a.height(); ++y) {
+    for (int x = 0; x < a.width(); ++x) {
+      const Rgb8 p = a(x, y), q = b(x, y);
+      const double d = 0.299 * (p.r - q.r) + 0.587 * (p.g - q.g) + 0.114 * (p.b - q.b);
+      sum += d * d;
+    }
+  }
+  return std::sqrt(sum / (static_cast<double>(a.width()) * a.height()));
+}
+
+// Mean absolute step between horizontal neighbours of the green channel, across the 8-pixel
+// block boundaries of JPEG and inside the blocks.
+void BlockSteps(const Image<Rgb8>& image, double* across, double* inside) {
+  double a = 0, na = 0, i = 0, ni = 0;
+  for (int y = 0; y < image.height(); ++y) {
+    for (int x = 1; x < image.width(); ++x) {
+      const double d = std::abs(double(image(x, y).g) - image(x - 1, y).g);
+      if (x % 8 == 0) {
+        a += d;
+        na += 1;
+      } else {
+        i += d;
+        ni += 1;
+      }
+    }
+  }
+  *across = a / na;
+  *inside = i / ni;
+}
+
+TEST(DatasetWriter, JpegArtefactsGrowAsTheQualityFalls) {
+  // A lab frame through the real camera, stored at falling JPEG qualities: the error against
+  // the rendered frame grows, is a few grey levels at the preset's 75, and at a low quality
+  // the 8 x 8 blocks show (steps across their edges larger than inside them).
+  BuiltinSceneOptions o;
+  o.image_scale = 0.5;
+  o.num_frames = 4;
+  o.real_camera = true;
+  o.supersample = 1;
+  const Scene lab = Scene::Create(MakeLabSceneSpec(o)).value();
+  Context ctx(2);
+  const CameraRenderer r(lab, 1, ctx);
+  RenderedView view;
+  r.Render(lab.StateAt(3), ctx, &view);
+  occmap::testing::TempDir dir;
+  double previous = 0;
+  for (int quality : {95, 75, 40, 10}) {
+    const auto path = dir / fmt::format("q{}.jpg", quality);
+    ASSERT_TRUE(WriteJpeg(path, view.rgb.view(), quality).ok());
+    auto back = ReadRgbImage(path);
+    ASSERT_TRUE(back.ok()) << back.status().message();
+    const double rms = LumaRmsDifference(*back, view.rgb);
+    double across = 0, inside = 0;
+    BlockSteps(*back, &across, &inside);
+    EXPECT_GT(rms, previous) << "quality " << quality;
+    if (quality == 75) {
+      EXPECT_GT(rms, 1.0);
+      EXPECT_LT(rms, 6.0);
+    }
+    if (quality == 10) {
+      EXPECT_GT(across, 1.3 * inside) << "blocks";
+    }
+    previous = rms;
+  }
+  // The rendered frame itself has no blocks.
+  double across = 0, inside = 0;
+  BlockSteps(view.rgb, &across, &inside);
+  EXPECT_LT(across, 1.1 * inside);
+  EXPECT_EQ(WriteJpeg(dir / "bad.jpg", view.rgb.view(), 0).message(),
+            fmt::format("'{}': JPEG quality: expected 1..100, found 0", (dir / "bad.jpg").string()));
+}
+
+TEST(DatasetWriter, RealCameraWritesJpegFramesTheRunReadsWithGainsCarriedInOrder) {
+  BuiltinSceneOptions o;
+  o.image_scale = 0.25;
+  o.num_frames = 6;
+  o.real_camera = true;
+  const Scene lab = Scene::Create(MakeLabSceneSpec(o)).value();
+  ASSERT_EQ(lab.spec().photometry.camera.jpeg_quality, 75);
+  occmap::testing::TempDir dir;
+  Context ctx(2);
+  DatasetOptions options;
+  options.out_dir = dir / "lab";
+  auto summary = WriteDataset(lab, options, ctx);
+  ASSERT_TRUE(summary.ok()) << summary.status().message();
+  auto site = LoadSite(summary->site_file);
+  ASSERT_TRUE(site.ok()) << site.status().message();
+  ExpectSiteMatchesScene(lab, *site);
+  EXPECT_FALSE(std::filesystem::exists(options.out_dir / "frames" / "cam2" / "000005.png"));
+  // Frame 5 of camera 2 is the renderer's, its gains carried over frames 0-4, JPEG-compressed.
+  const CameraRenderer r(lab, 1, ctx);
+  CameraResponse response = r.NewResponse();
+  RenderedView view;
+  for (int64_t f = 0; f <= 5; ++f) r.Render(lab.StateAt(f), ctx, &view, /*noise=*/true, /*shadow_mask=*/true, &response);
+  auto source = OpenFrameSource(site->cameras[1].source, {.colour = true});
+  ASSERT_TRUE(source.ok()) << source.status().message();
+  Frame frame;
+  for (int f = 0; f <= 5; ++f) ASSERT_TRUE((*source)->Read(frame).value());
+  const double rms = LumaRmsDifference(frame.rgb, view.rgb);
+  EXPECT_GT(rms, 0.5);
+  EXPECT_LT(rms, 6.0);
+  // Contact shadows: shadow masks, the renderer's.
+  auto shadow = ReadGrayImage(options.out_dir / "gt" / "shadows" / "cam2" / "000005.png");
+  ASSERT_TRUE(shadow.ok()) << shadow.status().message();
+  EXPECT_TRUE(*shadow == view.shadow);
+  // The scene file keeps the camera: it renders the same dataset again.
+  auto again = LoadSceneYaml(options.out_dir / "scene.yaml");
+  ASSERT_TRUE(again.ok()) << again.status().message();
+  EXPECT_EQ(again->photometry.camera, lab.spec().photometry.camera);
+  EXPECT_EQ(again->photometry.contact_shadows.strength, 0.5);
+  auto json = ReadFileToString(options.out_dir / "scene.json");
+  ASSERT_TRUE(json.ok());
+  EXPECT_NE(json->find("\"frames_format\": \"jpeg\""), std::string::npos);
 }
 
 TEST(DatasetWriter, RejectsADetectionSectionThatIsNotOne) {

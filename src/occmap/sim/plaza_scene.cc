@@ -301,12 +301,16 @@ SceneSpec MakePlazaSceneSpec(const BuiltinSceneOptions& options) {
   spec.seed = options.seed;
   spec.fps = 10;
   spec.num_frames = std::max<int64_t>(1, std::llround(duration_s * spec.fps));
+  const std::string sky =
+      options.overcast ? std::string("an overcast sky (soft contact shadows around the visitors' feet), exposure drift")
+                       : fmt::format("a low sun ({} degrees, from the south-west) casting long shadows, bluish sky light "
+                                     "in them, exposure drift",
+                                     sun_deg);
   spec.description = fmt::format(
-      "A sunny paved square outdoors, 20 x 14 m monitored: six 1280x720 cameras on poles at 2.6-3.5 m around it "
+      "A {} paved square outdoors, 20 x 14 m monitored: six 1280x720 cameras on poles at 2.6-3.5 m around it "
       "looking across (mild barrel distortion); three pillars, three planters, a kiosk and three benches inside; "
-      "a low sun ({} degrees, from the south-west) casting long shadows, bluish sky light in them, exposure drift; "
-      "{} people at a time crossing, meeting in groups of 2-3 and standing alone.",
-      sun_deg, people);
+      "{}; {} people at a time crossing, meeting in groups of 2-3 and standing alone.",
+      options.overcast ? "grey" : "sunny", sky, people);
   spec.grid = FloorGrid{.origin_x_m = 0, .origin_y_m = 0, .cells_x = static_cast<int>(std::lround(kWidthM / kCellM)),
                         .cells_y = static_cast<int>(std::lround(kDepthM / kCellM)), .cell_size_m = kCellM};
   const uint32_t s32 = static_cast<uint32_t>(Mix64(spec.seed ^ 0x91a2a));
@@ -378,6 +382,17 @@ SceneSpec MakePlazaSceneSpec(const BuiltinSceneOptions& options) {
   spec.photometry.shadows = true;
   spec.photometry.exposure_drift = 0.1;
   spec.photometry.noise_sigma = 2;
+  if (options.overcast) {
+    // A bright overcast: the sky alone lights the paving as the sun and sky did (0.85 of its
+    // albedo), faintly blue; no cast shadows, only the sky each visitor hides near their feet.
+    light.intensity = 0;
+    light.ambient = 0.85;
+    light.ambient_colour = {0.96f, 1.0f, 1.06f};
+    spec.photometry.shadows = false;
+    PhotometrySpec preset;
+    ApplyRealCameraPreset(preset);
+    spec.photometry.contact_shadows = preset.contact_shadows;
+  }
 
   std::vector<KeepOut> keep_out;
   for (const StaticObjectSpec& s : spec.statics) {
@@ -403,6 +418,7 @@ SceneSpec MakePlazaSceneSpec(const BuiltinSceneOptions& options) {
   rest.people = -1;
   rest.duration_s = -1;
   rest.sun_elevation_deg = -1;
+  rest.overcast = false;
   OCCMAP_CHECK(ApplyBuiltinOptions(rest, spec).ok(), "plaza scene options");
   return spec;
 }

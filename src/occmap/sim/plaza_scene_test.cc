@@ -243,6 +243,46 @@ TEST(PlazaScene, OtherScenesRefuseThePlazasOptions) {
             "sun elevation: only the built-in plaza scene has a sun, found 30 degrees for scene 'lab'");
 }
 
+TEST(PlazaScene, OvercastHasNoSunNoCastShadowsAndContactShadows) {
+  BuiltinSceneOptions o = Options();
+  o.overcast = true;
+  const SceneSpec spec = MakePlazaSceneSpec(o);
+  EXPECT_EQ(spec.photometry.lighting.intensity, 0);
+  EXPECT_FALSE(spec.photometry.shadows);
+  EXPECT_TRUE(spec.photometry.contact_shadows.enabled());
+  EXPECT_NE(spec.description.find("overcast"), std::string::npos);
+  // The paving as bright as under the sun and sky (0.85 of its albedo, within the sky's tint).
+  const Lighting& l = spec.photometry.lighting;
+  EXPECT_NEAR(l.ambient * l.ambient_colour[1], 0.85, 1e-6);
+  o.sun_elevation_deg = 40;
+  EXPECT_EQ(MakeBuiltinSceneSpec("plaza", o).status().message(),
+            "overcast: an overcast sky has no sun, found a sun elevation of 40 degrees too");
+  BuiltinSceneOptions lab;
+  lab.overcast = true;
+  EXPECT_EQ(MakeBuiltinSceneSpec("lab", lab).status().message(),
+            "overcast: only the built-in plaza scene has a sky to change, found it for scene 'lab'");
+}
+
+TEST(PlazaScene, RealCameraOptionTurnsThePresetOnAndIdealCameraOff) {
+  BuiltinSceneOptions o = Options();
+  o.real_camera = true;
+  o.jpeg_quality = 60;
+  SceneSpec spec = MakePlazaSceneSpec(o);
+  PhotometrySpec preset;
+  ApplyRealCameraPreset(preset);
+  CameraResponseSpec expected = preset.camera;
+  expected.jpeg_quality = 60;  // a knob after the preset
+  EXPECT_EQ(spec.photometry.camera, expected);
+  EXPECT_EQ(spec.photometry.noise_sigma, 0);
+  EXPECT_TRUE(spec.photometry.contact_shadows.enabled());
+  BuiltinSceneOptions off;
+  off.real_camera = false;
+  ASSERT_TRUE(ApplyBuiltinOptions(off, spec).ok());
+  EXPECT_EQ(spec.photometry.camera, CameraResponseSpec{});
+  EXPECT_FALSE(spec.photometry.contact_shadows.enabled());
+  EXPECT_FALSE(spec.photometry.camera.processes_frames());
+}
+
 TEST(PlazaScene, ApplyingOptionsKeepsTheScenesShadowsAndDriftUnlessGiven) {
   SceneSpec spec = MakePlazaSceneSpec(Options());
   BuiltinSceneOptions o;

@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numbers>
 
 namespace occmap::sim {
@@ -203,6 +204,33 @@ bool ShadowedIn(const ObjectInstance& obj, const ShadowRegion& region, const Lig
   return false;
 }
 
+// The fraction S(d) of the sky light an upright occluder hides at a horizontal distance d from
+// its axis, scaled to 1 at its side, tapered to 0 at the reach (scene.h ContactShadowSpec).
+double ContactShadowShape(double d, double radius_m, double height_m, double reach_m) {
+  if (!(d < reach_m)) return 0;
+  double s = 1;
+  if (d > radius_m) {
+    const double h2 = height_m * height_m;
+    s = std::asin(radius_m / d) / (0.5 * std::numbers::pi) * (h2 / (h2 + d * d)) * ((h2 + radius_m * radius_m) / h2);
+  }
+  const double taper_from = 0.7 * reach_m;
+  if (d > taper_from) {
+    const double u = (d - taper_from) / (reach_m - taper_from);
+    s *= 1 - u * u * (3 - 2 * u);
+  }
+  return s;
+}
+
+// An object as the sky's occluder of the floor around it.
+struct ContactOccluder {
+  Eigen::Vector2d centre_m = Eigen::Vector2d::Zero();
+  double radius_m = 0, height_m = 0;
+};
+
+// A contact shadow's darkening is marked in the shadow mask from this fraction of the pixel's
+// radiance on: about the change a detector's threshold could see, not the faint halo.
+constexpr float kContactShadowMaskFraction = 1.0f / 16.0f;
+
 }  // namespace
 
 Eigen::Vector3f MissRadiance(const SceneSpec& spec, const Eigen::Vector3d& d) {
@@ -224,24 +252,31 @@ Image<uint8_t> ChangeMask(const Image<uint16_t>& ids) {
 CameraRenderer::CameraRenderer(const Scene& scene, size_t camera_index, Context& ctx)
     : scene_(scene), camera_index_(camera_index) {
   OCCMAP_CHECK(camera_index < scene.num_cameras(), "camera index out of range");
-  const CameraModel& cam = scene_.camera(camera_index);
-  size_ = cam.image_size();
+  const SceneSpec& spec = scene_.spec();
+  const CameraModel& scene_camera = scene_.camera(camera_index);
+  size_ = scene_camera.image_size();
+  supersample_ = spec.photometry.camera.supersample;
+  std::unique_ptr<CameraModel> resized;
+  if (supersample_ > 1) resized = scene_camera.Resized({size_.width * supersample_, size_.height * supersample_});
+  const CameraModel& cam = resized ? *resized : scene_camera;
+  render_size_ = cam.image_size();
   origin_ = *cam.CenterInWorld();
-  const size_t n = static_cast<size_t>(size_.width) * static_cast<size_t>(size_.height);
+  const size_t n = static_cast<size_t>(render_size_.width) * static_cast<size_t>(render_size_.height);
   dir_.assign(n, Eigen::Vector3d::Zero());
   has_ray_.assign(n, 0);
   static_t_.assign(n, kInf);
   static_surface_.assign(n, 0);
   bg_.assign(n, Eigen::Vector3f::Zero());
-  const SceneSpec& spec = scene_.spec();
   const bool shadows = spec.photometry.shadows;
+  const bool contact = spec.photometry.contact_shadows.enabled();
   if (shadows) direct_.assign(n, Eigen::Vector3f::Zero());
-  floor_mask_ = Image<uint8_t>(size_.width, size_.height, 0);
+  if (contact) ambient_.assign(n, Eigen::Vector3f::Zero());
+  floor_mask_ = Image<uint8_t>(render_size_.width, render_size_.height, 0);
   const std::vector<Primitive>& statics = scene_.static_primitives();
   const std::vector<Primitive>& casters = scene_.shadow_casters();
-  ParallelFor(ctx, 0, size_.height, [&](int64_t y0, int64_t y1, int) {
+  ParallelFor(ctx, 0, render_size_.height, [&](int64_t y0, int64_t y1, int) {
     for (int y = static_cast<int>(y0); y < y1; ++y) {
-      for (int x = 0; x < size_.width; ++x) {
+      for (int x = 0; x < render_size_.width; ++x) {
         const size_t i = Index(x, y);
         const std::optional<Ray> ray = cam.BackProject(Eigen::Vector2d(x, y));
         if (!ray) continue;
@@ -258,6 +293,7 @@ CameraRenderer::CameraRenderer(const Scene& scene, size_t camera_index, Context&
         static_surface_[i] = floor ? 1 : 2;
         Eigen::Vector3f direct;
         bg_[i] = Shade(hit.prim->material, p, hit.normal, spec.photometry.lighting, &direct);
+        if (contact && floor) ambient_[i] = bg_[i] - direct;
         if (shadows && direct != Eigen::Vector3f::Zero() &&
             StaticallyShadowed(casters, spec.photometry.lighting, p, hit.normal)) {
           bg_[i] -= direct;
@@ -269,14 +305,14 @@ CameraRenderer::CameraRenderer(const Scene& scene, size_t camera_index, Context&
     }
   });
   // Tile cones: the mean direction and the largest angle to it.
-  tiles_x_ = (size_.width + kTilePx - 1) / kTilePx;
-  tiles_y_ = (size_.height + kTilePx - 1) / kTilePx;
+  tiles_x_ = (render_size_.width + kTilePx - 1) / kTilePx;
+  tiles_y_ = (render_size_.height + kTilePx - 1) / kTilePx;
   tiles_.assign(static_cast<size_t>(tiles_x_) * static_cast<size_t>(tiles_y_), TileCone{});
   for (int ty = 0; ty < tiles_y_; ++ty) {
     for (int tx = 0; tx < tiles_x_; ++tx) {
       Eigen::Vector3d sum = Eigen::Vector3d::Zero();
       const int x0 = tx * kTilePx, y0 = ty * kTilePx;
-      const int x1 = std::min(size_.width, x0 + kTilePx), y1 = std::min(size_.height, y0 + kTilePx);
+      const int x1 = std::min(render_size_.width, x0 + kTilePx), y1 = std::min(render_size_.height, y0 + kTilePx);
       for (int y = y0; y < y1; ++y) {
         for (int x = x0; x < x1; ++x) sum += dir_[Index(x, y)];
       }
@@ -292,18 +328,54 @@ CameraRenderer::CameraRenderer(const Scene& scene, size_t camera_index, Context&
       cone.half_angle_rad = std::acos(std::clamp(min_cos, -1.0, 1.0)) + 1e-6;
     }
   }
-  if (shadows) {
-    tile_floor_.assign(tiles_.size(), TileFloor{});
-    for (int y = 0; y < size_.height; ++y) {
-      for (int x = 0; x < size_.width; ++x) {
+  if (shadows || contact) {
+    if (shadows) tile_floor_.assign(tiles_.size(), TileFloor{});
+    if (contact) tile_contact_floor_.assign(tiles_.size(), TileFloor{});
+    for (int y = 0; y < render_size_.height; ++y) {
+      for (int x = 0; x < render_size_.width; ++x) {
         const size_t i = Index(x, y);
-        if (static_surface_[i] != 1 || direct_[i] == Eigen::Vector3f::Zero()) continue;
+        if (static_surface_[i] != 1) continue;
         const Eigen::Vector2d p = (origin_ + static_t_[i] * dir_[i]).head<2>();
-        TileFloor& t = tile_floor_[static_cast<size_t>((y / kTilePx) * tiles_x_ + x / kTilePx)];
+        const size_t tile = static_cast<size_t>((y / kTilePx) * tiles_x_ + x / kTilePx);
+        if (contact) {
+          tile_contact_floor_[tile].lo = tile_contact_floor_[tile].lo.cwiseMin(p);
+          tile_contact_floor_[tile].hi = tile_contact_floor_[tile].hi.cwiseMax(p);
+        }
+        if (!shadows || direct_[i] == Eigen::Vector3f::Zero()) continue;
+        TileFloor& t = tile_floor_[tile];
         t.lo = t.lo.cwiseMin(p);
         t.hi = t.hi.cwiseMax(p);
       }
     }
+  }
+  if (supersample_ > 1) {
+    // An image pixel is monitored floor when most of its rays are.
+    const int s = supersample_;
+    Image<uint8_t> mask(size_.width, size_.height, 0);
+    for (int y = 0; y < size_.height; ++y) {
+      for (int x = 0; x < size_.width; ++x) {
+        int floor = 0;
+        for (int dy = 0; dy < s; ++dy) {
+          for (int dx = 0; dx < s; ++dx) floor += floor_mask_(x * s + dx, y * s + dy) != 0;
+        }
+        mask(x, y) = 2 * floor >= s * s ? 255 : 0;
+      }
+    }
+    floor_mask_ = std::move(mask);
+  }
+  if (spec.photometry.camera.processes_frames()) {
+    const int s = supersample_;
+    out_has_ray_.assign(static_cast<size_t>(size_.width) * static_cast<size_t>(size_.height), 0);
+    for (int y = 0; y < size_.height; ++y) {
+      for (int x = 0; x < size_.width; ++x) {
+        uint8_t any = 0;
+        for (int dy = 0; dy < s; ++dy) {
+          for (int dx = 0; dx < s; ++dx) any |= has_ray_[Index(x * s + dx, y * s + dy)];
+        }
+        out_has_ray_[static_cast<size_t>(y) * static_cast<size_t>(size_.width) + static_cast<size_t>(x)] = any;
+      }
+    }
+    empty_mean_ = MeanRadiance(AreaMean(bg_));
   }
   exposure_phase_rad_ = 2 * std::numbers::pi * UnitFromHash(Mix64(spec.seed ^ Mix64(0xe7 + camera_index)));
 }
@@ -321,6 +393,16 @@ uint8_t CameraRenderer::Quantize(float value, float noise) const {
 
 Image<Rgb8> CameraRenderer::Background(bool noise) const {
   const PhotometrySpec& ph = scene_.spec().photometry;
+  if (ph.camera.processes_frames()) {
+    // The empty view through the camera, settled on it (no drift: the gain 1 of the ideal camera).
+    const CameraResponseSpec& cam = ph.camera;
+    const bool add_noise =
+        noise && ph.background_noise && (ph.noise_sigma > 0 || cam.read_noise > 0 || cam.shot_noise > 0);
+    Image<Rgb8> out(size_.width, size_.height);
+    Expose(AreaMean(bg_), NewResponse().SettledGains(empty_mean_), add_noise,
+           NoiseStream(scene_.spec().seed, camera_index_, -1), nullptr, &out);
+    return out;
+  }
   const bool add_noise = noise && ph.background_noise && ph.noise_sigma > 0;
   const float sigma = static_cast<float>(ph.noise_sigma);
   const auto& table = GaussianTable();
@@ -342,27 +424,33 @@ Image<Rgb8> CameraRenderer::Background(bool noise) const {
   return out;
 }
 
-void CameraRenderer::Render(const SceneState& state, Context& ctx, RenderedView* out, bool noise,
-                            bool shadow_mask) const {
+CameraResponse CameraRenderer::NewResponse() const {
+  return CameraResponse(scene_.spec().photometry.camera, scene_.spec().fps, empty_mean_);
+}
+
+template <typename Sink>
+void CameraRenderer::Cast(const SceneState& state, Context& ctx, Sink&& sink) const {
   const SceneSpec& spec = scene_.spec();
   const PhotometrySpec& ph = spec.photometry;
-  if (out->rgb.width() != size_.width || out->rgb.height() != size_.height) out->rgb = Image<Rgb8>(size_.width, size_.height);
-  if (out->ids.width() != size_.width || out->ids.height() != size_.height) out->ids = Image<uint16_t>(size_.width, size_.height);
-  const float gain = static_cast<float>(Gain(state.time_s)) * 255.0f;
-  const bool add_noise = noise && ph.noise_sigma > 0;
-  const float sigma = static_cast<float>(ph.noise_sigma);
-  const auto& table = GaussianTable();
-  const uint64_t stream = NoiseStream(spec.seed, camera_index_, state.frame);
   const std::vector<ObjectInstance>& objects = state.objects;
   const bool shadows = ph.shadows && !objects.empty();
-  if (shadow_mask && (out->shadow.width() != size_.width || out->shadow.height() != size_.height)) {
-    out->shadow = Image<uint8_t>(size_.width, size_.height);
-  }
   std::vector<ShadowRegion> shadow_regions;
   if (shadows) {
     shadow_regions.reserve(objects.size());
     for (const ObjectInstance& obj : objects) shadow_regions.push_back(ShadowRegionOf(obj, ph.lighting));
   }
+  const ContactShadowSpec& contact = ph.contact_shadows;
+  const bool contact_shadows = contact.enabled() && !objects.empty();
+  std::vector<ContactOccluder> occluders;
+  if (contact_shadows) {
+    occluders.reserve(objects.size());
+    for (const ObjectInstance& obj : objects) {
+      const bool person = obj.object_class == ObjectClass::kPerson;
+      const double radius = person ? contact.radius_m : std::max(1e-3, obj.bound.radius_m);
+      occluders.push_back({obj.position_m, radius, std::max(obj.bound.z_max_m, 1e-3)});
+    }
+  }
+  const double reach2 = contact.reach_m * contact.reach_m;
 
   // Tile rows are dealt out in turn (task k takes rows k, k + T, ...): people stand in the lower
   // part of most views, and contiguous chunks would leave one thread with most of the work.
@@ -370,12 +458,15 @@ void CameraRenderer::Render(const SceneState& state, Context& ctx, RenderedView*
   ParallelFor(ctx, 0, num_tasks, [&](int64_t k0, int64_t k1, int) {
     std::vector<const ObjectInstance*> candidates;
     std::vector<size_t> shadow_candidates;
+    std::vector<size_t> contact_candidates;
     candidates.reserve(objects.size());
     shadow_candidates.reserve(objects.size());
+    contact_candidates.reserve(objects.size());
     for (int64_t k = k0; k < k1; ++k)
     for (int ty = static_cast<int>(k); ty < tiles_y_; ty += num_tasks) {
       for (int tx = 0; tx < tiles_x_; ++tx) {
-        const TileCone& cone = tiles_[static_cast<size_t>(ty * tiles_x_ + tx)];
+        const size_t tile = static_cast<size_t>(ty * tiles_x_ + tx);
+        const TileCone& cone = tiles_[tile];
         candidates.clear();
         if (cone.half_angle_rad >= 0) {
           for (const ObjectInstance& obj : objects) {
@@ -392,17 +483,23 @@ void CameraRenderer::Render(const SceneState& state, Context& ctx, RenderedView*
         }
         shadow_candidates.clear();
         if (shadows) {
-          const TileFloor& floor = tile_floor_[static_cast<size_t>(ty * tiles_x_ + tx)];
+          const TileFloor& floor = tile_floor_[tile];
           for (size_t o = 0; o < objects.size(); ++o) {
             if (shadow_regions[o].MayMeet(floor.lo, floor.hi)) shadow_candidates.push_back(o);
           }
         }
+        contact_candidates.clear();
+        if (contact_shadows) {
+          const TileFloor& floor = tile_contact_floor_[tile];
+          for (size_t o = 0; o < occluders.size(); ++o) {
+            if (floor.lo.x() <= floor.hi.x() && PointBoxDistance2(occluders[o].centre_m, floor.lo, floor.hi) < reach2) {
+              contact_candidates.push_back(o);
+            }
+          }
+        }
         const int x0 = tx * kTilePx, y0 = ty * kTilePx;
-        const int x1 = std::min(size_.width, x0 + kTilePx), y1 = std::min(size_.height, y0 + kTilePx);
+        const int x1 = std::min(render_size_.width, x0 + kTilePx), y1 = std::min(render_size_.height, y0 + kTilePx);
         for (int y = y0; y < y1; ++y) {
-          Rgb8* rgb_row = out->rgb.row(y);
-          uint16_t* id_row = out->ids.row(y);
-          uint8_t* shadow_row = shadow_mask ? out->shadow.row(y) : nullptr;
           for (int x = x0; x < x1; ++x) {
             const size_t i = Index(x, y);
             Eigen::Vector3f radiance = bg_[i];
@@ -440,20 +537,183 @@ void CameraRenderer::Render(const SceneState& state, Context& ctx, RenderedView*
                 }
               }
             }
-            if (shadow_row != nullptr) shadow_row[x] = in_shadow ? 255 : 0;
-            const Eigen::Vector3f v = radiance * gain;
-            float n[3] = {0, 0, 0};
-            if (add_noise && has_ray_[i]) {
-              const uint64_t h = Mix64(stream ^ i);
-              for (int c = 0; c < 3; ++c) n[c] = sigma * table[(h >> (16 * c)) & 0xffff];
+            if (!contact_candidates.empty() && id == 0 && static_surface_[i] == 1) {
+              const Eigen::Vector2d p = (origin_ + static_t_[i] * dir_[i]).head<2>();
+              double lit = 1;  // the part of the sky still seen
+              for (size_t o : contact_candidates) {
+                const ContactOccluder& occ = occluders[o];
+                lit *= 1 - contact.strength * ContactShadowShape((p - occ.centre_m).norm(), occ.radius_m, occ.height_m,
+                                                                 contact.reach_m);
+              }
+              if (lit < 1) {
+                const Eigen::Vector3f darkening = static_cast<float>(1 - lit) * ambient_[i];
+                if (darkening.sum() >= kContactShadowMaskFraction * radiance.sum()) in_shadow = true;
+                radiance -= darkening;
+              }
             }
-            rgb_row[x] = {Quantize(v[0], n[0]), Quantize(v[1], n[1]), Quantize(v[2], n[2])};
-            id_row[x] = id;
+            sink(x, y, i, radiance, id, in_shadow);
           }
         }
       }
     }
   });
+}
+
+void CameraRenderer::Render(const SceneState& state, Context& ctx, RenderedView* out, bool noise, bool shadow_mask,
+                            CameraResponse* response) const {
+  const SceneSpec& spec = scene_.spec();
+  const PhotometrySpec& ph = spec.photometry;
+  if (ph.camera.processes_frames()) {
+    RenderRealCamera(state, ctx, out, noise, shadow_mask, response);
+    return;
+  }
+  if (out->rgb.width() != size_.width || out->rgb.height() != size_.height) out->rgb = Image<Rgb8>(size_.width, size_.height);
+  if (out->ids.width() != size_.width || out->ids.height() != size_.height) out->ids = Image<uint16_t>(size_.width, size_.height);
+  const double drift = Gain(state.time_s);
+  const float gain = static_cast<float>(drift) * 255.0f;
+  const bool add_noise = noise && ph.noise_sigma > 0;
+  const float sigma = static_cast<float>(ph.noise_sigma);
+  const auto& table = GaussianTable();
+  const uint64_t stream = NoiseStream(spec.seed, camera_index_, state.frame);
+  if (shadow_mask && (out->shadow.width() != size_.width || out->shadow.height() != size_.height)) {
+    out->shadow = Image<uint8_t>(size_.width, size_.height);
+  }
+  Cast(state, ctx, [&](int x, int y, size_t i, const Eigen::Vector3f& radiance, uint16_t id, bool in_shadow) {
+    if (shadow_mask) out->shadow.row(y)[x] = in_shadow ? 255 : 0;
+    const Eigen::Vector3f v = radiance * gain;
+    float n[3] = {0, 0, 0};
+    if (add_noise && has_ray_[i]) {
+      const uint64_t h = Mix64(stream ^ i);
+      for (int c = 0; c < 3; ++c) n[c] = sigma * table[(h >> (16 * c)) & 0xffff];
+    }
+    out->rgb.row(y)[x] = {Quantize(v[0], n[0]), Quantize(v[1], n[1]), Quantize(v[2], n[2])};
+    out->ids.row(y)[x] = id;
+  });
+  out->gains = Eigen::Vector3d::Constant(drift);
+}
+
+std::vector<Eigen::Vector3f> CameraRenderer::AreaMean(const std::vector<Eigen::Vector3f>& cast) const {
+  if (supersample_ == 1) return cast;
+  const int s = supersample_;
+  const float scale = 1.0f / static_cast<float>(s * s);
+  std::vector<Eigen::Vector3f> out(static_cast<size_t>(size_.width) * static_cast<size_t>(size_.height));
+  for (int y = 0; y < size_.height; ++y) {
+    for (int x = 0; x < size_.width; ++x) {
+      Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+      for (int dy = 0; dy < s; ++dy) {
+        for (int dx = 0; dx < s; ++dx) sum += cast[Index(x * s + dx, y * s + dy)];
+      }
+      out[static_cast<size_t>(y) * static_cast<size_t>(size_.width) + static_cast<size_t>(x)] = sum * scale;
+    }
+  }
+  return out;
+}
+
+Eigen::Vector3d CameraRenderer::MeanRadiance(const std::vector<Eigen::Vector3f>& radiance) const {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int64_t count = 0;
+  for (size_t i = 0; i < radiance.size(); ++i) {
+    if (!out_has_ray_[i]) continue;
+    sum += radiance[i].cast<double>();
+    ++count;
+  }
+  return count > 0 ? Eigen::Vector3d(sum / static_cast<double>(count)) : Eigen::Vector3d::Zero();
+}
+
+void CameraRenderer::Expose(const std::vector<Eigen::Vector3f>& radiance, const Eigen::Vector3d& gains, bool add_noise,
+                            uint64_t stream, Context* ctx, Image<Rgb8>* out) const {
+  const PhotometrySpec& ph = scene_.spec().photometry;
+  const float base_variance = static_cast<float>(ph.noise_sigma * ph.noise_sigma +
+                                                 ph.camera.read_noise * ph.camera.read_noise);
+  const float shot = static_cast<float>(ph.camera.shot_noise);
+  const Eigen::Vector3f gain = (gains * 255.0).cast<float>();
+  const auto& table = GaussianTable();
+  auto rows = [&](int64_t y0, int64_t y1) {
+    for (int y = static_cast<int>(y0); y < y1; ++y) {
+      Rgb8* row = out->row(y);
+      for (int x = 0; x < size_.width; ++x) {
+        const size_t i = static_cast<size_t>(y) * static_cast<size_t>(size_.width) + static_cast<size_t>(x);
+        const Eigen::Vector3f v = radiance[i].cwiseProduct(gain);
+        float n[3] = {0, 0, 0};
+        if (add_noise && out_has_ray_[i]) {
+          const uint64_t h = Mix64(stream ^ i);
+          for (int c = 0; c < 3; ++c) {
+            n[c] = std::sqrt(base_variance + shot * std::max(0.0f, v[c])) * table[(h >> (16 * c)) & 0xffff];
+          }
+        }
+        row[x] = {Quantize(v[0], n[0]), Quantize(v[1], n[1]), Quantize(v[2], n[2])};
+      }
+    }
+  };
+  if (ctx != nullptr) {
+    ParallelFor(*ctx, 0, size_.height, [&](int64_t y0, int64_t y1, int) { rows(y0, y1); });
+  } else {
+    rows(0, size_.height);
+  }
+}
+
+void CameraRenderer::RenderRealCamera(const SceneState& state, Context& ctx, RenderedView* out, bool noise,
+                                      bool shadow_mask, CameraResponse* response) const {
+  const SceneSpec& spec = scene_.spec();
+  const PhotometrySpec& ph = spec.photometry;
+  const size_t cast_pixels = static_cast<size_t>(render_size_.width) * static_cast<size_t>(render_size_.height);
+  std::vector<Eigen::Vector3f> cast(cast_pixels);
+  std::vector<uint16_t> cast_ids(cast_pixels);
+  std::vector<uint8_t> cast_shadow(shadow_mask ? cast_pixels : 0);
+  Cast(state, ctx, [&](int, int, size_t i, const Eigen::Vector3f& radiance, uint16_t id, bool in_shadow) {
+    cast[i] = radiance;
+    cast_ids[i] = id;
+    if (shadow_mask) cast_shadow[i] = in_shadow ? 1 : 0;
+  });
+  if (out->rgb.width() != size_.width || out->rgb.height() != size_.height) out->rgb = Image<Rgb8>(size_.width, size_.height);
+  if (out->ids.width() != size_.width || out->ids.height() != size_.height) out->ids = Image<uint16_t>(size_.width, size_.height);
+  if (shadow_mask && (out->shadow.width() != size_.width || out->shadow.height() != size_.height)) {
+    out->shadow = Image<uint8_t>(size_.width, size_.height);
+  }
+  // Ids and shadows: an object is seen where it covers at least half of the pixel's rays (the
+  // most frequent one), a shadow where most rays fall in one.
+  const int s = supersample_;
+  ParallelFor(ctx, 0, size_.height, [&](int64_t y0, int64_t y1, int) {
+    std::array<std::pair<uint16_t, int>, 16> counts{};
+    for (int y = static_cast<int>(y0); y < y1; ++y) {
+      for (int x = 0; x < size_.width; ++x) {
+        int distinct = 0, covered = 0, shadowed = 0;
+        for (int dy = 0; dy < s; ++dy) {
+          for (int dx = 0; dx < s; ++dx) {
+            const size_t i = Index(x * s + dx, y * s + dy);
+            if (shadow_mask) shadowed += cast_shadow[i];
+            const uint16_t id = cast_ids[i];
+            if (id == 0) continue;
+            ++covered;
+            int k = 0;
+            while (k < distinct && counts[static_cast<size_t>(k)].first != id) ++k;
+            if (k == distinct) counts[static_cast<size_t>(distinct++)] = {id, 0};
+            ++counts[static_cast<size_t>(k)].second;
+          }
+        }
+        uint16_t id = 0;
+        if (2 * covered >= s * s) {
+          int best = 0;
+          for (int k = 0; k < distinct; ++k) {
+            if (counts[static_cast<size_t>(k)].second > best) {
+              best = counts[static_cast<size_t>(k)].second;
+              id = counts[static_cast<size_t>(k)].first;
+            }
+          }
+        }
+        out->ids(x, y) = id;
+        if (shadow_mask) out->shadow(x, y) = id == 0 && 2 * shadowed >= s * s ? 255 : 0;
+      }
+    }
+  });
+  const std::vector<Eigen::Vector3f> radiance = AreaMean(cast);
+  const Eigen::Vector3d mean = MeanRadiance(radiance);
+  const Eigen::Vector3d gains =
+      (response != nullptr ? response->Update(mean) : NewResponse().SettledGains(mean)) * Gain(state.time_s);
+  out->gains = gains;
+  const CameraResponseSpec& cam = ph.camera;
+  const bool add_noise = noise && (ph.noise_sigma > 0 || cam.read_noise > 0 || cam.shot_noise > 0);
+  Expose(radiance, gains, add_noise, NoiseStream(spec.seed, camera_index_, state.frame), &ctx, &out->rgb);
 }
 
 PixelTrace TracePixelReference(const Scene& scene, size_t camera_index, const SceneState& state,

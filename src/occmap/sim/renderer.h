@@ -27,6 +27,23 @@
 // 1 + a sin(2 pi t / period + phase_camera). Backgrounds (empty scene) have gain 1 and, when
 // the scene asks for it, noise from their own stream (frame -1).
 //
+// Contact shadows (scene.h ContactShadowSpec, option): a static floor pixel no moving object
+// covers loses part of its ambient light near each object; the shadow mask marks it where that
+// removes at least 1/16 of the pixel's radiance (the darkening a detector could see; a fainter
+// halo is not marked). Per frame a tile's floor points are tested only against the objects
+// whose reach meets the tile's floor box.
+//
+// A real camera (scene.h CameraResponseSpec::processes_frames): the frame is cast at supersample
+// times the image size (the camera model resized by CameraModel::Resized's rule), every output
+// pixel the mean radiance of its s x s rays, its id the most frequent moving object's when
+// objects cover at least half of them (else 0), its shadow flag the majority's, and its floor
+// mask too; then the mean radiance of the frame (pixels with a ray) gives the exposure and white
+// balance gains (camera_response.h: from the CameraResponse passed in, frames in order, or the
+// frame's settled gains without one); value = gain_c x drift x radiance x 255, plus Gaussian
+// noise of variance noise_sigma^2 + read_noise^2 + shot_noise x value, rounded and clamped.
+// Backgrounds get the empty view's settled gains (no drift). Without a real camera the path
+// and its bits are the ideal camera's above.
+//
 // TracePixelReference is the plain loop (one ray, every primitive, no cache or culling): the
 // oracle of the fast path in tests.
 //
@@ -39,6 +56,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "occmap/sim/camera_response.h"
 #include "occmap/sim/scene.h"
 #include "occmap/util/image.h"
 #include "occmap/util/thread_pool.h"
@@ -51,6 +69,9 @@ struct RenderedView {
   // Only when Render is asked for it (else left as it is): 255 where a moving object's cast
   // shadow darkens a static floor pixel that no moving object covers, else 0.
   Image<uint8_t> shadow;
+  // The gain applied per channel (exposure x white balance x drift; the ideal camera's drift
+  // gain on every channel).
+  Eigen::Vector3d gains = Eigen::Vector3d::Ones();
 };
 
 // The change mask of a view: 255 where ids != 0, else 0.
@@ -71,21 +92,45 @@ class CameraRenderer {
   // when the scene's photometry.background_noise is set and `noise` is true.
   Image<Rgb8> Background(bool noise = true) const;
   // Renders the moving objects of `state` over the static scene; fills out->shadow too when
-  // `shadow_mask` is set (all 0 when the scene has no shadows).
+  // `shadow_mask` is set (all 0 when the scene has no shadows). With a real camera, `response`
+  // carries the exposure and white balance from frame to frame (frames in order; nullptr: the
+  // frame's settled gains).
   void Render(const SceneState& state, Context& ctx, RenderedView* out, bool noise = true,
-              bool shadow_mask = false) const;
+              bool shadow_mask = false, CameraResponse* response = nullptr) const;
+  // A camera response for this view, before its first frame (the empty view's mean radiance).
+  CameraResponse NewResponse() const;
 
-  // Pre-noise radiance of the static scene at a pixel (tests).
+  // The rays cast per pixel along each axis (the scene's camera.supersample).
+  int supersample() const { return supersample_; }
+  // Pre-noise radiance of the static scene at a pixel of the cast (at supersample x the size).
   Eigen::Vector3f StaticRadiance(int x, int y) const { return bg_[Index(x, y)]; }
 
  private:
-  size_t Index(int x, int y) const { return static_cast<size_t>(y) * static_cast<size_t>(size_.width) + static_cast<size_t>(x); }
+  size_t Index(int x, int y) const {
+    return static_cast<size_t>(y) * static_cast<size_t>(render_size_.width) + static_cast<size_t>(x);
+  }
   double Gain(double time_s) const;
   uint8_t Quantize(float value, float noise) const;
+  // Casts the moving objects of `state` tile by tile (rows of tiles in parallel), calling
+  // sink(x, y, index, radiance, id, in_shadow) once per pixel of the cast.
+  template <typename Sink>
+  void Cast(const SceneState& state, Context& ctx, Sink&& sink) const;
+  // A real camera's frame (see above).
+  void RenderRealCamera(const SceneState& state, Context& ctx, RenderedView* out, bool noise, bool shadow_mask,
+                        CameraResponse* response) const;
+  // Linear radiance at the output size: the s x s mean of `cast` (or `cast` itself).
+  std::vector<Eigen::Vector3f> AreaMean(const std::vector<Eigen::Vector3f>& cast) const;
+  Eigen::Vector3d MeanRadiance(const std::vector<Eigen::Vector3f>& radiance) const;
+  void Expose(const std::vector<Eigen::Vector3f>& radiance, const Eigen::Vector3d& gains, bool add_noise,
+              uint64_t stream, Context* ctx, Image<Rgb8>* out) const;
 
   Scene scene_;
   size_t camera_index_ = 0;
-  ImageSize size_;
+  ImageSize size_;         // the image's
+  int supersample_ = 1;
+  ImageSize render_size_;  // the cast's: supersample_ x size_
+  std::vector<uint8_t> out_has_ray_;  // per image pixel: any of its rays (real camera only)
+  std::vector<Eigen::Vector3f> ambient_;  // the ambient part of static floor radiance (only with contact shadows)
   Eigen::Vector3d origin_;
   std::vector<Eigen::Vector3d> dir_;  // unit; zero when the pixel has no ray
   std::vector<uint8_t> has_ray_;
@@ -106,6 +151,8 @@ class CameraRenderer {
   int tiles_x_ = 0, tiles_y_ = 0;
   std::vector<TileCone> tiles_;
   std::vector<TileFloor> tile_floor_;
+  std::vector<TileFloor> tile_contact_floor_;  // every static floor point (only with contact shadows)
+  Eigen::Vector3d empty_mean_ = Eigen::Vector3d::Zero();  // the empty view's mean radiance (real camera)
   double exposure_phase_rad_ = 0;
 };
 

@@ -367,6 +367,38 @@ Status SceneSpec::Validate() const {
   if (!(photometry.exposure_drift >= 0 && photometry.exposure_drift <= 0.5) || !(photometry.exposure_period_s > 0)) {
     return InvalidInput("exposure drift: expected an amplitude 0..0.5 and a positive period");
   }
+  const ContactShadowSpec& cs = photometry.contact_shadows;
+  if (!(cs.strength >= 0 && cs.strength <= 1) || !(cs.radius_m > 0 && cs.radius_m <= 2) ||
+      !(cs.reach_m > cs.radius_m && cs.reach_m <= 10)) {
+    return InvalidInput(fmt::format("contact_shadows: expected strength 0..1, radius_m 0..2 and radius_m < reach_m <= 10, "
+                                    "found {}, {}, {}", cs.strength, cs.radius_m, cs.reach_m));
+  }
+  const CameraResponseSpec& cam = photometry.camera;
+  if (!(cam.target_luma == 0 || (cam.target_luma >= 1 && cam.target_luma <= 254))) {
+    return InvalidInput(fmt::format("camera: target_luma: expected 0 (the empty view's) or 1..254, found {}", cam.target_luma));
+  }
+  if (!(cam.max_gain >= 1 && cam.max_gain <= 64)) {
+    return InvalidInput(fmt::format("camera: max_gain: expected 1..64, found {}", cam.max_gain));
+  }
+  if (!(cam.white_balance >= 0 && cam.white_balance <= 1)) {
+    return InvalidInput(fmt::format("camera: white_balance: expected a strength 0..1, found {}", cam.white_balance));
+  }
+  if (!(cam.time_constant_s >= 0 && cam.time_constant_s <= 3600)) {
+    return InvalidInput(fmt::format("camera: time_constant_s: expected 0..3600 s, found {}", cam.time_constant_s));
+  }
+  if (!(cam.read_noise >= 0 && cam.read_noise <= 50) || !(cam.shot_noise >= 0 && cam.shot_noise <= 10)) {
+    return InvalidInput(fmt::format("camera: expected read_noise 0..50 and shot_noise 0..10, found {} and {}",
+                                    cam.read_noise, cam.shot_noise));
+  }
+  if (cam.supersample < 1 || cam.supersample > 4) {
+    return InvalidInput(fmt::format("camera: supersample: expected 1..4, found {}", cam.supersample));
+  }
+  if (cam.jpeg_quality < 0 || cam.jpeg_quality > 100) {
+    return InvalidInput(fmt::format("camera: jpeg_quality: expected 0 (PNG) or 1..100, found {}", cam.jpeg_quality));
+  }
+  if (cam.video_crf < -1 || cam.video_crf > 51) {
+    return InvalidInput(fmt::format("camera: video_crf: expected -1 (the writer's default) or 0..51, found {}", cam.video_crf));
+  }
   return Status::Ok();
 }
 

@@ -124,6 +124,54 @@ struct MovingObjectSpec {
   std::vector<Waypoint> path;  // increasing times
 };
 
+// Soft contact shadows, as under an overcast sky: an object hides part of the sky from the floor
+// around it. A floor point at a horizontal distance d from an object's axis loses the fraction
+//   strength * S(d),  S(d) = [asin(r / d) / (pi / 2)] * [h^2 / (h^2 + d^2)] / [h^2 / (h^2 + r^2)]
+// of its ambient (sky) light (S = 1 for d <= r): the cosine-weighted sky an upright cylinder of
+// radius r and height h hides, scaled to 1 at its side; S is tapered to 0 between 0.7 and 1 times
+// `reach_m` (no edge anywhere). Several objects combine as 1 - prod(1 - strength S). r is
+// `radius_m` for a person, the bounding cylinder's radius for other objects; h their height.
+// Only the ambient part darkens: the direct light is the cast shadows' (`shadows`).
+struct ContactShadowSpec {
+  double strength = 0;     // the fraction of sky light lost at an object's side, 0..1 (0 = off)
+  double radius_m = 0.22;  // a person's body (r above)
+  double reach_m = 1.5;    // no darkening beyond (from the object's axis)
+  bool enabled() const { return strength > 0; }
+};
+
+// A real camera's response (sim/camera_response.h), off by default (the ideal camera: gain 1,
+// or exposure_drift's, and Gaussian noise_sigma). Each is on when it differs from its default.
+struct CameraResponseSpec {
+  // Automatic exposure: a gain that brings the frame's mean luma (BT.601 weights, over the
+  // pixels with a ray) to `target_luma` grey levels; 0 = the empty view's own mean luma (the
+  // empty scene keeps its brightness; content moves the gain).
+  bool auto_exposure = false;
+  double target_luma = 0;      // 0, or 1..254
+  double max_gain = 4;         // the exposure gain stays in [1 / max_gain, max_gain]
+  // Automatic white balance, grey world: per channel the gain (Y / mean_c)^strength, then
+  // scaled to keep the luma (0 = off, 1 = full grey world).
+  double white_balance = 0;
+  // Both follow the content with this time constant (frames rendered in order; the first frame
+  // starts settled).
+  double time_constant_s = 0.4;
+  // Sensor noise per channel, after the gains: variance read_noise^2 + shot_noise * value
+  // (grey levels), added to noise_sigma's.
+  double read_noise = 0;       // grey levels
+  double shot_noise = 0;       // grey levels of variance per grey level of signal
+  // Rendered at supersample x the image size (s^2 rays a pixel), area-averaged (1 = off).
+  int supersample = 1;
+  // What the dataset writer stores: image sequences as JPEG of this quality (0 = PNG); videos
+  // with H.264 at this constant rate factor (-1 = the video writer's default, 23).
+  int jpeg_quality = 0;
+  int video_crf = -1;
+
+  // Whether a frame goes through CameraResponse (else the ideal camera's exact old path).
+  bool processes_frames() const {
+    return auto_exposure || white_balance > 0 || read_noise > 0 || shot_noise > 0 || supersample > 1;
+  }
+  bool operator==(const CameraResponseSpec&) const = default;
+};
+
 struct PhotometrySpec {
   Lighting lighting;
   double noise_sigma = 2.0;            // Gaussian sensor noise, grey levels (0 = none)
@@ -133,6 +181,8 @@ struct PhotometrySpec {
   // and on each other (cast once; the room's walls and ceiling cast none).
   bool shadows = false;
   bool background_noise = true;        // backgrounds get noise too (their own noise stream)
+  ContactShadowSpec contact_shadows;   // off by default
+  CameraResponseSpec camera;           // the ideal camera by default
 };
 
 struct SceneSpec {

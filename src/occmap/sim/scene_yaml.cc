@@ -348,8 +348,59 @@ Status ParseLighting(const YamlField& f, Lighting& l) {
   return Status::Ok();
 }
 
+Status ParseContactShadows(const YamlField& f, ContactShadowSpec& c) {
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"strength", "radius_m", "reach_m"}));
+  OCCMAP_ASSIGN_OR_RETURN(c.strength, f.GetDouble("strength", 0.5));
+  if (!(c.strength >= 0 && c.strength <= 1)) {
+    return f.Find("strength")->Error(fmt::format("expected a fraction 0..1, found {}", c.strength));
+  }
+  OCCMAP_ASSIGN_OR_RETURN(c.radius_m, f.GetDouble("radius_m", c.radius_m));
+  if (!(c.radius_m > 0 && c.radius_m <= 2)) {
+    return f.Find("radius_m")->Error(fmt::format("expected 0 < radius <= 2 m, found {}", c.radius_m));
+  }
+  OCCMAP_ASSIGN_OR_RETURN(c.reach_m, f.GetDouble("reach_m", c.reach_m));
+  if (!(c.reach_m > c.radius_m && c.reach_m <= 10)) {
+    const YamlField& where = f.Has("reach_m") ? *f.Find("reach_m") : f;
+    return where.Error(fmt::format("expected radius_m ({}) < reach <= 10 m, found {}", c.radius_m, c.reach_m));
+  }
+  return Status::Ok();
+}
+
+Status ParseCameraResponse(const YamlField& f, CameraResponseSpec& c) {
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"auto_exposure", "target_luma", "max_gain", "white_balance", "time_constant_s",
+                                      "read_noise", "shot_noise", "supersample", "jpeg_quality", "video_crf"}));
+  OCCMAP_ASSIGN_OR_RETURN(c.auto_exposure, f.GetBool("auto_exposure", c.auto_exposure));
+  auto in_range = [&](std::string_view key, double* value, double lo, double hi, const char* what) -> Status {
+    OCCMAP_ASSIGN_OR_RETURN(*value, f.GetDouble(key, *value));
+    if (!(*value >= lo && *value <= hi)) return f.Find(key)->Error(fmt::format("expected {}, found {}", what, *value));
+    return Status::Ok();
+  };
+  OCCMAP_RETURN_IF_ERROR(in_range("target_luma", &c.target_luma, 0, 254, "0 (the empty view's) or 1..254 grey levels"));
+  if (c.target_luma > 0 && c.target_luma < 1) {
+    return f.Find("target_luma")->Error(fmt::format("expected 0 (the empty view's) or 1..254 grey levels, found {}", c.target_luma));
+  }
+  OCCMAP_RETURN_IF_ERROR(in_range("max_gain", &c.max_gain, 1, 64, "a gain limit 1..64"));
+  OCCMAP_RETURN_IF_ERROR(in_range("white_balance", &c.white_balance, 0, 1, "a grey-world strength 0..1"));
+  OCCMAP_RETURN_IF_ERROR(in_range("time_constant_s", &c.time_constant_s, 0, 3600, "0..3600 s"));
+  OCCMAP_RETURN_IF_ERROR(in_range("read_noise", &c.read_noise, 0, 50, "0..50 grey levels"));
+  OCCMAP_RETURN_IF_ERROR(in_range("shot_noise", &c.shot_noise, 0, 10, "0..10 grey levels of variance per grey level"));
+  auto int_in_range = [&](std::string_view key, int* value, int lo, int hi, const char* what) -> Status {
+    OCCMAP_ASSIGN_OR_RETURN(int64_t v, f.GetInt(key, *value));
+    if (v < lo || v > hi) return f.Find(key)->Error(fmt::format("expected {}, found {}", what, v));
+    *value = static_cast<int>(v);
+    return Status::Ok();
+  };
+  OCCMAP_RETURN_IF_ERROR(int_in_range("supersample", &c.supersample, 1, 4, "1..4 rays per pixel along each axis"));
+  OCCMAP_RETURN_IF_ERROR(int_in_range("jpeg_quality", &c.jpeg_quality, 0, 100, "0 (PNG) or a JPEG quality 1..100"));
+  OCCMAP_RETURN_IF_ERROR(int_in_range("video_crf", &c.video_crf, -1, 51, "-1 (the writer's default) or an H.264 crf 0..51"));
+  return Status::Ok();
+}
+
 Status ParsePhotometry(const YamlField& f, PhotometrySpec& p) {
-  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"noise_sigma", "exposure_drift", "exposure_period_s", "shadows", "background_noise"}));
+  OCCMAP_RETURN_IF_ERROR(f.CheckKeys({"noise_sigma", "exposure_drift", "exposure_period_s", "shadows", "background_noise",
+                                      "contact_shadows", "camera"}));
+  if (auto c = f.Find("contact_shadows")) OCCMAP_RETURN_IF_ERROR(ParseContactShadows(*c, p.contact_shadows));
+  if (auto c = f.Find("camera")) OCCMAP_RETURN_IF_ERROR(ParseCameraResponse(*c, p.camera));
   OCCMAP_ASSIGN_OR_RETURN(p.noise_sigma, f.GetDouble("noise_sigma", p.noise_sigma));
   if (p.noise_sigma < 0 || p.noise_sigma > 50) {
     return f.Find("noise_sigma")->Error(fmt::format("expected 0..50 grey levels, found {}", p.noise_sigma));
@@ -629,6 +680,20 @@ std::string SceneToYaml(const SceneSpec& spec) {
   out += fmt::format(
       "photometry:\n  noise_sigma: {}\n  exposure_drift: {}\n  exposure_period_s: {}\n  shadows: {}\n  background_noise: {}\n",
       Num(p.noise_sigma), Num(p.exposure_drift), Num(p.exposure_period_s), p.shadows, p.background_noise);
+  // Written only when on: scenes without them write the same text as before they existed.
+  if (p.contact_shadows.enabled()) {
+    out += fmt::format("  contact_shadows: {{strength: {}, radius_m: {}, reach_m: {}}}\n", Num(p.contact_shadows.strength),
+                       Num(p.contact_shadows.radius_m), Num(p.contact_shadows.reach_m));
+  }
+  if (p.camera != CameraResponseSpec{}) {
+    const CameraResponseSpec& c = p.camera;
+    out += fmt::format(
+        "  camera:\n    auto_exposure: {}\n    target_luma: {}\n    max_gain: {}\n    white_balance: {}\n"
+        "    time_constant_s: {}\n    read_noise: {}\n    shot_noise: {}\n    supersample: {}\n    jpeg_quality: {}\n"
+        "    video_crf: {}\n",
+        c.auto_exposure, Num(c.target_luma), Num(c.max_gain), Num(c.white_balance), Num(c.time_constant_s),
+        Num(c.read_noise), Num(c.shot_noise), c.supersample, c.jpeg_quality, c.video_crf);
+  }
   return out;
 }
 

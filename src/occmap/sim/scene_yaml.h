@@ -52,6 +52,19 @@
 //     exposure_drift: 0               # relative amplitude (0 = off), exposure_period_s: 30
 //     shadows: false
 //     background_noise: true
+//     contact_shadows: {strength: 0.5, radius_m: 0.22, reach_m: 1.5}   # optional (off): the sky
+//                                     # an object hides from the floor around it (scene.h)
+//     camera:                         # optional: a real camera (scene.h CameraResponseSpec;
+//       auto_exposure: true           #   every key optional, each off by default)
+//       target_luma: 0                # grey levels; 0 = the empty view's
+//       max_gain: 4
+//       white_balance: 0.6            # grey-world strength 0..1
+//       time_constant_s: 0.4          # how fast both follow the content
+//       read_noise: 1.2               # grey levels
+//       shot_noise: 0.04              # variance per grey level
+//       supersample: 2                # rays per pixel along each axis, area-averaged
+//       jpeg_quality: 75              # image sequences as JPEG (0 = PNG)
+//       video_crf: 28                 # videos: H.264 crf (-1 = 23)
 //
 // A material: {colour: [r, g, b] (0..1), pattern: plain | tiles | carpet | books | noise,
 // colour2, scale_m, variation, seed}. Unknown keys are errors with a "did you mean"; every

@@ -76,6 +76,8 @@ lighting:
 photometry:
   noise_sigma: 1.5
   shadows: true
+  camera: {auto_exposure: true, white_balance: 0.5, supersample: 2, jpeg_quality: 80}
+  contact_shadows: {strength: 0.4}
 )";
 
 TEST(SceneYaml, CustomSceneReadsWithDefaultsAndTimesFromSpeeds) {
@@ -95,6 +97,16 @@ TEST(SceneYaml, CustomSceneReadsWithDefaultsAndTimesFromSpeeds) {
   EXPECT_EQ(spec->objects[0].appearance.top, Eigen::Vector3f(0.8f, 0.1f, 0.1f));
   EXPECT_EQ(spec->photometry.lighting.kind, Lighting::Kind::kPoint);
   EXPECT_TRUE(spec->photometry.shadows);
+  // The real camera's keys, the others at their defaults.
+  const CameraResponseSpec& camera = spec->photometry.camera;
+  EXPECT_TRUE(camera.auto_exposure);
+  EXPECT_EQ(camera.white_balance, 0.5);
+  EXPECT_EQ(camera.supersample, 2);
+  EXPECT_EQ(camera.jpeg_quality, 80);
+  EXPECT_EQ(camera.video_crf, -1);
+  EXPECT_EQ(camera.read_noise, 0);
+  EXPECT_EQ(spec->photometry.contact_shadows.strength, 0.4);
+  EXPECT_EQ(spec->photometry.contact_shadows.reach_m, ContactShadowSpec{}.reach_m);
   EXPECT_FALSE(spec->room.outdoor);
   EXPECT_DOUBLE_EQ(spec->room.x_min_m, -0.5);
   // And it round-trips.
@@ -165,6 +177,14 @@ INSTANTIATE_TEST_SUITE_P(
                  "s.yaml:40: lighting.light.type: expected directional or point, found 'spot'"},
         BadScene{"noise_range", "noise_sigma: 1.5", "noise_sigma: 80",
                  "s.yaml:42: photometry.noise_sigma: expected 0..50 grey levels, found 80"},
+        BadScene{"camera_supersample", "supersample: 2", "supersample: 9",
+                 "s.yaml:44: photometry.camera.supersample: expected 1..4 rays per pixel along each axis, found 9"},
+        BadScene{"camera_unknown_key", "jpeg_quality: 80", "jpg_quality: 80",
+                 "s.yaml:44: photometry.camera: unknown field 'jpg_quality' (did you mean 'jpeg_quality'?)"},
+        BadScene{"camera_white_balance", "white_balance: 0.5", "white_balance: 1.5",
+                 "s.yaml:44: photometry.camera.white_balance: expected a grey-world strength 0..1, found 1.5"},
+        BadScene{"contact_reach", "{strength: 0.4}", "{strength: 0.4, radius_m: 0.5, reach_m: 0.3}",
+                 "s.yaml:45: photometry.contact_shadows.reach_m: expected radius_m (0.5) < reach <= 10 m, found 0.3"},
         BadScene{"floor_not_covering", "cell_size_m: 0.05\n", "cell_size_m: 0.05\n  pieces:\n    - {area_m: [0, 0, 1, 1]}\n",
                  "s.yaml:1: floor: the floor pieces do not cover the monitored area at (0.004, 1.201)"},
         BadScene{"yaml_syntax", "origin_m: [0, 0]", "origin_m: [0, 0", "s.yaml:6:9: YAML syntax error: end of sequence flow not found"}),
