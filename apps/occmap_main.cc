@@ -334,7 +334,18 @@ struct SynthCommand {
   int people = -1;
   double duration_s = -1;
   double sun_elevation_deg = -1;
+  bool overcast = false;
   bool site_backgrounds = false;
+  bool real_camera = false;
+  bool ideal_camera = false;
+  bool auto_exposure = false;
+  std::optional<double> white_balance;
+  std::optional<double> read_noise;
+  std::optional<double> shot_noise;
+  std::optional<int> supersample;
+  std::optional<int> jpeg_quality;
+  std::optional<int> crf;
+  std::optional<double> contact_shadows;
 };
 
 Status RunSynth(const CommonOptions& common, const SynthCommand& cmd) {
@@ -348,6 +359,20 @@ Status RunSynth(const CommonOptions& common, const SynthCommand& cmd) {
   o.people = cmd.people;
   o.duration_s = cmd.duration_s;
   o.sun_elevation_deg = cmd.sun_elevation_deg;
+  o.overcast = cmd.overcast;
+  if (cmd.real_camera && cmd.ideal_camera) {
+    return InvalidInput("--real-camera and --ideal-camera: expected one of them, found both");
+  }
+  if (cmd.real_camera) o.real_camera = true;
+  if (cmd.ideal_camera) o.real_camera = false;
+  if (cmd.auto_exposure) o.auto_exposure = true;
+  o.white_balance = cmd.white_balance;
+  o.read_noise = cmd.read_noise;
+  o.shot_noise = cmd.shot_noise;
+  o.supersample = cmd.supersample;
+  o.jpeg_quality = cmd.jpeg_quality;
+  o.video_crf = cmd.crf;
+  o.contact_shadows = cmd.contact_shadows;
   OCCMAP_RETURN_IF_ERROR(o.Validate());
   sim::SceneSpec spec;
   if (cmd.scene == "wildtrack") {
@@ -584,7 +609,7 @@ int main(int argc, char** argv) {
   synth_cmd->add_option("--seed", synth.seed, "random seed (clothing, noise)")->capture_default_str();
   synth_cmd->add_option("--scale", synth.scale, "image size as a fraction of the cameras' native size")
       ->capture_default_str();
-  synth_cmd->add_flag("--video", synth.video, "write H.264 videos instead of PNG frames");
+  synth_cmd->add_flag("--video", synth.video, "write H.264 videos instead of PNG (or JPEG) frames");
   synth_cmd->add_flag("--shadows", synth.shadows, "cast shadows on the floor (plaza: always)");
   synth_cmd->add_option("--exposure-drift", synth.exposure_drift,
                         "slow exposure drift, relative amplitude (default: the scene's, plaza 0.1, else 0)");
@@ -598,6 +623,24 @@ int main(int argc, char** argv) {
                         "plaza: the sun's elevation, 5..90 degrees (default 25)");
   synth_cmd->add_flag("--site-backgrounds", synth.site_backgrounds,
                       "plaza: give the empty-scene backgrounds in site.yaml (by default the run learns them)");
+  synth_cmd->add_flag("--overcast", synth.overcast,
+                      "plaza: an overcast sky instead of the sun (no cast shadows; soft contact shadows)");
+  synth_cmd->add_flag("--real-camera", synth.real_camera,
+                      "a real camera: automatic exposure and white balance following the content, shot and read "
+                      "noise, rendered at twice the size and downscaled, JPEG 75 (H.264 crf 28), contact shadows");
+  synth_cmd->add_flag("--ideal-camera", synth.ideal_camera, "the ideal camera, no contact shadows (the scene's are off)");
+  synth_cmd->add_flag("--auto-exposure", synth.auto_exposure,
+                      "automatic exposure: the frame's mean luma held at the empty view's");
+  synth_cmd->add_option("--white-balance", synth.white_balance,
+                        "automatic grey-world white balance of this strength, 0..1 (0 = off)");
+  synth_cmd->add_option("--read-noise", synth.read_noise, "sensor read noise sigma per channel, grey levels");
+  synth_cmd->add_option("--shot-noise", synth.shot_noise, "sensor shot noise: variance per grey level of signal");
+  synth_cmd->add_option("--supersample", synth.supersample,
+                        "render N x N rays per pixel and average them (downscaling), 1..4");
+  synth_cmd->add_option("--jpeg-quality", synth.jpeg_quality, "write the frames as JPEG of this quality, 1..100 (0 = PNG)");
+  synth_cmd->add_option("--crf", synth.crf, "with --video: H.264 constant rate factor, 0..51 (-1 = 23)");
+  synth_cmd->add_option("--contact-shadows", synth.contact_shadows,
+                        "soft contact shadows around objects' feet, strength 0..1 (0 = off)");
 
   EvalCommand eval;
   CLI::App* eval_cmd = app.add_subcommand("eval", "score a run against a dataset's ground truth");

@@ -657,6 +657,14 @@ scene("scene_path_time", "- {at_m: [7.6, 1.3], t_s: 5.125621913485231}", "- {at_
 scene("scene_static_shape", "shape: box", "shape: sphere", ["statics[0].shape", "sphere"])
 scene("scene_material_pattern", "pattern: carpet", "pattern: plaid", ["floor.pieces[0].material.pattern", "plaid"])
 scene("scene_light_type", "type: point", "type: laser", ["lighting.light.type", "laser"])
+scene("scene_camera_key", "  shadows: false", "  shadows: false\n  camera: {jpg_quality: 70}",
+      ["photometry.camera", "unknown field 'jpg_quality'", "did you mean 'jpeg_quality'"])
+scene("scene_camera_supersample", "  shadows: false", "  shadows: false\n  camera: {supersample: 8}",
+      ["photometry.camera.supersample", "found 8"])
+scene("scene_camera_white_balance", "  shadows: false", "  shadows: false\n  camera: {white_balance: yes}",
+      ["photometry.camera.white_balance"])
+scene("scene_contact_reach", "  shadows: false", "  shadows: false\n  contact_shadows: {radius_m: 0.3, reach_m: 0.2}",
+      ["photometry.contact_shadows.reach_m", "found 0.2"])
 scene("scene_invalid_utf8", 'name: "lab"', 'name: "l\udcffab"', ["expected UTF-8 text"])
 add("scene_missing_file", ["{bin}", "synth", "--scene", "{c}/none.yaml", "--out", "{c}/out"], ["none.yaml", "file not found"])
 add("scene_fifo", ["{bin}", "synth", "--scene", "{c}/fifo.yaml", "--out", "{c}/out"], ["fifo.yaml", "expected a regular file, found a FIFO"],
@@ -772,6 +780,16 @@ add("cli_synth_people", ["{bin}", "synth", "--scene", "plaza", "--people", "99",
 add("cli_synth_duration", ["{bin}", "synth", "--scene", "plaza", "--duration-s", "0.1", "--out", "{c}/o"], ["duration", "found 0.1"])
 add("cli_synth_sun", ["{bin}", "synth", "--scene", "plaza", "--sun-elevation-deg", "1", "--out", "{c}/o"], ["sun elevation", "found 1"])
 add("cli_synth_drift", ["{bin}", "synth", "--exposure-drift", "3", "--out", "{c}/o"], ["exposure drift", "found 3"])
+add("cli_synth_supersample", ["{bin}", "synth", "--supersample", "9", "--out", "{c}/o"], ["supersample", "found 9"])
+add("cli_synth_jpeg_quality", ["{bin}", "synth", "--jpeg-quality", "101", "--out", "{c}/o"], ["JPEG quality", "found 101"])
+add("cli_synth_crf", ["{bin}", "synth", "--crf", "60", "--out", "{c}/o"], ["crf", "found 60"])
+add("cli_synth_white_balance", ["{bin}", "synth", "--white-balance", "2", "--out", "{c}/o"], ["white balance", "found 2"])
+add("cli_synth_shot_noise", ["{bin}", "synth", "--shot-noise", "-1", "--out", "{c}/o"], ["shot noise", "found -1"])
+add("cli_synth_contact_shadows", ["{bin}", "synth", "--contact-shadows", "1.5", "--out", "{c}/o"], ["contact shadows", "found 1.5"])
+add("cli_synth_two_cameras", ["{bin}", "synth", "--real-camera", "--ideal-camera", "--out", "{c}/o"], ["--real-camera", "found both"])
+add("cli_synth_overcast_lab", ["{bin}", "synth", "--overcast", "--out", "{c}/o"], ["overcast", "scene 'lab'"])
+add("cli_synth_overcast_sun", ["{bin}", "synth", "--scene", "plaza", "--overcast", "--sun-elevation-deg", "30", "--out", "{c}/o"],
+    ["overcast", "found a sun elevation of 30"])
 add("cli_demo_frames_negative", ["{bin}", "demo", "--frames", "-1", "--out", "{c}/o"], ["--frames", "-1"])
 add("cli_lut_plane_nan", ["{bin}", "lut", "{w}/lab/site.yaml", "--plane-height-m", "nan", "--no-cache", "--out", "{c}/o"], ["plane"])
 add("cli_bench_fraction", ["{bin}", "bench", "--changed-fraction", "2"], ["--changed-fraction"])
