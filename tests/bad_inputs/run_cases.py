@@ -465,6 +465,23 @@ bad_file("opencv_extr_empty", EXTR, "", ["empty file"])
 bad_file("opencv_extr_nul_byte", EXTR, b'<?xml version=\0\0"1.0"?>\n<opencv_storage>\n<rvec>0 0 0</rvec>\n</opencv_storage>\n',
          ["found a NUL byte at offset 14"])
 bad_file("opencv_extr_truncated", EXTR, lambda w: read(w, "lab/" + EXTR)[:120], ["OpenCV FileStorage"])
+# OpenCV's parsers recurse per level: 30,000 deep (XML) or 50,000 (YAML flow) overflowed the stack.
+bad_file("opencv_intr_deep_xml", INTR, intr_xml(extra="<a>" * 30000 + "</a>" * 30000),
+         ["nesting deeper than 64 levels"])
+bad_file("opencv_intr_deep_yaml", INTR, "%YAML:1.0\n---\ncamera_matrix: " + "[" * 50000 + "]" * 50000 + "\n",
+         [":3: nesting deeper than 64 levels"])
+bad_file("opencv_intr_deep_yaml_block", INTR, "%YAML:1.0\n---\ncamera_matrix:\n" + "- " * 50000 + "1\n",
+         [":4: nesting deeper than 64 levels"])
+bad_file("opencv_intr_deep_json", INTR, '{"camera_matrix": ' + "[" * 50000 + "]" * 50000 + "}", ["nesting deeper than 64 levels"])
+bad_file("opencv_extr_deep_xml", EXTR, '<?xml version="1.0"?>\n<opencv_storage>' + "<a>" * 30000 + "</a>" * 30000
+         + "</opencv_storage>\n", ["nesting deeper than 64 levels"], cmd="run")
+bad_file("opencv_intr_deep_xml_lut", INTR, intr_xml(extra="<a>" * 30000 + "</a>" * 30000),
+         ["nesting deeper than 64 levels"], cmd="lut", args=["--no-cache", "--out", "{c}/o"])
+# OpenCV keeps both values of a repeated key and reads the first.
+bad_file("opencv_intr_duplicate_key", INTR, intr_xml(extra="<image_width>160</image_width><image_height>120</image_height>"
+                                                     "<image_width>320</image_width>"), ["duplicate key 'image_width'"])
+bad_file("opencv_extr_duplicate_key_yaml", EXTR, "%YAML:1.0\n---\nrvec: [0.1, 0.2, 0.3]\ntvec: [0, 0, 1]\nrvec: [0, 0, 0]\n",
+         ["duplicate key 'rvec'"])
 
 # --- GoPro JSON calibrations -----------------------------------------------------------------
 GI = "calib/gopro_intr_cam1.json"
@@ -498,6 +515,9 @@ gopro("gopro_extr_no_r", "e", '{"unit": "m", "t": %s}' % GOOD_T, ["R: missing"])
 gopro("gopro_extr_unit", "e", '{"unit": "furlong", "t": %s, "R": %s}' % (GOOD_T, GOOD_R), ["unit", "furlong"])
 gopro("gopro_extr_unit_number", "e", '{"unit": 3, "t": %s, "R": %s}' % (GOOD_T, GOOD_R), ["unit: expected a text"])
 gopro("gopro_extr_no_unit", "e", '{"t": %s, "R": %s}' % (GOOD_T, GOOD_R), ["no `unit` field"])
+gopro("gopro_intr_deep", "i", '{"K": ' + "[" * 100000 + "]" * 100000 + "}", ["nesting deeper than 64 levels"])
+gopro("gopro_intr_duplicate_key", "i", GOOD_GI[:-1] + ', "K": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}', ["duplicate key 'K'"])
+gopro("gopro_extr_duplicate_key", "e", '{"unit": "m", "t": %s, "R": %s, "t": [0, 0, 0]}' % (GOOD_T, GOOD_R), ["duplicate key 't'"])
 gopro("gopro_extr_null_r", "e", '{"unit": "m", "t": %s, "R": null}' % GOOD_T, ["R: expected a 3x3 matrix"])
 
 # --- Tsai YAML calibrations (clemson) ----------------------------------------------------------

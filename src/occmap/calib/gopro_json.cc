@@ -3,12 +3,15 @@
 #include <fmt/core.h>
 
 #include <cmath>
+#include <set>
+#include <string>
 #include <nlohmann/json.hpp>
 #include <vector>
 
 #include "occmap/calib/units.h"
 #include "occmap/util/file_util.h"
 #include "occmap/util/safe_files.h"
+#include "occmap/util/text_guard.h"
 
 namespace occmap {
 namespace fs = std::filesystem;
@@ -17,8 +20,27 @@ namespace {
 
 Result<json> ParseJson(const fs::path& path) {
   OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path, kMaxTextFileBytes));
+  // dump() and copies recurse once per level: a 100,000-deep array would overflow the stack.
+  OCCMAP_RETURN_IF_ERROR(CheckNesting(text, TextSyntax::kJson, kMaxNestingDepth, fmt::format("'{}'", path.string())));
   try {
-    json j = json::parse(text);
+    // nlohmann-json keeps the last of a repeated key: refused instead, as the site file does.
+    std::vector<std::set<std::string>> keys;  // of each open object
+    std::string duplicate;
+    const json::parser_callback_t note_keys = [&](int, json::parse_event_t event, json& parsed) {
+      if (event == json::parse_event_t::object_start) {
+        keys.emplace_back();
+      } else if (event == json::parse_event_t::object_end && !keys.empty()) {
+        keys.pop_back();
+      } else if (event == json::parse_event_t::key && !keys.empty() && duplicate.empty() &&
+                 !keys.back().insert(parsed.get<std::string>()).second) {
+        duplicate = parsed.get<std::string>();
+      }
+      return true;
+    };
+    json j = json::parse(text, note_keys);
+    if (!duplicate.empty()) {
+      return InvalidInput(fmt::format("'{}': duplicate key '{}' (keys must be unique)", path.string(), Excerpt(duplicate)));
+    }
     if (!j.is_object()) return InvalidInput(fmt::format("'{}': expected a JSON object", path.string()));
     return j;
   } catch (const json::parse_error& e) {
@@ -37,14 +59,14 @@ Result<std::vector<double>> Matrix(const json& j, const fs::path& path, const ch
   auto add_row = [&](const json& row) -> Status {
     if (!row.is_array()) return InvalidInput(fmt::format("{}: expected a list of numbers", where));
     for (const auto& v : row) {
-      if (!v.is_number()) return InvalidInput(fmt::format("{}: expected numbers, found {}", where, v.dump()));
+      if (!v.is_number()) return InvalidInput(fmt::format("{}: expected numbers, found {}", where, Excerpt(v.dump())));
       const double d = v.get<double>();
       if (!std::isfinite(d)) return InvalidInput(fmt::format("{}: expected finite numbers, found {}", where, d));
       values.push_back(d);
     }
     return Status::Ok();
   };
-  if (!m.is_array()) return InvalidInput(fmt::format("{}: expected a {}x{} matrix, found {}", where, rows, cols, m.dump()));
+  if (!m.is_array()) return InvalidInput(fmt::format("{}: expected a {}x{} matrix, found {}", where, rows, cols, Excerpt(m.dump())));
   if (!m.empty() && m.front().is_array()) {
     if (static_cast<int>(m.size()) != rows) {
       return InvalidInput(fmt::format("{}: expected a {}x{} matrix, found {} rows", where, rows, cols, m.size()));
@@ -52,7 +74,7 @@ Result<std::vector<double>> Matrix(const json& j, const fs::path& path, const ch
     for (const auto& row : m) {
       if (!row.is_array() || static_cast<int>(row.size()) != cols) {
         return InvalidInput(fmt::format("{}: expected a {}x{} matrix, found a row of {}", where, rows, cols,
-                                        row.is_array() ? std::to_string(row.size()) : row.dump()));
+                                        row.is_array() ? std::to_string(row.size()) : Excerpt(row.dump())));
       }
       OCCMAP_RETURN_IF_ERROR(add_row(row));
     }

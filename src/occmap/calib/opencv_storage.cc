@@ -13,6 +13,7 @@
 #include "occmap/geometry/rotation.h"
 #include "occmap/util/file_util.h"
 #include "occmap/util/safe_files.h"
+#include "occmap/util/text_guard.h"
 #include "occmap/util/yaml_util.h"
 
 namespace occmap {
@@ -57,6 +58,31 @@ Status CheckXmlAttributes(std::string_view text, const fs::path& path) {
   return Status::Ok();
 }
 
+// OpenCV keeps both values of a repeated key and reads the first: a file with two camera_matrix
+// would be half ignored, so a repeated key is refused (as the site file's are).
+Status CheckUniqueKeys(const cv::FileNode& node, const fs::path& path, const std::string& where, int depth) {
+  if (depth > kMaxNestingDepth) return Status::Ok();  // CheckNesting bounds it first
+  if (node.isMap()) {
+    std::vector<std::string> keys = node.keys();
+    std::vector<std::string> sorted = keys;
+    std::sort(sorted.begin(), sorted.end());
+    if (auto dup = std::adjacent_find(sorted.begin(), sorted.end()); dup != sorted.end()) {
+      return InvalidInput(fmt::format("'{}': {}duplicate key '{}' (keys must be unique)", path.string(),
+                                      where.empty() ? "" : where + ": ", Excerpt(*dup)));
+    }
+    for (const std::string& k : keys) {
+      OCCMAP_RETURN_IF_ERROR(CheckUniqueKeys(node[k], path, where.empty() ? k : where + "." + k, depth + 1));
+    }
+  } else if (node.isSeq()) {
+    size_t i = 0;
+    for (const cv::FileNode& e : node) {  // an iterator: node[i] walks from the start each time
+      if (e.isMap() || e.isSeq()) OCCMAP_RETURN_IF_ERROR(CheckUniqueKeys(e, path, fmt::format("{}[{}]", where, i), depth + 1));
+      ++i;
+    }
+  }
+  return Status::Ok();
+}
+
 Result<cv::FileStorage> Open(const fs::path& path) {
   OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path, kMaxTextFileBytes));
   if (text.find_first_not_of(" \t\r\n") == std::string::npos) {
@@ -69,11 +95,16 @@ Result<cv::FileStorage> Open(const fs::path& path) {
                                     path.string(), nul));
   }
   OCCMAP_RETURN_IF_ERROR(CheckXmlAttributes(text, path));
+  // OpenCV's parsers recurse once per level: an XML file 30,000 deep (210 KB) overflows the stack.
+  const char first = text[text.find_first_not_of(" \t\r\n")];
+  const TextSyntax syntax = first == '<' ? TextSyntax::kXml : first == '{' ? TextSyntax::kJson : TextSyntax::kYaml;
+  OCCMAP_RETURN_IF_ERROR(CheckNesting(text, syntax, kMaxNestingDepth, fmt::format("'{}'", path.string())));
   try {
     cv::FileStorage storage(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
     if (!storage.isOpened()) {
       return InvalidInput(fmt::format("'{}': not an OpenCV FileStorage file (XML/YAML/JSON)", path.string()));
     }
+    OCCMAP_RETURN_IF_ERROR(CheckUniqueKeys(storage.root(), path, "", 0));
     return storage;
   } catch (const cv::Exception& e) {
     return InvalidInput(fmt::format("'{}': cannot parse OpenCV FileStorage: {}", path.string(), e.err));
@@ -100,7 +131,7 @@ Result<std::vector<double>> Numbers(const cv::FileNode& node, const fs::path& pa
         }
         if (std::string_view(key) != "data" && !field.isInt()) {
           return InvalidInput(fmt::format("{}: {}: expected an integer, found {}", where(), key,
-                                          field.isString() ? fmt::format("'{}'", static_cast<std::string>(field))
+                                          field.isString() ? fmt::format("'{}'", Excerpt(static_cast<std::string>(field)))
                                           : field.isReal() ? fmt::format("{}", static_cast<double>(field))
                                                            : std::string("a list or a map")));
         }
@@ -118,7 +149,7 @@ Result<std::vector<double>> Numbers(const cv::FileNode& node, const fs::path& pa
           std::string token;
           while (in >> token) {
             auto v = ParseFiniteDouble(token);
-            if (!v) return InvalidInput(fmt::format("{}: data: expected a finite number, found '{}'", where(), token));
+            if (!v) return InvalidInput(fmt::format("{}: data: expected a finite number, found '{}'", where(), Excerpt(token)));
             values.push_back(*v);
           }
         } else {
@@ -141,7 +172,7 @@ Result<std::vector<double>> Numbers(const cv::FileNode& node, const fs::path& pa
       for (const auto& e : node) {
         if (e.isString()) {
           return InvalidInput(fmt::format("{}: expected a finite number, found '{}'", where(),
-                                          static_cast<std::string>(e)));
+                                          Excerpt(static_cast<std::string>(e))));
         }
         if (!e.isReal() && !e.isInt()) {
           return InvalidInput(fmt::format("{}: expected numbers, found a non-number element", where()));
@@ -155,7 +186,7 @@ Result<std::vector<double>> Numbers(const cv::FileNode& node, const fs::path& pa
       std::string token;
       while (in >> token) {
         auto v = ParseFiniteDouble(token);
-        if (!v) return InvalidInput(fmt::format("{}: expected a finite number, found '{}'", where(), token));
+        if (!v) return InvalidInput(fmt::format("{}: expected a finite number, found '{}'", where(), Excerpt(token)));
         values.push_back(*v);
       }
     }
