@@ -541,6 +541,7 @@ tsai("tsai_rx_list", "\nRx: 2.3369660910926378", "\nRx: [1, 2]", ["Rx", "expecte
 tsai("tsai_width_zero", "image_width: 160", "image_width: 0", ["image size: expected 1..65535, found 0x120"])
 tsai("tsai_unknown_key", "\nf: 3", "\nf: 3\nfocal: 3", ["unknown field 'focal'"])
 tsai("tsai_duplicate_key", "\nf: 3", "\nf: 3\nf: 4", ["duplicate key 'f'"])
+tsai("tsai_centre_inconsistent", "\nf: 3", "\nf: 3\ncamera_centre_world: [1, 2, 3]", ["camera_centre_world", "expected -R^T T"])
 tsai("tsai_syntax", "\nf: 3", "\nf: [3", ["YAML syntax error"])
 tsai("tsai_invalid_utf8", "\nf: 3", "\nf: 3 # \udcff", ["expected UTF-8 text"])
 bad_file("tsai_empty", TSAI, "", [], base="clemson")

@@ -83,6 +83,18 @@ Result<TsaiParameters> ReadTsaiYaml(const fs::path& path, const std::string& cam
       }
     }
   }
+  // The camera's centre in the world, -R^T T (file units): documented as checked, now checked.
+  if (auto centre = block.Find("camera_centre_world")) {
+    OCCMAP_ASSIGN_OR_RETURN(std::vector<double> c, centre->AsDoubles(3));
+    const Eigen::Vector3d expected = -(p.cam_from_world_rotation.transpose() * Eigen::Vector3d(tx, ty, tz));
+    const Eigen::Vector3d found(c[0], c[1], c[2]);
+    // The terrace file prints it to 1e-9 mm; 1e-6 of its size leaves room for any printing.
+    if ((found - expected).norm() > 1e-6 * std::max(1.0, expected.norm())) {
+      return centre->Error(fmt::format("expected -R^T T = [{:.9f}, {:.9f}, {:.9f}] from Rx, Ry, Rz, Tx, Ty, Tz, "
+                                       "found [{}, {}, {}]",
+                                       expected.x(), expected.y(), expected.z(), c[0], c[1], c[2]));
+    }
+  }
   OCCMAP_RETURN_IF_ERROR(p.Validate().WithContext(block.Where()));
   return p;
 }

@@ -43,6 +43,15 @@ TEST(TsaiYaml, ReadsANamedCameraBlockInMillimetres) {
   EXPECT_NEAR(p->cam_from_world_rotation(0, 0), 0.86400969361424029, 1e-15);
 }
 
+TEST(TsaiYaml, AConsistentCameraCentreIsAccepted) {
+  testing::TempDir dir;
+  std::string text = kCamera;
+  text.replace(text.find("  r1:"), 0, "  camera_centre_world: [6466.178309700, -1562.848552079, 2045.600669980]\n");
+  testing::WriteText(dir / "t.yaml", text);
+  auto p = ReadTsaiYaml(dir / "t.yaml", "c0");
+  EXPECT_TRUE(p.ok()) << p.status().message();
+}
+
 TEST(TsaiYaml, WriteThenReadRoundTrips) {
   testing::TempDir dir;
   testing::WriteText(dir / "t.yaml", kCamera);
@@ -91,6 +100,10 @@ INSTANTIATE_TEST_SUITE_P(
                 "t.yaml:21: c0.r1: expected 0.86400969361424029 from Rx, Ry, Rz, found 0.5"},
         BadTsai{"inconsistent_dpx", "dpx: 0.023", "dpx: 0.03", "c0.dpx: expected dx * Ncx / Nfx = 0.023, found 0.03"},
         BadTsai{"wrong_camera", "c0:", "c9:", "no camera 'c0' (found: c9)"},
+        // The terrace file's c0 centre is [6466.178..., -1562.848..., 2045.600...] mm.
+        BadTsai{"inconsistent_centre", "  r1:", "  camera_centre_world: [6466.18, -1562.85, 2045.7]\n  r1:",
+                "t.yaml:21: c0.camera_centre_world: expected -R^T T = [6466.178309"},
+        BadTsai{"centre_not_three", "  r1:", "  camera_centre_world: [1, 2]\n  r1:", "c0.camera_centre_world"},
         BadTsai{"bad_size", "image_width: 720", "image_width: 0", "image size: expected 1..65535, found 0x576"}),
     [](const ::testing::TestParamInfo<BadTsai>& param_info) { return std::string(param_info.param.name); });
 
