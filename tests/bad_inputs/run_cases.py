@@ -549,6 +549,31 @@ bad_file("tsai_list", TSAI, "- 1\n- 2\n", [], base="clemson")
 
 # --- masks, backgrounds, frames, videos --------------------------------------------------------
 PNG_HEADER = b"\x89PNG\r\n\x1a\n"
+
+
+def png_bomb(side=10000):
+    """A valid grey PNG of side x side black pixels: about 100 KB that decode to 100 MB."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    z = zlib.compressobj(9)
+    row = b"\0" * (side + 1)
+    idat = b"".join(z.compress(row) for _ in range(side)) + z.flush()
+    return (PNG_HEADER + chunk(b"IHDR", struct.pack(">IIBBBBB", side, side, 8, 0, 0, 0, 0)) + chunk(b"IDAT", idat)
+            + chunk(b"IEND", b""))
+
+
+def jpeg_of(work, source="lab/frames/cam1/000000.png"):
+    """A JPEG of a lab frame, made by ffmpeg (a dependency of the frame sources)."""
+    out = os.path.join(work, "frame.jpg")
+    if not os.path.exists(out):  # cases run in threads: each writes its own, the rename is atomic
+        tmp = f"{out}.{os.getpid()}-{id(object())}.jpg"
+        subprocess.run(["ffmpeg", "-loglevel", "error", "-y", "-i", os.path.join(work, source), "-frames:v", "1", tmp],
+                       check=True)
+        os.replace(tmp, out)
+    return read(work, "frame.jpg")
 bad_file("mask_not_png", "masks/cam1.png", "garbage", ["cameras[0].mask", "cannot decode image"])
 bad_file("mask_empty", "masks/cam1.png", b"", ["cameras[0].mask", "empty file"])
 bad_file("mask_truncated", "masks/cam1.png", lambda w: read(w, "lab/masks/cam1.png")[:60], ["cameras[0].mask"])
@@ -556,6 +581,18 @@ bad_file("mask_header_only", "masks/cam1.png", PNG_HEADER, ["cameras[0].mask"])
 bad_file("mask_wrong_size", "masks/cam1.png", lambda w: read(w, "lab/../clemson/masks/c1.png") if False else read(w, "lutout/visibility.png"),
          ["cameras[0].mask", "expected the camera's image size 160x120"])
 bad_file("mask_is_jpeg_garbage", "masks/cam1.png", b"\xff\xd8\xff\xe0" + b"\0" * 100, ["cameras[0].mask"])
+# Decoded whole before its size was checked (1.85 GB for 30000 x 30000); a JPEG cut short was
+# taken without a word, its missing rows grey.
+bad_file("mask_png_bomb", "masks/cam1.png", lambda w: png_bomb(), ["cameras[0].mask", "PNG of 10000x10000 pixels",
+         "refused before decoding"])
+bad_file("mask_truncated_jpeg", "masks/cam1.png", lambda w: jpeg_of(w)[:len(jpeg_of(w)) // 2],
+         ["cameras[0].mask", "truncated JPEG"])
+site("mask_polygon_and_polygons", "mask: masks/cam1.png",
+     "mask: {polygon: [[0, 0], [100, 0], [100, 100]], polygons: [[[0, 0], [50, 0], [50, 50]]]}",
+     ["cameras[0].mask", "found both"])
+bad_file("background_png_bomb", "backgrounds/cam1.png", lambda w: png_bomb(), ["PNG of 10000x10000 pixels"], cmd="run")
+bad_file("background_truncated_jpeg", "backgrounds/cam1.png", lambda w: jpeg_of(w)[:len(jpeg_of(w)) // 2],
+         ["truncated JPEG"], cmd="run")
 bad_file("background_not_png", "backgrounds/cam1.png", "garbage", ["cam1"], cmd="run")
 bad_file("background_empty", "backgrounds/cam1.png", b"", ["cam1"], cmd="run")
 bad_file("background_wrong_size", "backgrounds/cam1.png", lambda w: read(w, "lutout/visibility.png"),
@@ -587,6 +624,8 @@ frame_case("frame_corrupt", b"garbage", ["000001.png"])
 frame_case("frame_truncated", lambda w: read(w, "lab/frames/cam1/000001.png")[:80], ["000001.png"])
 frame_case("frame_wrong_size", lambda w: read(w, "lutout/visibility.png"), ["000001.png", "160x120"])
 frame_case("frame_empty", b"", ["000001.png"])
+frame_case("frame_png_bomb", lambda w: png_bomb(), ["000001.png", "PNG of 10000x10000 pixels"])
+frame_case("frame_truncated_jpeg", lambda w: jpeg_of(w)[:len(jpeg_of(w)) // 2], ["000001.png", "truncated JPEG"])
 
 
 def video_case(name, content, words, file_name="v.mp4"):

@@ -16,6 +16,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "occmap/eval/run_outputs.h"
+#include "occmap/util/image_io.h"
 
 namespace occmap {
 namespace fs = std::filesystem;
@@ -62,6 +63,8 @@ class MaskReader {
   // The picture stays valid until the next Read into the same slot (0..2).
   Result<ImageView<const uint8_t>> Read(const fs::path& path, int slot) {
     OCCMAP_RETURN_IF_ERROR(ReadFile(path));
+    OCCMAP_RETURN_IF_ERROR(CheckEncodedImage(
+        std::string_view(reinterpret_cast<const char*>(bytes_.data()), bytes_.size()), path.string()));
     cv::Mat mat;
     try {
       mat = cv::imdecode(cv::Mat(1, static_cast<int>(bytes_.size()), CV_8UC1, bytes_.data()), cv::IMREAD_GRAYSCALE);

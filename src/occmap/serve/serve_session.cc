@@ -16,6 +16,8 @@
 #include "occmap/serve/web_api.h"
 #include "occmap/site/site_update.h"
 #include "occmap/util/file_util.h"
+#include "occmap/util/image_io.h"
+#include "occmap/util/text_guard.h"
 
 namespace occmap {
 namespace {
@@ -428,6 +430,8 @@ Result<json> ServeSession::AddBoardView(const json& body) {
   } else {
     if (!body["image"].is_string()) return InvalidInput("image: expected a base64 PNG or JPEG");
     OCCMAP_ASSIGN_OR_RETURN(std::string bytes, DecodeBase64(body["image"].get<std::string>(), "image"));
+    // A 1 MB PNG may claim 30000 x 30000 pixels: its header is read before it is decoded.
+    if (Status s = CheckEncodedImage(bytes, "image"); !s.ok()) return InvalidInput(s.message());
     cv::Mat decoded;
     try {
       decoded = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, bytes.data()), cv::IMREAD_GRAYSCALE);

@@ -240,6 +240,10 @@ Result<Image<uint8_t>> ParseMask(const YamlField& field, const PathContext& ctx,
     polygons.push_back(std::move(pts));
     return Status::Ok();
   };
+  // Both would be one mask of their union, not what either key alone says: a mix-up to name.
+  if (field.Find("polygon") && field.Find("polygons")) {
+    return field.Error("expected 'polygon' or 'polygons', found both (put every polygon under 'polygons')");
+  }
   if (auto poly = field.Find("polygon")) OCCMAP_RETURN_IF_ERROR(parse_polygon(*poly));
   if (auto list = field.Find("polygons")) {
     if (!list->IsSequence() || list->size() == 0) return list->Error("expected a list of polygons");

@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 #include <vector>
 #include <array>
+#include <cctype>
 #include <cstdint>
 #include <cstring>
 #include <string_view>
@@ -35,9 +36,90 @@ uint32_t Crc32(const unsigned char* p, size_t n) {
 // line on stderr for a truncated or corrupt file, before our message. Lengths, CRCs, IHDR
 // first and IEND last are checked here; only a corrupt compressed stream reaches libpng.
 // Not inlined: inlined into Decode, GCC 12 warns (-Wmaybe-uninitialized) about the Result's string.
+Status CheckPixels(std::string_view name, std::string_view format, int64_t width, int64_t height) {
+  if (width > 0 && height > 0 && width * height <= kMaxImagePixels) return Status::Ok();
+  if (width <= 0 || height <= 0) {
+    return DataLoss(fmt::format("'{}': {} header says {}x{} pixels, expected a positive size", name, format, width, height));
+  }
+  return ResourceExhausted(fmt::format("'{}': {} of {}x{} pixels, expected at most {} pixels (8192 x 4096); refused "
+                                       "before decoding",
+                                       name, format, width, height, kMaxImagePixels));
+}
+
+uint32_t Be32(const unsigned char* p) { return (uint32_t{p[0]} << 24) | (uint32_t{p[1]} << 16) | (uint32_t{p[2]} << 8) | p[3]; }
+uint32_t Be16(const unsigned char* p) { return (uint32_t{p[0]} << 8) | p[1]; }
+int32_t Le32(const unsigned char* p) {
+  return static_cast<int32_t>(uint32_t{p[0]} | (uint32_t{p[1]} << 8) | (uint32_t{p[2]} << 16) | (uint32_t{p[3]} << 24));
+}
+
+// A JPEG's segments walked to its end marker (EOI): the frame header's size checked, the
+// entropy-coded data after each scan skipped to the next marker. APPn segments are skipped by
+// their length (an EXIF thumbnail's own EOI is not taken for the file's).
+Status CheckJpeg(std::string_view name, std::string_view bytes) {
+  const auto* b = reinterpret_cast<const unsigned char*>(bytes.data());
+  const size_t n = bytes.size();
+  auto truncated = [&] {
+    return DataLoss(fmt::format("'{}': truncated JPEG: {} bytes, no end marker (EOI)", name, n));
+  };
+  size_t i = 2;
+  while (true) {
+    if (i >= n) return truncated();
+    if (b[i] != 0xFF) {
+      return DataLoss(fmt::format("'{}': corrupt JPEG: expected a marker at byte {}, found 0x{:02x}", name, i, b[i]));
+    }
+    while (i < n && b[i] == 0xFF) ++i;
+    if (i >= n) return truncated();
+    const unsigned char m = b[i++];
+    if (m == 0xD9) return Status::Ok();
+    if ((m >= 0xD0 && m <= 0xD7) || m == 0x01) continue;
+    if (n - i < 2) return truncated();
+    const size_t length = Be16(b + i);
+    if (length < 2) return DataLoss(fmt::format("'{}': corrupt JPEG: segment 0x{:02x} at byte {} of length {}", name, m, i - 2, length));
+    if (length > n - i) return truncated();
+    const bool frame = m >= 0xC0 && m <= 0xCF && m != 0xC4 && m != 0xC8 && m != 0xCC;
+    if (frame && length >= 7) {
+      const int64_t height = Be16(b + i + 3), width = Be16(b + i + 5);
+      // A height of 0 is given later (DNL): left to the decoder, whose own limit then holds.
+      if (height > 0) OCCMAP_RETURN_IF_ERROR(CheckPixels(name, "JPEG", width, height));
+    }
+    i += length;
+    if (m == 0xDA) {  // a scan: its coded data runs to the next marker that is not a stuffed 0xFF or a restart
+      while (true) {
+        if (i + 1 >= n) return truncated();
+        if (b[i] == 0xFF && b[i + 1] != 0x00 && b[i + 1] != 0xFF && !(b[i + 1] >= 0xD0 && b[i + 1] <= 0xD7)) break;
+        ++i;
+      }
+    }
+  }
+}
+
+// Width and height of a PNM (P1..P6) header: magic, then numbers between whitespace and comments.
+Status CheckPnm(std::string_view name, std::string_view bytes) {
+  size_t i = 2;
+  int64_t dims[2] = {0, 0};
+  for (int64_t& d : dims) {
+    while (i < bytes.size() && (std::isspace(static_cast<unsigned char>(bytes[i])) || bytes[i] == '#')) {
+      if (bytes[i] == '#') {
+        while (i < bytes.size() && bytes[i] != '\n') ++i;
+      } else {
+        ++i;
+      }
+    }
+    if (i >= bytes.size() || !std::isdigit(static_cast<unsigned char>(bytes[i]))) return Status::Ok();  // the decoder says
+    while (i < bytes.size() && std::isdigit(static_cast<unsigned char>(bytes[i])) && d <= kMaxImagePixels) {
+      d = d * 10 + (bytes[i++] - '0');
+    }
+  }
+  return CheckPixels(name, "PNM image", dims[0], dims[1]);
+}
+
 [[gnu::noinline]] Status CheckPngChunks(const fs::path& path, std::string_view bytes) {
   if (bytes.size() < 8 || std::memcmp(bytes.data(), "\x89PNG\r\n\x1a\n", 8) != 0) return Status::Ok();  // not a PNG
   const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
+  // IHDR's size before anything else: width and height at bytes 16 and 20.
+  if (bytes.size() >= 24 && std::memcmp(bytes.data() + 12, "IHDR", 4) == 0) {
+    OCCMAP_RETURN_IF_ERROR(CheckPixels(path.string(), "PNG", Be32(p + 16), Be32(p + 20)));
+  }
   size_t at = 8;
   bool first = true;
   while (true) {
@@ -67,7 +149,7 @@ uint32_t Crc32(const unsigned char* p, size_t n) {
 Result<cv::Mat> Decode(const fs::path& path, int flags) {
   OCCMAP_ASSIGN_OR_RETURN(std::string bytes, ReadFileToString(path));
   if (bytes.empty()) return DataLoss(fmt::format("'{}': empty file, expected an image", path.string()));
-  OCCMAP_RETURN_IF_ERROR(CheckPngChunks(path, bytes));
+  OCCMAP_RETURN_IF_ERROR(CheckEncodedImage(bytes, path.string()));
   cv::Mat mat;
   try {
     mat = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, bytes.data()), flags);
@@ -99,6 +181,21 @@ Status Encode(const fs::path& path, const cv::Mat& mat, const char* extension = 
 }
 
 }  // namespace
+
+Status CheckEncodedImage(std::string_view bytes, std::string_view name) {
+  const auto* b = reinterpret_cast<const unsigned char*>(bytes.data());
+  if (bytes.size() >= 8 && std::memcmp(bytes.data(), "\x89PNG\r\n\x1a\n", 8) == 0) return CheckPngChunks(fs::path(name), bytes);
+  if (bytes.size() >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF) return CheckJpeg(name, bytes);
+  if (bytes.size() >= 26 && bytes.substr(0, 2) == "BM") {
+    const int64_t width = Le32(b + 18), height = Le32(b + 22);  // height < 0: rows top down
+    return CheckPixels(name, "BMP", width, height < 0 ? -height : height);
+  }
+  if (bytes.size() >= 3 && bytes[0] == 'P' && bytes[1] >= '1' && bytes[1] <= '6' &&
+      std::isspace(static_cast<unsigned char>(bytes[2]))) {
+    return CheckPnm(name, bytes);
+  }
+  return Status::Ok();
+}
 
 Result<Image<uint8_t>> ReadGrayImage(const fs::path& path) {
   OCCMAP_ASSIGN_OR_RETURN(cv::Mat mat, Decode(path, cv::IMREAD_GRAYSCALE));

@@ -9,11 +9,22 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <string_view>
 
 #include "occmap/util/image.h"
 #include "occmap/util/status.h"
 
 namespace occmap {
+
+// The most pixels an image read may have: more is refused from its header, before it is decoded
+// (a 1 MB PNG of 30000 x 30000 pixels decoded to 1.85 GB in 8 s). 8192 x 4096 holds 8K UHD.
+inline constexpr int64_t kMaxImagePixels = int64_t{1} << 25;
+
+// Checks encoded image bytes before a decoder sees them: the size in a PNG, JPEG, BMP or
+// PNM header within kMaxImagePixels; a PNG's chunks (lengths, CRCs, IHDR first, IEND last); a
+// JPEG's segments up to its end marker (OpenCV decodes a truncated JPEG without a word, the
+// missing rows grey). Other formats pass to the decoder. `name` names the input in messages.
+Status CheckEncodedImage(std::string_view bytes, std::string_view name);
 
 // Reads any image OpenCV decodes as 8-bit grey (colour images are converted to luma).
 Result<Image<uint8_t>> ReadGrayImage(const std::filesystem::path& path);

@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <vector>
 
 #include "occmap/util/file_util.h"
 #include "occmap/util/image_io.h"
@@ -99,11 +102,68 @@ TEST(ImageIo, TruncatedPngIsRejected) {
   // Told by our own chunk walk, before libpng (which would print "libpng error: ..." itself).
   EXPECT_NE(cut.status().message().find("truncated PNG: chunk 'IDAT'"), std::string::npos) << cut.status().message();
   std::string flipped = bytes;
-  flipped[20] = static_cast<char>(flipped[20] ^ 0x01);  // IHDR's width
+  flipped[24] = static_cast<char>(flipped[24] ^ 0x01);  // IHDR's bit depth
   ASSERT_TRUE(WriteFileAtomic(dir / "crc.png", flipped).ok());
   auto crc = ReadGrayImage(dir / "crc.png");
   ASSERT_FALSE(crc.ok());
   EXPECT_EQ(crc.status().message(), fmt::format("'{}': corrupt PNG: chunk 'IHDR' at byte 8 fails its CRC", (dir / "crc.png").string()));
+}
+
+// A 1 MB PNG of 30000 x 30000 pixels decoded to 1.85 GB: its header says so first.
+TEST(ImageIo, OversizeImagesAreRefusedFromTheirHeader) {
+  testing::TempDir dir;
+  Image<uint8_t> gray(64, 48, 100);
+  ASSERT_TRUE(WritePng(dir / "g.png", gray.view()).ok());
+  std::string png = *ReadFileToString(dir / "g.png");
+  for (int i : {16, 20}) {  // width, height: 30000 each
+    png[i] = 0, png[i + 1] = 0, png[i + 2] = static_cast<char>(30000 >> 8), png[i + 3] = static_cast<char>(30000 & 0xFF);
+  }
+  ASSERT_TRUE(WriteFileAtomic(dir / "bomb.png", png).ok());
+  auto bomb = ReadGrayImage(dir / "bomb.png");
+  ASSERT_FALSE(bomb.ok());
+  EXPECT_EQ(bomb.status().message(),
+            fmt::format("'{}': PNG of 30000x30000 pixels, expected at most 33554432 pixels (8192 x 4096); refused before "
+                        "decoding", (dir / "bomb.png").string()));
+  EXPECT_EQ(ExitCodeFor(bomb.status()), 2);
+
+  std::vector<uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", cv::Mat(48, 64, CV_8UC1, cv::Scalar(90)), jpeg));
+  std::string j(jpeg.begin(), jpeg.end());
+  EXPECT_TRUE(CheckEncodedImage(j, "ok.jpg").ok());
+  const size_t sof = j.find("\xFF\xC0");
+  ASSERT_NE(sof, std::string::npos);
+  j[sof + 5] = static_cast<char>(0xFF), j[sof + 6] = static_cast<char>(0xFF);  // height 65535
+  j[sof + 7] = static_cast<char>(0xFF), j[sof + 8] = static_cast<char>(0xFF);  // width 65535
+  const Status s = CheckEncodedImage(j, "bomb.jpg");
+  EXPECT_EQ(s.code(), StatusCode::kResourceExhausted);
+  EXPECT_NE(s.message().find("JPEG of 65535x65535 pixels"), std::string::npos) << s.message();
+
+  std::string bmp = "BM" + std::string(24, '\0');
+  bmp[18] = bmp[19] = bmp[22] = bmp[23] = static_cast<char>(0x7F);  // 32639 x 32639
+  EXPECT_EQ(CheckEncodedImage(bmp, "bomb.bmp").code(), StatusCode::kResourceExhausted);
+  EXPECT_EQ(CheckEncodedImage("P5\n# big\n30000 30000\n255\n", "bomb.pgm").code(), StatusCode::kResourceExhausted);
+}
+
+// OpenCV decodes a JPEG cut short without a word (the missing rows grey).
+TEST(ImageIo, TruncatedJpegIsRejected) {
+  testing::TempDir dir;
+  cv::Mat noise(120, 160, CV_8UC1);
+  cv::randu(noise, 0, 255);
+  std::vector<uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", noise, jpeg));
+  const std::string bytes(jpeg.begin(), jpeg.end());
+  ASSERT_TRUE(WriteFileAtomic(dir / "whole.jpg", bytes).ok());
+  EXPECT_TRUE(ReadGrayImage(dir / "whole.jpg").ok());
+  for (size_t keep : {bytes.size() / 2, bytes.size() - 2, size_t{200}}) {
+    ASSERT_TRUE(WriteFileAtomic(dir / "cut.jpg", std::string_view(bytes).substr(0, keep)).ok());
+    auto cut = ReadGrayImage(dir / "cut.jpg");
+    ASSERT_FALSE(cut.ok()) << keep;
+    EXPECT_EQ(cut.status().message(),
+              fmt::format("'{}': truncated JPEG: {} bytes, no end marker (EOI)", (dir / "cut.jpg").string(), keep));
+  }
+  // Bytes after the end marker (some cameras append their own) are no truncation.
+  ASSERT_TRUE(WriteFileAtomic(dir / "tail.jpg", bytes + "trailing bytes").ok());
+  EXPECT_TRUE(ReadGrayImage(dir / "tail.jpg").ok());
 }
 
 }  // namespace
