@@ -726,6 +726,7 @@ scene("scene_camera_white_balance", "  shadows: false", "  shadows: false\n  cam
 scene("scene_contact_reach", "  shadows: false", "  shadows: false\n  contact_shadows: {radius_m: 0.3, reach_m: 0.2}",
       ["photometry.contact_shadows.reach_m", "found 0.2"])
 scene("scene_invalid_utf8", 'name: "lab"', 'name: "l\udcffab"', ["expected UTF-8 text"])
+scene("scene_name_traversal", 'name: "lab"', 'name: "../../evil"', ["name", "scene name '../../evil'"])
 add("scene_missing_file", ["{bin}", "synth", "--scene", "{c}/none.yaml", "--out", "{c}/out"], ["none.yaml", "file not found"])
 add("scene_fifo", ["{bin}", "synth", "--scene", "{c}/fifo.yaml", "--out", "{c}/out"], ["fifo.yaml", "expected a regular file, found a FIFO"],
     setup=lambda c, w: os.mkfifo(os.path.join(c, "fifo.yaml")), timeout=20)

@@ -7,6 +7,7 @@
 
 #include "occmap/util/file_util.h"
 #include "occmap/util/safe_files.h"
+#include "occmap/util/text_guard.h"
 #include "occmap/util/yaml_util.h"
 
 namespace occmap::sim {
@@ -468,6 +469,12 @@ Result<SceneSpec> ParseSceneYaml(std::string_view text, const std::string& file_
   const std::string stem = std::filesystem::path(file_name).stem().string();
   OCCMAP_ASSIGN_OR_RETURN(spec.name, root.GetString("name", stem.empty() ? "scene" : stem));
   if (spec.name.empty()) return root.Find("name")->Error("expected a non-empty name");
+  // The name becomes the written site's name (and its files'): refused here as the site loader
+  // would refuse it ("../../evil" was written, then not loaded).
+  if (auto bad = CheckSafeFileName(spec.name)) {
+    if (auto name = root.Find("name")) return name->Error(fmt::format("scene name '{}': {}", Excerpt(spec.name), *bad));
+    return root.Error(fmt::format("the file's name '{}' is the scene's name and {}; give a `name:`", Excerpt(spec.name), *bad));
+  }
   OCCMAP_ASSIGN_OR_RETURN(int64_t seed, root.GetInt("seed", 1));
   if (seed < 0) return root.Find("seed")->Error(fmt::format("expected a seed >= 0, found {}", seed));
   spec.seed = static_cast<uint64_t>(seed);
