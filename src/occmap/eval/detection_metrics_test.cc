@@ -2,7 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include "occmap/util/hungarian.h"
+
 #include <cmath>
+#include <limits>
+#include <random>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -84,6 +89,60 @@ TEST(MatchWithinDistance, AmongEquallyManyPairsChoosesTheLeastTotalDistance) {
 TEST(MatchWithinDistance, EmptySidesMatchNothing) {
   EXPECT_EQ(MatchWithinDistance(std::vector<V>{V(0, 0), V(1, 1)}, std::vector<V>{}, 0.5), (std::vector<int>{-1, -1}));
   EXPECT_TRUE(MatchWithinDistance(std::vector<V>{}, std::vector<V>{V(0, 0)}, 0.5).empty());
+}
+
+// The reference: one dense matrix of every pair, as MatchWithinDistance was.
+std::vector<int> DenseMatch(const std::vector<V>& gt, const std::vector<V>& pred, double t) {
+  if (gt.empty() || pred.empty()) return std::vector<int>(gt.size(), -1);
+  std::vector<double> cost;
+  for (const V& g : gt) {
+    for (const V& p : pred) cost.push_back((g - p).norm() <= t ? (g - p).norm() : std::numeric_limits<double>::infinity());
+  }
+  return SolveAssignment(cost, static_cast<int>(gt.size()), static_cast<int>(pred.size()));
+}
+
+std::pair<int, double> CountAndCost(const std::vector<int>& m, const std::vector<V>& gt, const std::vector<V>& pred) {
+  int n = 0;
+  double cost = 0;
+  for (size_t i = 0; i < m.size(); ++i) {
+    if (m[i] < 0) continue;
+    ++n;
+    cost += (gt[i] - pred[static_cast<size_t>(m[i])]).norm();
+  }
+  return {n, cost};
+}
+
+TEST(MatchWithinDistance, GatedGroupsGiveTheDenseOptimum) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 4.0);
+  for (int trial = 0; trial < 200; ++trial) {
+    std::vector<V> gt(rng() % 25), pred(rng() % 25);
+    for (V& g : gt) g = {u(rng), u(rng)};
+    for (V& p : pred) p = {u(rng), u(rng)};
+    const std::vector<int> fast = MatchWithinDistance(gt, pred, 0.5), dense = DenseMatch(gt, pred, 0.5);
+    const auto [n_fast, cost_fast] = CountAndCost(fast, gt, pred);
+    const auto [n_dense, cost_dense] = CountAndCost(dense, gt, pred);
+    ASSERT_EQ(n_fast, n_dense) << trial;
+    ASSERT_NEAR(cost_fast, cost_dense, 1e-9) << trial;
+    std::vector<int> used(pred.size(), 0);
+    for (int j : fast) {
+      if (j >= 0) {
+        ASSERT_EQ(used[static_cast<size_t>(j)]++, 0) << "prediction matched twice";
+      }
+    }
+  }
+}
+
+// 5000 x 5000 points a frame were one 25 M-entry matrix (over 60 s); gated, groups of one pair.
+TEST(MatchWithinDistance, FiveThousandPointsEachMatchTheirNeighbour) {
+  std::vector<V> gt, pred;
+  for (int k = 0; k < 5000; ++k) {
+    gt.push_back({(k % 100) * 1.0, (k / 100) * 1.0});
+    pred.push_back({(k % 100) * 1.0 + 0.1, (k / 100) * 1.0 - 0.2});
+  }
+  const std::vector<int> m = MatchWithinDistance(gt, pred, 0.5);
+  for (int k = 0; k < 5000; ++k) ASSERT_EQ(m[static_cast<size_t>(k)], k);
+  EXPECT_EQ(PairsWithinDistance(gt, pred, 0.5).size(), 5000u);
 }
 
 TEST(DetectionEvaluator, ModaIsNegativeWhenFalsePositivesOutnumberGroundTruth) {

@@ -97,10 +97,14 @@ void TrackingEvaluator::AddFrame(std::span<const IdPosition> gt, std::span<const
   const size_t n_gt = gt.size(), n_tracks = tracks.size();
   auto distance = [&](size_t g, size_t h) { return (gt[g].position_m - tracks[h].position_m).norm(); };
 
-  // Identity measures: every (object, track) pair within t in this frame.
-  for (size_t g = 0; g < n_gt; ++g) {
-    for (size_t h = 0; h < n_tracks; ++h) {
-      if (distance(g, h) <= t) ++frames_within_[{gt[g].id, tracks[h].id}];
+  // Identity measures: every (object, track) pair within t in this frame (through the grid of
+  // PairsWithinDistance, not all n_gt x n_tracks pairs).
+  {
+    std::vector<Eigen::Vector2d> gt_m, tracks_m;
+    for (const IdPosition& g : gt) gt_m.push_back(g.position_m);
+    for (const IdPosition& h : tracks) tracks_m.push_back(h.position_m);
+    for (const PointPair& p : PairsWithinDistance(gt_m, tracks_m, t)) {
+      ++frames_within_[{gt[static_cast<size_t>(p.i)].id, tracks[static_cast<size_t>(p.j)].id}];
     }
   }
 
