@@ -109,8 +109,9 @@ CASES = []
 
 
 class Case:
-    def __init__(self, name, argv, words, code=2, files=None, setup=None, timeout=60):
+    def __init__(self, name, argv, words, code=2, files=None, setup=None, timeout=60, max_output=None):
         self.name, self.argv, self.words, self.code = name, argv, words, code
+        self.max_output = max_output  # bytes: a long value is cut in the message, never echoed whole
         self.files = files or {}
         self.setup = setup
         self.timeout = timeout
@@ -124,7 +125,7 @@ def with_data_root(text, base):
     return text.replace("version: 1\n", "version: 1\ndata_root: {w}/" + base + "\n", 1)
 
 
-def site(name, frm, to, words, base="lab", cmd="check", args=(), code=2, count=1):
+def site(name, frm, to, words, base="lab", cmd="check", args=(), code=2, count=1, max_output=None):
     """A copy of a valid site with `frm` replaced by `to`, run through `occmap CMD`."""
     def setup(case_dir, work):
         text = {"lab": LAB_SITE, "clemson": CLEMSON_SITE, "homography": HOMOGRAPHY_SITE}[base]
@@ -140,7 +141,8 @@ def site(name, frm, to, words, base="lab", cmd="check", args=(), code=2, count=1
         extra = ["--frames", "1", "--no-video", "--no-cache", "--out", "{c}/out"] + extra
     if cmd == "lut":
         extra = ["--no-cache", "--out", "{c}/out"] + extra
-    add(name, ["{bin}", cmd, "{c}/site.yaml"] + extra, ["site.yaml"] + words, code=code, setup=setup)
+    add(name, ["{bin}", cmd, "{c}/site.yaml"] + extra, ["site.yaml"] + words, code=code, setup=setup,
+        max_output=max_output)
 
 
 def bad_file(name, target, content, words, base="lab", cmd="check", args=(), code=2, frm=None, to=None, names_file=True):
@@ -208,6 +210,8 @@ site("site_id_missing", "  - id: cam1\n    calibration", "  - calibration", ["ca
 site("site_name_slash", 'name: "lab"', 'name: "../lab"', ["name", "site name '../lab'", "position 1"])
 site("site_name_colon", 'name: "lab"', 'name: "lab:x"', ["name", "character ':' (U+003A) at position 4"])
 site("site_name_list", 'name: "lab"', "name: [lab]", ["name", "expected a text value"])
+# A 10 MB name was echoed whole to the terminal: cut, with its length.
+site("site_name_huge", 'name: "lab"', 'name: "' + "x" * 10_000_000 + '"', ["name", "... (10000000 bytes)"], max_output=4000)
 site("site_data_root_missing", "version: 1\n", "version: 1\ndata_root: /nonexistent/occmap\n",
      ["data_root"])  # the fixture site has one already: refused as a duplicate key
 site("site_floor_not_map", "floor:\n  origin_m: [0, 0]\n  cells: [450, 325]\n  cell_size_m: 0.02\n", "floor: 3\n",
@@ -768,6 +772,11 @@ eval_case("eval_det_syntax", det='{"frame": 0, "blobs": [\n', words=["detections
 eval_case("eval_det_no_blobs", det='{"frame": 0}\n', words=["detections.jsonl", ":1", "blobs"])
 eval_case("eval_det_blob_text", det='{"frame": 0, "time_s": 0, "blobs": [{"x_m": "a", "y_m": 1}]}\n', words=["detections.jsonl:1", "x_m"])
 eval_case("eval_det_frame_negative", det='{"frame": -4, "blobs": []}\n', words=["detections.jsonl", ":1", "frame"])
+# dump() in the messages recursed per level: 100,000 deep crashed `occmap eval`.
+eval_case("eval_gt_deep", gt='{"frame": 0, "time_s": 0, "objects": ' + "[" * 100000 + "]" * 100000 + "}\n",
+          words=["ground_truth.jsonl:1", "nesting deeper than 64 levels"])
+eval_case("eval_det_deep", det='{"frame": 0, "time_s": 0, "blobs": [' + "[" * 100000 + "]" * 100000 + "]}\n",
+          words=["detections.jsonl:1", "nesting deeper than 64 levels"])
 eval_case("eval_tracks_syntax", tracks='{"frame": 0, "tracks": [\n', words=["tracks.jsonl", ":1"])
 eval_case("eval_tracks_not_list", tracks='{"frame": 0, "time_s": 0, "tracks": 5}\n', words=["tracks.jsonl", ":1", "tracks"])
 add("eval_missing_run", ["{bin}", "eval", "{w}/lab", "{c}/nowhere"], ["nowhere"])
@@ -790,6 +799,7 @@ annotations_case("annotations_syntax", "[{", [])
 annotations_case("annotations_not_list", '{"a": 1}', [])
 annotations_case("annotations_position_text", '[{"personID": 1, "positionID": "x", "views": []}]', ["positionID"])
 annotations_case("annotations_number_overflow", '[{"personID": 1e999, "positionID": 3, "views": []}]', [])
+annotations_case("annotations_deep", "[" * 100000 + "]" * 100000, ["nesting deeper than 64 levels"])
 annotations_case("annotations_no_id", '[{"positionID": 3, "views": []}]', ["personID"])
 
 # --- command-line options ----------------------------------------------------------------------
@@ -889,6 +899,9 @@ def run_case(case, occmap, work, root):
         problems.append("crashed")
     if case.code == 2 and not out.strip():
         problems.append("no message")
+    if case.max_output is not None and len(p.stdout) > case.max_output:
+        problems.append(f"{len(p.stdout)} bytes of output, expected at most {case.max_output}")
+        out = out[:3000]
     detail = "; ".join(problems)
     if problems:
         detail += f"\n    command: {' '.join(argv)}\n    output: " + "\n            ".join(out.strip().splitlines()[-6:])

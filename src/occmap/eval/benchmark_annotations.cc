@@ -13,6 +13,7 @@
 #include "occmap/eval/evaluate_run.h"
 #include "occmap/eval/run_outputs.h"
 #include "occmap/util/file_util.h"
+#include "occmap/util/text_guard.h"
 
 namespace occmap {
 namespace fs = std::filesystem;
@@ -211,6 +212,8 @@ Eigen::Vector2d BenchmarkPositionM(BenchmarkFormat format, int64_t position_id) 
 Result<std::vector<AnnotatedPerson>> ParseAnnotationFile(std::string_view text, std::string_view source_name,
                                                          BenchmarkFormat format) {
   const BenchmarkGrid& grid = GridOf(format);
+  // Found() prints values with dump(), which recurses once per level.
+  OCCMAP_RETURN_IF_ERROR(CheckNesting(text, TextSyntax::kJson, kMaxNestingDepth, source_name));
   json j;
   try {
     j = json::parse(text);

@@ -10,6 +10,7 @@
 #include <system_error>
 
 #include "occmap/util/file_util.h"
+#include "occmap/util/text_guard.h"
 
 namespace occmap {
 namespace {
@@ -94,6 +95,10 @@ Status ForEachJsonLine(std::string_view text, std::string_view source, const Par
     ++line_no;
     if (line_text.find_first_not_of(" \t\r") == std::string_view::npos) continue;
     const Line line(source, line_no);
+    // Found() prints values with dump(), which recurses once per level.
+    if (NestingDepth(line_text, TextSyntax::kJson) > kMaxNestingDepth) {
+      return line.Error("", "a JSON object", fmt::format("nesting deeper than {} levels", kMaxNestingDepth));
+    }
     json j;
     try {
       j = json::parse(line_text);

@@ -10,6 +10,7 @@
 #include "occmap/calib/opencv_storage.h"
 #include "occmap/site/demo_scene.h"
 #include "occmap/util/file_util.h"
+#include "occmap/util/text_guard.h"
 #include "occmap/util/safe_files.h"
 
 namespace occmap::sim {
@@ -374,6 +375,7 @@ Result<std::vector<WildtrackAnnotation>> ReadWildtrackAnnotations(const fs::path
   std::vector<WildtrackAnnotation> out;
   for (const auto& [frame, path] : files) {
     OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(path, kMaxTextFileBytes));
+    OCCMAP_RETURN_IF_ERROR(CheckNesting(text, TextSyntax::kJson, kMaxNestingDepth, fmt::format("'{}'", path.string())));
     nlohmann::json j;
     try {
       j = nlohmann::json::parse(text);

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "occmap/util/file_util.h"
+#include "occmap/util/text_guard.h"
 
 namespace occmap {
 namespace fs = std::filesystem;
@@ -50,6 +51,9 @@ Result<std::vector<GroundTruthFrame>> ReadGroundTruth(const fs::path& path) {
   while (std::getline(in, line)) {
     ++line_no;
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    if (NestingDepth(line, TextSyntax::kJson) > kMaxNestingDepth) {
+      return bad(fmt::format("nesting deeper than {} levels", kMaxNestingDepth));
+    }
     json j;
     try {
       j = json::parse(line);

@@ -19,6 +19,7 @@
 #include "occmap/io/frame_times.h"
 #include "occmap/util/file_util.h"
 #include "occmap/util/safe_files.h"
+#include "occmap/util/text_guard.h"
 #include "occmap/util/image_io.h"
 #include "occmap/util/yaml_util.h"
 
@@ -81,9 +82,11 @@ std::vector<Eigen::Vector3d> FloorSamples(const FloorGrid& g, double z) {
   return pts;
 }
 
-// Text for a message: control bytes, DEL and bytes that are not UTF-8 as \xNN (a NUL or an
-// escape sequence would cut or garble the terminal line).
-std::string Printable(std::string_view text) {
+// Text for a message: cut (a 10 MB name was echoed whole), control bytes, DEL and bytes that
+// are not UTF-8 as \xNN (a NUL or an escape sequence would cut or garble the terminal line).
+std::string Printable(std::string_view whole) {
+  const std::string cut = Excerpt(whole);
+  const std::string_view text = cut;
   std::string out;
   for (size_t i = 0; i < text.size();) {
     const auto c = static_cast<unsigned char>(text[i]);

@@ -1,5 +1,7 @@
 #include "occmap/util/yaml_util.h"
 
+#include "occmap/util/text_guard.h"
+
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -34,7 +36,7 @@ Status YamlField::Error(std::string_view what) const {
 
 std::string YamlField::DescribeFound() const {
   if (IsNull()) return "nothing";
-  if (node_.IsScalar()) return fmt::format("'{}'", node_.Scalar());
+  if (node_.IsScalar()) return fmt::format("'{}'", Excerpt(node_.Scalar()));
   if (node_.IsSequence()) return fmt::format("a list of {}", node_.size());
   if (node_.IsMap()) return "a map";
   return "an unknown node";
@@ -84,13 +86,13 @@ std::optional<int64_t> ParseInt(std::string_view text) {
 Result<double> YamlField::AsDouble() const {
   if (!node_.IsScalar()) return Error(fmt::format("expected a number, found {}", DescribeFound()));
   if (auto v = ParseFiniteDouble(node_.Scalar())) return *v;
-  return Error(fmt::format("expected a finite number, found '{}'", node_.Scalar()));
+  return Error(fmt::format("expected a finite number, found '{}'", Excerpt(node_.Scalar())));
 }
 
 Result<int64_t> YamlField::AsInt() const {
   if (!node_.IsScalar()) return Error(fmt::format("expected an integer, found {}", DescribeFound()));
   if (auto v = ParseInt(node_.Scalar())) return *v;
-  return Error(fmt::format("expected an integer, found '{}'", node_.Scalar()));
+  return Error(fmt::format("expected an integer, found '{}'", Excerpt(node_.Scalar())));
 }
 
 Result<bool> YamlField::AsBool() const {
@@ -187,8 +189,8 @@ Status YamlField::CheckKeys(const std::vector<std::string>& allowed) const {
     std::string known;
     for (size_t i = 0; i < allowed.size(); ++i) known += (i ? ", " : "") + allowed[i];
     return where.Error(best.empty()
-                           ? fmt::format("unknown field '{}' (expected one of: {})", key, known)
-                           : fmt::format("unknown field '{}' (did you mean '{}'?)", key, best));
+                           ? fmt::format("unknown field '{}' (expected one of: {})", Excerpt(key), known)
+                           : fmt::format("unknown field '{}' (did you mean '{}'?)", Excerpt(key), best));
   }
   return Status::Ok();
 }
@@ -236,7 +238,7 @@ Status CheckDuplicateKeys(const YAML::Node& node, const std::string& file, const
       if (kv.first.IsScalar()) {
         if (const auto [it, fresh] = seen.emplace(key, line); !fresh) {
           return InvalidInput(fmt::format("{}:{}: {}{}duplicate key '{}' (first at line {}; YAML keys must be unique)",
-                                          file, line, path, path.empty() ? "" : ": ", key, it->second));
+                                          file, line, path, path.empty() ? "" : ": ", Excerpt(key), it->second));
         }
       }
       const std::string child = path.empty() ? key : fmt::format("{}.{}", path, key);
