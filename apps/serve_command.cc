@@ -12,6 +12,7 @@
 #include "occmap/serve/web_assets.h"
 #include "occmap/serve/web_server.h"
 #include "occmap/util/file_util.h"
+#include "occmap/util/text_guard.h"
 #include "run_support.h"
 
 namespace occmap {
@@ -23,6 +24,9 @@ CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd) {
   c->add_option("--listen", cmd.listen, "HOST:PORT to serve on (port 0: any free port, printed)")->capture_default_str();
   c->add_option("--token", cmd.token, "every request needs this token (Authorization: Bearer T or ?token=T)");
   c->add_option("--token-file", cmd.token_file, "file whose first line is the token");
+  c->add_option("--allow-host", cmd.allow_hosts,
+                "a host name the pages may be reached by besides IP addresses and localhost (repeat for more): "
+                "requests naming another host are refused (DNS rebinding)");
   c->add_option("--out", cmd.out_dir, "output folder of the run")->capture_default_str();
   // As `occmap run`'s (-1, "until a source ends", is not a count a user may give).
   c->add_option("--frames", cmd.max_frames, "process at most N frames")
@@ -52,7 +56,8 @@ CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd) {
 }
 
 Result<WebServerOptions> WebServerOptionsFrom(const std::string& listen_text, const std::string& token_text,
-                                              const std::string& token_file) {
+                                              const std::string& token_file,
+                                              const std::vector<std::string>& allowed_hosts) {
   OCCMAP_ASSIGN_OR_RETURN(ListenAddress listen, ParseListen(listen_text));
   if (!token_text.empty() && !token_file.empty()) return InvalidInput("--token, --token-file: give one of them");
   std::string token = token_text;
@@ -70,9 +75,22 @@ Result<WebServerOptions> WebServerOptionsFrom(const std::string& listen_text, co
     return InvalidInput(fmt::format("--listen {}: serving beyond this machine needs --token or --token-file",
                                     listen_text));
   }
+  if (!IsLoopbackHost(listen.host) && token.size() < kMinTokenChars) {
+    return InvalidInput(fmt::format("--token: serving beyond this machine needs a token of at least {} characters, "
+                                    "found {} (make one with: openssl rand -hex 16)",
+                                    kMinTokenChars, token.size()));
+  }
+  for (const std::string& h : allowed_hosts) {
+    if (h.empty() || h.size() > 253 || h.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789.-") !=
+                                           std::string::npos) {
+      return InvalidInput(fmt::format("--allow-host: expected a host name (letters, digits, '.', '-'), found '{}'",
+                                      Excerpt(h, 80)));
+    }
+  }
   WebServerOptions wo;
   wo.listen = listen;
   wo.token = token;
+  wo.allowed_hosts = allowed_hosts;
   return wo;
 }
 
@@ -84,7 +102,7 @@ void SayListening(const std::string& who, const ListenAddress& listen, int port)
 
 Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_root) {
   namespace fs = std::filesystem;
-  OCCMAP_ASSIGN_OR_RETURN(const WebServerOptions wo, WebServerOptionsFrom(cmd.listen, cmd.token, cmd.token_file));
+  OCCMAP_ASSIGN_OR_RETURN(const WebServerOptions wo, WebServerOptionsFrom(cmd.listen, cmd.token, cmd.token_file, cmd.allow_hosts));
   if (cmd.min_blob_area_m2 && !(*cmd.min_blob_area_m2 >= 0)) return InvalidInput("--min-blob-area-m2: expected >= 0");
 
   ServeSessionOptions so;

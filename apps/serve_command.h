@@ -6,6 +6,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "live_outputs.h"
 #include "occmap/serve/web_server.h"
@@ -18,6 +19,7 @@ struct ServeCommand {
   std::string listen = "127.0.0.1:8080";
   std::string token;
   std::string token_file;
+  std::vector<std::string> allow_hosts;
   std::string out_dir = "occmap-out";
   // The run's input and output options (as `occmap run`'s).
   int64_t max_frames = -1;
@@ -41,8 +43,12 @@ CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd);
 // --listen, --token, --token-file: the address (port 0: any free port) and the token, checked:
 // a token of printable ASCII, and one whenever the address is not loopback. `who` names the
 // command in the messages ("occmap serve", "occmap fuse").
+// Beyond loopback the token is the one gate: at least kMinTokenChars characters. `allowed_hosts`:
+// --allow-host names (web_server.h).
+inline constexpr size_t kMinTokenChars = 16;
 Result<WebServerOptions> WebServerOptionsFrom(const std::string& listen, const std::string& token,
-                                              const std::string& token_file);
+                                              const std::string& token_file,
+                                              const std::vector<std::string>& allowed_hosts = {});
 // "<who>: listening on http://HOST:PORT/" on stdout, the line scripts and tests wait for.
 void SayListening(const std::string& who, const ListenAddress& listen, int port);
 

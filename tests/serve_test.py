@@ -51,7 +51,10 @@ def start(args, name):
 
 def request(port, path, method="GET", body=None, headers=None, timeout=30):
     data = None if body is None else (body if isinstance(body, bytes) else json.dumps(body).encode())
-    req = urllib.request.Request(f"http://127.0.0.1:{port}{path}", data=data, method=method, headers=headers or {})
+    headers = dict(headers or {})
+    if data is not None:
+        headers.setdefault("Content-Type", "application/json")  # the only kind of body written
+    req = urllib.request.Request(f"http://127.0.0.1:{port}{path}", data=data, method=method, headers=headers)
     try:
         with urllib.request.urlopen(req, timeout=timeout) as r:
             return r.status, r.headers, r.read()
@@ -84,7 +87,7 @@ def events(port, want, timeout_s=60, query=""):
     """Frame events (parsed) from /events until want(list) is true or the time is up."""
     frames = []
     with socket.create_connection(("127.0.0.1", port), timeout=timeout_s) as s:
-        s.sendall(f"GET /events{query} HTTP/1.1\r\nHost: x\r\n\r\n".encode())
+        s.sendall(f"GET /events{query} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".encode())
         buf = b""
         deadline = time.time() + timeout_s
         while time.time() < deadline and not want(frames):
@@ -157,7 +160,7 @@ try:
     status, headers, body = request(port, "/api/cameras/cam1/frame.jpg")
     check(status == 200 and body[:2] == b"\xff\xd8" and headers["Content-Type"] == "image/jpeg", "cam1 frame.jpg")
     with socket.create_connection(("127.0.0.1", port), timeout=30) as sk:
-        sk.sendall(b"GET /api/cameras/cam2/mjpeg HTTP/1.1\r\nHost: x\r\n\r\n")
+        sk.sendall(b"GET /api/cameras/cam2/mjpeg HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
         got = b""
         try:
             while got.count(b"--occmapframe") < 2 and len(got) < 10_000_000:
@@ -208,10 +211,11 @@ try:
 
     # Traversal and size.
     for target in ["/../etc/passwd", "/%2e%2e/%2e%2e/etc/passwd", "/..%2f..%2fsite.yaml", "/a%5c..%5cb"]:
-        code = raw(port, f"GET {target} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+        code = raw(port, f"GET {target} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")
         check(code == 400, f"GET {target}: 400 ({code})")
     big = b"x" * (1536 * 1024)
-    code = raw(port, b"PUT /api/site HTTP/1.1\r\nHost: x\r\nContent-Length: %d\r\nConnection: close\r\n\r\n" % len(big) + big)
+    code = raw(port, b"PUT /api/site HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: %d\r\n"
+               b"Connection: close\r\n\r\n" % len(big) + big)
     check(code == 413, f"1.5 MiB body: 413 ({code})")
 
     # A cache that cannot be written (a file where its folder should be: the tests may run as

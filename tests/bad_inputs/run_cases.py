@@ -817,6 +817,13 @@ add("cli_fuse_token_without_listen", ["{bin}", "fuse", "{w}/lab/site.yaml", "--t
     ["--token", "--listen"])
 add("cli_fuse_listen_beyond_loopback", ["{bin}", "fuse", "{w}/lab/site.yaml", "--listen", "0.0.0.0:0", "--out", "{c}/o"],
     ["--listen", "0.0.0.0:0", "--token"])
+# A one-character token is no gate beyond loopback.
+add("cli_serve_token_short", ["{bin}", "serve", "{w}/lab/site.yaml", "--listen", "0.0.0.0:0", "--token", "a", "--out", "{c}/o"],
+    ["--token", "at least 16 characters, found 1"])
+add("cli_fuse_token_short", ["{bin}", "fuse", "{w}/lab/site.yaml", "--listen", "0.0.0.0:0", "--token", "short", "--out", "{c}/o"],
+    ["--token", "at least 16 characters, found 5"])
+add("cli_serve_allow_host", ["{bin}", "serve", "{w}/lab/site.yaml", "--allow-host", "a/b", "--out", "{c}/o"],
+    ["--allow-host", "a/b"])
 add("cli_fuse_listen_bad_port", ["{bin}", "fuse", "{w}/lab/site.yaml", "--listen", "127.0.0.1:99999", "--out", "{c}/o"],
     ["--listen", "99999"])
 add("cli_run_sync", ["{bin}", "run", "{w}/lab/site.yaml", "--sync", "clock", "--out", "{c}/o"], ["--sync", "clock"])

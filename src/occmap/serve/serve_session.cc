@@ -26,21 +26,21 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 Result<double> Number(const json& j, const std::string& where) {
-  if (!j.is_number()) return InvalidInput(fmt::format("{}: expected a number, found {}", where, j.dump()));
+  if (!j.is_number()) return InvalidInput(fmt::format("{}: expected a number, found {}", where, Excerpt(j.dump())));
   const double v = j.get<double>();
   if (!std::isfinite(v)) return InvalidInput(fmt::format("{}: expected a finite number", where));
   return v;
 }
 
 Result<std::array<double, 2>> Pair(const json& j, const std::string& where) {
-  if (!j.is_array() || j.size() != 2) return InvalidInput(fmt::format("{}: expected [x, y], found {}", where, j.dump()));
+  if (!j.is_array() || j.size() != 2) return InvalidInput(fmt::format("{}: expected [x, y], found {}", where, Excerpt(j.dump())));
   OCCMAP_ASSIGN_OR_RETURN(double a, Number(j[0], where + "[0]"));
   OCCMAP_ASSIGN_OR_RETURN(double b, Number(j[1], where + "[1]"));
   return std::array<double, 2>{a, b};
 }
 
 Result<std::string> PolygonFlow(const json& j, const std::string& where) {
-  if (!j.is_array()) return InvalidInput(fmt::format("{}: expected a polygon [[x, y], ...], found {}", where, j.dump()));
+  if (!j.is_array()) return InvalidInput(fmt::format("{}: expected a polygon [[x, y], ...], found {}", where, Excerpt(j.dump())));
   std::string out = "[";
   for (size_t i = 0; i < j.size(); ++i) {
     OCCMAP_ASSIGN_OR_RETURN(auto p, Pair(j[i], fmt::format("{}[{}]", where, i)));
@@ -51,19 +51,19 @@ Result<std::string> PolygonFlow(const json& j, const std::string& where) {
 
 Result<std::string> NameFlow(const json& j, const std::string& where) {
   if (!j.is_string() || j.get<std::string>().empty()) {
-    return InvalidInput(fmt::format("{}: expected a non-empty string, found {}", where, j.dump()));
+    return InvalidInput(fmt::format("{}: expected a non-empty string, found {}", where, Excerpt(j.dump())));
   }
   return j.dump();  // a JSON string is a YAML double-quoted scalar
 }
 
 Result<std::string> ZonesFlow(const json& zones) {
-  if (!zones.is_array()) return InvalidInput(fmt::format("zones: expected a list, found {}", zones.dump()));
+  if (!zones.is_array()) return InvalidInput(fmt::format("zones: expected a list, found {}", Excerpt(zones.dump())));
   std::string out = "[";
   for (size_t i = 0; i < zones.size(); ++i) {
     const json& z = zones[i];
     const std::string where = fmt::format("zones[{}]", i);
     if (!z.is_object() || !z.contains("name") || !z.contains("polygon_m")) {
-      return InvalidInput(fmt::format("{}: expected {{\"name\", \"polygon_m\"}}, found {}", where, z.dump()));
+      return InvalidInput(fmt::format("{}: expected {{\"name\", \"polygon_m\"}}, found {}", where, Excerpt(z.dump())));
     }
     OCCMAP_ASSIGN_OR_RETURN(std::string name, NameFlow(z["name"], where + ".name"));
     OCCMAP_ASSIGN_OR_RETURN(std::string poly, PolygonFlow(z["polygon_m"], where + ".polygon_m"));
@@ -78,13 +78,13 @@ Result<std::string> ZonesFlow(const json& zones) {
 }
 
 Result<std::string> LinesFlow(const json& lines) {
-  if (!lines.is_array()) return InvalidInput(fmt::format("lines: expected a list, found {}", lines.dump()));
+  if (!lines.is_array()) return InvalidInput(fmt::format("lines: expected a list, found {}", Excerpt(lines.dump())));
   std::string out = "[";
   for (size_t i = 0; i < lines.size(); ++i) {
     const json& l = lines[i];
     const std::string where = fmt::format("lines[{}]", i);
     if (!l.is_object() || !l.contains("name") || !l.contains("a_m") || !l.contains("b_m")) {
-      return InvalidInput(fmt::format("{}: expected {{\"name\", \"a_m\", \"b_m\"}}, found {}", where, l.dump()));
+      return InvalidInput(fmt::format("{}: expected {{\"name\", \"a_m\", \"b_m\"}}, found {}", where, Excerpt(l.dump())));
     }
     OCCMAP_ASSIGN_OR_RETURN(std::string name, NameFlow(l["name"], where + ".name"));
     OCCMAP_ASSIGN_OR_RETURN(auto a, Pair(l["a_m"], where + ".a_m"));
@@ -113,22 +113,22 @@ json IntrinsicsJson(const CameraIntrinsics& in) {
 // "max_blur_px"?}, checked by IntrinsicsOptions::Validate.
 Result<IntrinsicsOptions> BoardOptionsFromJson(const json& j) {
   if (!j.is_object()) {
-    return InvalidInput(fmt::format("board: expected {{\"kind\", \"cols\", \"rows\", \"square_m\"}}, found {}", j.dump()));
+    return InvalidInput(fmt::format("board: expected {{\"kind\", \"cols\", \"rows\", \"square_m\"}}, found {}", Excerpt(j.dump())));
   }
   IntrinsicsOptions o;
   BoardOptions& b = o.board;
   if (j.contains("kind") && !j["kind"].is_string()) {
-    return InvalidInput(fmt::format("board.kind: expected \"checkerboard\" or \"charuco\", found {}", j["kind"].dump()));
+    return InvalidInput(fmt::format("board.kind: expected \"checkerboard\" or \"charuco\", found {}", Excerpt(j["kind"].dump())));
   }
   const std::string kind = j.value("kind", std::string("checkerboard"));
   if (kind == "charuco") {
     b.kind = BoardKind::kCharuco;
   } else if (kind != "checkerboard") {
-    return InvalidInput(fmt::format("board.kind: expected \"checkerboard\" or \"charuco\", found \"{}\"", kind));
+    return InvalidInput(fmt::format("board.kind: expected \"checkerboard\" or \"charuco\", found \"{}\"", Excerpt(kind)));
   }
   auto integer = [&](const char* key, int& out) -> Status {
     if (!j.contains(key)) return InvalidInput(fmt::format("board.{}: missing", key));
-    if (!j[key].is_number_integer()) return InvalidInput(fmt::format("board.{}: expected a whole number, found {}", key, j[key].dump()));
+    if (!j[key].is_number_integer()) return InvalidInput(fmt::format("board.{}: expected a whole number, found {}", key, Excerpt(j[key].dump())));
     out = j[key].get<int>();
     return Status::Ok();
   };
@@ -273,7 +273,7 @@ Result<json> ServeSession::Calibrate(const json& body) {
   for (const SiteCamera& c : site->cameras) {
     if (c.id == id) cam = &c;
   }
-  if (cam == nullptr) return InvalidInput(fmt::format("camera: no camera '{}' in the site", id));
+  if (cam == nullptr) return InvalidInput(fmt::format("camera: no camera '{}' in the site", Excerpt(id)));
   if (!body.contains("points") || !body["points"].is_array()) {
     return InvalidInput("points: expected a list of {\"u_px\", \"v_px\", \"x_m\", \"y_m\"}");
   }
@@ -281,7 +281,7 @@ Result<json> ServeSession::Calibrate(const json& body) {
   for (size_t i = 0; i < body["points"].size(); ++i) {
     const json& p = body["points"][i];
     const std::string where = fmt::format("points[{}]", i);
-    if (!p.is_object()) return InvalidInput(fmt::format("{}: expected an object, found {}", where, p.dump()));
+    if (!p.is_object()) return InvalidInput(fmt::format("{}: expected an object, found {}", where, Excerpt(p.dump())));
     FloorPoint fp;
     double v[4];
     const char* keys[4] = {"u_px", "v_px", "x_m", "y_m"};
@@ -337,7 +337,7 @@ Result<json> ServeSession::Calibrate(const json& body) {
     fo.fit_lens = true;
     intrinsics_from = "points";
   } else if (method != "homography") {
-    return InvalidInput(fmt::format("method: expected \"pnp\", \"lens\" or \"homography\", found \"{}\"", method));
+    return InvalidInput(fmt::format("method: expected \"pnp\", \"lens\" or \"homography\", found \"{}\"", Excerpt(method)));
   }
   OCCMAP_ASSIGN_OR_RETURN(FloorCalibration cal, CalibrateFromFloorPoints(points, fo));
   json jp = json::array();
@@ -391,7 +391,7 @@ json ServeSession::BoardJsonLocked(const std::string& camera_id, const BoardSet&
 
 Result<json> ServeSession::BoardViews(const std::string& camera_id) {
   const std::shared_ptr<const Site> site = this->site();
-  if (FindCamera(*site, camera_id) == nullptr) return NotFound(fmt::format("no camera '{}'", camera_id));
+  if (FindCamera(*site, camera_id) == nullptr) return NotFound(fmt::format("no camera '{}'", Excerpt(camera_id)));
   std::lock_guard lock(mu_);
   auto it = boards_.find(camera_id);
   return BoardJsonLocked(camera_id, it == boards_.end() ? BoardSet{} : it->second);
@@ -402,11 +402,11 @@ Result<json> ServeSession::AddBoardView(const json& body) {
   if (!body.contains("camera") || !body["camera"].is_string()) return InvalidInput("camera: expected a camera id");
   const std::string id = body["camera"].get<std::string>();
   const std::shared_ptr<const Site> site = this->site();
-  if (FindCamera(*site, id) == nullptr) return InvalidInput(fmt::format("camera: no camera '{}' in the site", id));
+  if (FindCamera(*site, id) == nullptr) return InvalidInput(fmt::format("camera: no camera '{}' in the site", Excerpt(id)));
   if (!body.contains("board")) return InvalidInput("board: missing");
   OCCMAP_ASSIGN_OR_RETURN(IntrinsicsOptions options, BoardOptionsFromJson(body["board"]));
   if (body.contains("capture") && !body["capture"].is_boolean()) {
-    return InvalidInput(fmt::format("capture: expected true or false, found {}", body["capture"].dump()));
+    return InvalidInput(fmt::format("capture: expected true or false, found {}", Excerpt(body["capture"].dump())));
   }
   const bool capture = body.value("capture", false);
   if (capture == body.contains("image")) {
@@ -498,7 +498,7 @@ Result<json> ServeSession::AddBoardView(const json& body) {
 
 Result<json> ServeSession::RemoveBoardViews(const std::string& camera_id, int index) {
   const std::shared_ptr<const Site> site = this->site();
-  if (FindCamera(*site, camera_id) == nullptr) return NotFound(fmt::format("no camera '{}'", camera_id));
+  if (FindCamera(*site, camera_id) == nullptr) return NotFound(fmt::format("no camera '{}'", Excerpt(camera_id)));
   std::lock_guard lock(mu_);
   BoardSet& b = boards_[camera_id];
   if (index < 0) {
@@ -522,7 +522,7 @@ Result<json> ServeSession::CalibrateBoard(const json& body) {
   const std::string id = body["camera"].get<std::string>();
   const std::shared_ptr<const Site> site = this->site();
   const SiteCamera* cam = FindCamera(*site, id);
-  if (cam == nullptr) return InvalidInput(fmt::format("camera: no camera '{}' in the site", id));
+  if (cam == nullptr) return InvalidInput(fmt::format("camera: no camera '{}' in the site", Excerpt(id)));
   if (!body.contains("board")) return InvalidInput("board: missing");
   OCCMAP_ASSIGN_OR_RETURN(IntrinsicsOptions options, BoardOptionsFromJson(body["board"]));
   std::vector<std::string> names;
@@ -597,7 +597,7 @@ Result<json> ServeSession::UpdateSite(const json& body) {
   for (const auto& [key, value] : body.items()) {
     (void)value;
     if (key != "calibrations" && key != "mask_polygons_px" && key != "zones" && key != "lines") {
-      return InvalidInput(fmt::format("{}: unknown key (expected calibrations, mask_polygons_px, zones, lines)", key));
+      return InvalidInput(fmt::format("{}: unknown key (expected calibrations, mask_polygons_px, zones, lines)", Excerpt(key)));
     }
   }
   std::lock_guard run_lock(run_mu_);  // one edit at a time, and the restart with it
@@ -609,14 +609,14 @@ Result<json> ServeSession::UpdateSite(const json& body) {
     const json& cals = body["calibrations"];
     if (!cals.is_object()) return InvalidInput("calibrations: expected {\"<camera>\": \"pending\"}");
     for (const auto& [id, what] : cals.items()) {
-      if (what != "pending") return InvalidInput(fmt::format("calibrations.{}: expected \"pending\"", id));
-      if (!SafeId(id)) return InvalidInput(fmt::format("calibrations: '{}' is not a camera id", id));
+      if (what != "pending") return InvalidInput(fmt::format("calibrations.{}: expected \"pending\"", Excerpt(id)));
+      if (!SafeId(id)) return InvalidInput(fmt::format("calibrations: '{}' is not a camera id", Excerpt(id)));
       std::optional<Pending> p;
       {
         std::lock_guard lock(mu_);
         if (auto it = pending_.find(id); it != pending_.end()) p = it->second;
       }
-      if (!p) return InvalidInput(fmt::format("calibrations.{}: no pending calibration (POST /api/calibrate first)", id));
+      if (!p) return InvalidInput(fmt::format("calibrations.{}: no pending calibration (POST /api/calibrate first)", Excerpt(id)));
       std::string flow;
       if (p->calibration.pinhole) {
         // Beside the site file, in calib/, as serve_*.xml: the files the previous site (SITE.bak)
@@ -640,7 +640,7 @@ Result<json> ServeSession::UpdateSite(const json& body) {
     const json& masks = body["mask_polygons_px"];
     if (!masks.is_object()) return InvalidInput("mask_polygons_px: expected {\"<camera>\": [[[u, v], ...], ...]}");
     for (const auto& [id, polys] : masks.items()) {
-      const std::string where = "mask_polygons_px." + id;
+      const std::string where = "mask_polygons_px." + Excerpt(id);
       if (!polys.is_array()) {
         return InvalidInput(fmt::format("{}: expected a list of polygons [[[u, v], ...], ...]", where));
       }
@@ -687,7 +687,7 @@ Result<std::string> ServeSession::GridJpeg(const std::string& camera_id, bool pe
   for (size_t i = 0; i < site->cameras.size(); ++i) {
     if (site->cameras[i].id == camera_id) n = i;
   }
-  if (n == site->cameras.size()) return NotFound(fmt::format("no camera '{}'", camera_id));
+  if (n == site->cameras.size()) return NotFound(fmt::format("no camera '{}'", Excerpt(camera_id)));
   const std::shared_ptr<const LiveSnapshot> snap = state_->Latest();
   Image<Rgb8> picture = CameraRgb(*snap, n);
   if (picture.empty()) return NotFound(fmt::format("camera '{}' has no frame yet", camera_id));

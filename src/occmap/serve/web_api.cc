@@ -3,11 +3,14 @@
 #include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
 
+#include <arpa/inet.h>
+
 #include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <cmath>
 #include "occmap/lut/visibility_image.h"
+#include "occmap/util/text_guard.h"
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -124,6 +127,59 @@ bool IsLoopbackHost(std::string_view host) {
   return host.substr(0, 4) == "127." && host.find_first_not_of("0123456789.") == std::string_view::npos;
 }
 
+std::string HostName(std::string_view host_header) {
+  std::string_view h = host_header;
+  while (!h.empty() && (h.front() == ' ' || h.front() == '\t')) h.remove_prefix(1);
+  while (!h.empty() && (h.back() == ' ' || h.back() == '\t' || h.back() == '\r')) h.remove_suffix(1);
+  if (!h.empty() && h.front() == '[') {
+    const size_t close = h.find(']');
+    h = close == std::string_view::npos ? h.substr(1) : h.substr(1, close - 1);
+  } else if (const size_t colon = h.rfind(':'); colon != std::string_view::npos && h.find(':') == colon) {
+    h = h.substr(0, colon);
+  }
+  if (!h.empty() && h.back() == '.') h.remove_suffix(1);
+  return Lower(h);
+}
+
+bool HostAllowed(std::string_view host_header, const ListenAddress& listen, const std::vector<std::string>& allowed) {
+  if (host_header.empty()) return true;
+  const std::string name = HostName(host_header);
+  in6_addr v6{};
+  in_addr v4{};
+  if (inet_pton(AF_INET, name.c_str(), &v4) == 1 || inet_pton(AF_INET6, name.c_str(), &v6) == 1) return true;
+  if (name == "localhost" || name.ends_with(".localhost")) return true;
+  if (name == Lower(listen.host)) return true;
+  for (const std::string& a : allowed) {
+    if (name == HostName(a)) return true;
+  }
+  return false;
+}
+
+std::optional<Refusal> CrossSiteWriteRefusal(std::string_view method, std::string_view host_header,
+                                             std::string_view origin, std::string_view sec_fetch_site,
+                                             std::string_view content_type) {
+  if (method != "POST" && method != "PUT" && method != "PATCH" && method != "DELETE") return std::nullopt;
+  const std::string site = Lower(sec_fetch_site);
+  if (!site.empty() && site != "same-origin" && site != "none") {
+    return Refusal{403, fmt::format("{} from another site refused (Sec-Fetch-Site: {})", method, Excerpt(site, 40))};
+  }
+  if (!origin.empty()) {
+    const std::string o = Lower(origin), host = Lower(host_header);
+    if (host.empty() || (o != "http://" + host && o != "https://" + host)) {
+      return Refusal{403, fmt::format("{} from another origin refused (Origin: {}, Host: {})", method,
+                                      Excerpt(origin, 80), Excerpt(host_header, 80))};
+    }
+  }
+  if (method == "POST" || method == "PUT" || method == "PATCH") {
+    std::string_view type = content_type.substr(0, content_type.find(';'));
+    while (!type.empty() && type.back() == ' ') type.remove_suffix(1);
+    if (Lower(type) != "application/json") {
+      return Refusal{415, fmt::format("Content-Type: expected application/json, found '{}'", Excerpt(content_type, 80))};
+    }
+  }
+  return std::nullopt;
+}
+
 bool TokenEquals(std::string_view expected, std::string_view given) {
   unsigned diff = expected.size() == given.size() ? 0u : 1u;
   for (size_t i = 0; i < expected.size(); ++i) {
@@ -179,6 +235,13 @@ std::string ContentTypeFor(std::string_view name) {
   if (ext == "woff") return "font/woff";
   if (ext == "txt") return "text/plain; charset=utf-8";
   return "application/octet-stream";
+}
+
+Result<json> ParseJsonBody(std::string_view body) {
+  OCCMAP_RETURN_IF_ERROR(CheckNesting(body, TextSyntax::kJson, kMaxNestingDepth, "body"));
+  json j = json::parse(body, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) return InvalidInput("body: expected JSON");
+  return j;
 }
 
 Result<std::string> DecodeBase64(std::string_view text, std::string_view field) {

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <string_view>
@@ -26,6 +27,26 @@ struct ListenAddress {
 Result<ListenAddress> ParseListen(std::string_view text, std::string_view option = "--listen");
 // 127.0.0.0/8, ::1 and "localhost".
 bool IsLoopbackHost(std::string_view host);
+// The Host header's name (port and IPv6 brackets removed, lower case, a trailing dot dropped).
+std::string HostName(std::string_view host_header);
+// DNS rebinding: a page of attacker.example whose name is made to resolve to 127.0.0.1 reaches
+// the server as its own origin, and the browser lets it read the answers; the Host header still
+// says attacker.example. Allowed: no Host (not a browser), IP addresses, "localhost" and its
+// subdomains, the listen host and the names in `allowed` (--allow-host).
+bool HostAllowed(std::string_view host_header, const ListenAddress& listen, const std::vector<std::string>& allowed);
+// A write (POST, PUT, PATCH, DELETE) another site's page may have sent: the reason it is refused
+// (with the HTTP status: 403 from another origin, 415 for a body that is not JSON), or nothing.
+// Another origin: Sec-Fetch-Site other than same-origin or none, or an Origin other than the
+// Host's (http or https). Only application/json bodies: a page can send text/plain or a form
+// to any site without asking, JSON only after a CORS preflight, which this server never grants.
+struct Refusal {
+  int http_status = 403;
+  std::string message;
+};
+std::optional<Refusal> CrossSiteWriteRefusal(std::string_view method, std::string_view host_header,
+                                             std::string_view origin, std::string_view sec_fetch_site,
+                                             std::string_view content_type);
+
 // Compares in time independent of where they differ.
 bool TokenEquals(std::string_view expected, std::string_view given);
 // The token of a request: "Authorization: Bearer T", else the query's token= (already decoded).
@@ -37,6 +58,11 @@ bool IsTraversal(std::string_view raw_target);
 // for names with a '/' after the first or any other unsafe character.
 std::string StaticFileName(std::string_view path);
 std::string ContentTypeFor(std::string_view file_name);
+
+// A request body as JSON: its nesting is checked before it is parsed (a 200 KB array 100,000
+// deep overflowed the stack in dump()), so every value of it can be printed and copied. Errors
+// are "body: expected JSON ..." and "body:LINE: nesting deeper than 64 levels; ...".
+Result<nlohmann::json> ParseJsonBody(std::string_view body);
 
 // Base64 (RFC 4648, padding optional, whitespace ignored) to bytes; a data URL's
 // "data:...;base64," prefix is skipped. `field` names it in messages.

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
 
 #include "occmap/lut/visibility_image.h"
 
@@ -64,6 +66,54 @@ TEST(WebApi, LoopbackHosts) {
   EXPECT_FALSE(IsLoopbackHost("::"));
   EXPECT_FALSE(IsLoopbackHost("192.168.1.2"));
   EXPECT_FALSE(IsLoopbackHost("127.example.com"));
+}
+
+// DNS rebinding: attacker.example resolving to 127.0.0.1 still says attacker.example in Host.
+TEST(WebApi, HostsThisServerAnswersTo) {
+  const ListenAddress listen{"127.0.0.1", 8080};
+  const std::vector<std::string> allowed = {"occmap.lan"};
+  for (const char* ok : {"", "127.0.0.1:8080", "127.0.0.1", "localhost:8080", "LOCALHOST", "localhost.", "app.localhost:1",
+                         "[::1]:8080", "::1", "192.168.1.20:8080", "occmap.lan:8080", "Occmap.Lan"}) {
+    EXPECT_TRUE(HostAllowed(ok, listen, allowed)) << ok;
+  }
+  for (const char* bad : {"attacker.example", "attacker.example:8080", "127.0.0.1.nip.io:8080", "localhost.attacker.example",
+                          "occmap.lan.attacker.example", "x"}) {
+    EXPECT_FALSE(HostAllowed(bad, listen, allowed)) << bad;
+  }
+  EXPECT_TRUE(HostAllowed("myhost:80", ListenAddress{"myhost", 80}, {}));
+}
+
+TEST(WebApi, CrossSiteWritesAreRefused) {
+  const auto refusal = [](std::string_view method, std::string_view origin, std::string_view site,
+                          std::string_view type) {
+    return CrossSiteWriteRefusal(method, "127.0.0.1:8080", origin, site, type);
+  };
+  EXPECT_FALSE(refusal("GET", "http://evil.example", "cross-site", "").has_value());  // reads: the Host check's
+  EXPECT_FALSE(refusal("POST", "", "", "application/json").has_value());               // curl, scripts
+  EXPECT_FALSE(refusal("POST", "http://127.0.0.1:8080", "same-origin", "application/json; charset=utf-8").has_value());
+  EXPECT_FALSE(refusal("DELETE", "", "same-origin", "").has_value());
+  auto r = refusal("POST", "http://evil.example", "", "application/json");
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->http_status, 403);
+  EXPECT_EQ(r->message, "POST from another origin refused (Origin: http://evil.example, Host: 127.0.0.1:8080)");
+  EXPECT_EQ(refusal("PUT", "", "same-site", "application/json")->message,
+            "PUT from another site refused (Sec-Fetch-Site: same-site)");
+  EXPECT_EQ(refusal("DELETE", "null", "", "")->http_status, 403);
+  EXPECT_EQ(refusal("POST", "http://127.0.0.1:9999", "", "application/json")->http_status, 403);
+  const auto plain = refusal("POST", "", "", "text/plain");
+  ASSERT_TRUE(plain.has_value());
+  EXPECT_EQ(plain->http_status, 415);
+  EXPECT_EQ(plain->message, "Content-Type: expected application/json, found 'text/plain'");
+  EXPECT_EQ(refusal("PUT", "", "", "")->http_status, 415);
+}
+
+TEST(WebApi, JsonBodiesAreCheckedForDepthBeforeParsing) {
+  EXPECT_TRUE(ParseJsonBody(R"({"zones": [{"polygon_m": [[0, 0], [1, 0], [1, 1]]}]})").ok());
+  const std::string deep = R"({"points": [)" + std::string(100000, '[') + std::string(100000, ']') + "]}";
+  const auto r = ParseJsonBody(deep);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().message(), "body:1: nesting deeper than 64 levels; refused before parsing");
+  EXPECT_EQ(ParseJsonBody("{").status().message(), "body: expected JSON");
 }
 
 TEST(WebApi, TokensFromHeaderOrQuery) {

@@ -3,14 +3,198 @@
 #include <fmt/core.h>
 #include <httplib.h>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
 #include <chrono>
+#include <cstring>
+#include <optional>
 #include <string_view>
+
+#include "occmap/util/text_guard.h"
 
 namespace occmap {
 namespace {
 
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
+
+// The connection a pool thread serves: the deadline of the bytes still to come and whether it
+// closes after this answer. cpp-httplib hands its handlers no connection, so they find it
+// through the thread (one connection per thread at a time).
+struct Connection {
+  Clock::time_point deadline;
+  bool headers_done = false;
+  bool close_after = false;
+  bool timed_out = false;
+  double body_timeout_s = 30;
+};
+thread_local Connection* t_connection = nullptr;
+
+// The headers are in: the body's deadline starts.
+void HeadersDone() {
+  Connection* c = t_connection;
+  if (c == nullptr || c->headers_done) return;
+  c->headers_done = true;
+  c->deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(c->body_timeout_s));
+}
+
+// The answer ends the connection (a body left unread must not be taken for the next request).
+void CloseAfter(httplib::Response& res) {
+  if (t_connection != nullptr) t_connection->close_after = true;
+  res.set_header("Connection", "close");
+}
+
+int MillisUntil(Clock::time_point t) {
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(t - Clock::now()).count();
+  return static_cast<int>(std::clamp<int64_t>(ms, 0, 1'000'000));
+}
+
+bool Poll(int fd, short events, int timeout_ms) {
+  pollfd p{fd, events, 0};
+  int r;
+  do {
+    r = ::poll(&p, 1, timeout_ms);
+  } while (r < 0 && errno == EINTR);
+  return r > 0 && (p.revents & (events | POLLHUP | POLLERR)) != 0;
+}
+
+// A connection's bytes as cpp-httplib's SocketStream reads them, each read bounded by the
+// read timeout and by the connection's deadline.
+class DeadlineStream final : public httplib::Stream {
+ public:
+  DeadlineStream(int fd, Connection& conn, int read_timeout_ms) : fd_(fd), conn_(conn), timeout_ms_(read_timeout_ms) {}
+
+  bool buffered() const { return off_ < len_; }
+  bool is_readable() const override { return buffered() || WaitReadable(); }
+  bool is_writable() const override { return Poll(fd_, POLLOUT, timeout_ms_) && Alive(); }
+  ssize_t read(char* ptr, size_t size) override {
+    if (!buffered()) {
+      if (!WaitReadable()) return -1;
+      ssize_t n;
+      do {
+        n = ::recv(fd_, buf_, sizeof buf_, 0);
+      } while (n < 0 && errno == EINTR);
+      if (n <= 0) return n;
+      off_ = 0;
+      len_ = static_cast<size_t>(n);
+    }
+    const size_t n = std::min(size, len_ - off_);
+    std::memcpy(ptr, buf_ + off_, n);
+    off_ += n;
+    return static_cast<ssize_t>(n);
+  }
+  ssize_t write(const char* ptr, size_t size) override {
+    if (!Poll(fd_, POLLOUT, timeout_ms_)) return -1;
+    ssize_t n;
+    do {
+      n = ::send(fd_, ptr, size, MSG_NOSIGNAL);
+    } while (n < 0 && errno == EINTR);
+    return n;
+  }
+  void get_remote_ip_and_port(std::string& ip, int& port) const override { Address(false, ip, port); }
+  void get_local_ip_and_port(std::string& ip, int& port) const override { Address(true, ip, port); }
+  socket_t socket() const override { return fd_; }
+
+ private:
+  bool WaitReadable() const {
+    const int left = MillisUntil(conn_.deadline);
+    if (Poll(fd_, POLLIN, std::min(timeout_ms_, left))) return true;
+    if (Clock::now() >= conn_.deadline) conn_.timed_out = true;
+    return false;
+  }
+  // Readable with nothing to read: the client closed.
+  bool Alive() const {
+    if (buffered() || !Poll(fd_, POLLIN, 0)) return true;
+    char c;
+    return ::recv(fd_, &c, 1, MSG_PEEK | MSG_DONTWAIT) > 0;
+  }
+  void Address(bool local, std::string& ip, int& port) const {
+    sockaddr_storage a{};
+    socklen_t n = sizeof a;
+    auto* sa = reinterpret_cast<sockaddr*>(&a);
+    if ((local ? ::getsockname(fd_, sa, &n) : ::getpeername(fd_, sa, &n)) != 0) return;
+    char text[INET6_ADDRSTRLEN] = {};
+    if (a.ss_family == AF_INET) {
+      const auto* v4 = reinterpret_cast<sockaddr_in*>(&a);
+      ::inet_ntop(AF_INET, &v4->sin_addr, text, sizeof text);
+      port = ntohs(v4->sin_port);
+    } else if (a.ss_family == AF_INET6) {
+      const auto* v6 = reinterpret_cast<sockaddr_in6*>(&a);
+      ::inet_ntop(AF_INET6, &v6->sin6_addr, text, sizeof text);
+      port = ntohs(v6->sin6_port);
+    }
+    ip = text;
+  }
+
+  int fd_;
+  Connection& conn_;
+  int timeout_ms_;
+  char buf_[4096];
+  size_t off_ = 0, len_ = 0;
+};
+
+Clock::duration Secs(double s) {
+  return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+}
+
+// cpp-httplib's server with its connections read by DeadlineStream (its keep-alive loop,
+// process_and_close_socket, is a virtual meant to be replaced).
+class GuardedHttpServer : public httplib::Server {
+ public:
+  explicit GuardedHttpServer(const WebServerOptions& options) : options_(options) {}
+
+ private:
+  bool process_and_close_socket(socket_t sock) override {
+    ++active_;
+    Connection conn;
+    conn.body_timeout_s = options_.body_timeout_s;
+    t_connection = &conn;
+    DeadlineStream strm(sock, conn, static_cast<int>(options_.read_timeout_s * 1000));
+    bool ret = false;
+    for (size_t count = keep_alive_max_count_; count > 0 && svr_sock_ != INVALID_SOCKET; --count) {
+      const bool pressed = active_.load() > options_.threads - options_.reserved_threads;
+      const auto start = Clock::now();
+      conn.deadline = start + Secs(pressed ? options_.pressed_header_timeout_s : options_.header_timeout_s);
+      conn.headers_done = conn.close_after = conn.timed_out = false;
+      // The next request's first byte: at most the keep-alive time, polled in slices so that a
+      // stopping server does not wait for it.
+      const auto idle_until = std::min(conn.deadline, start + std::chrono::seconds(keep_alive_timeout_sec_));
+      bool readable = strm.buffered();
+      while (!readable && svr_sock_ != INVALID_SOCKET && Clock::now() < idle_until) {
+        readable = Poll(sock, POLLIN, std::min(100, MillisUntil(idle_until)));
+      }
+      if (!readable) break;
+      bool closed = false;
+      ret = process_request(strm, count == 1, closed, nullptr);
+      // A request that never reached routing (bad or late headers) ends the connection.
+      if (!ret || closed || conn.close_after || !conn.headers_done) break;
+    }
+    t_connection = nullptr;
+    // A lingering close: the answer sent, what the client still sends (a body refused unread) is
+    // read and dropped for a moment, so that closing does not reset the connection under the
+    // client before it reads the answer.
+    ::shutdown(sock, SHUT_WR);
+    const auto linger_until = Clock::now() + std::chrono::seconds(conn.close_after ? 1 : 0);
+    char sink[16384];
+    for (size_t drained = 0; drained < (size_t{4} << 20) && Poll(sock, POLLIN, MillisUntil(linger_until));) {
+      const ssize_t n = ::recv(sock, sink, sizeof sink, MSG_DONTWAIT);
+      if (n <= 0) break;
+      drained += static_cast<size_t>(n);
+    }
+    ::close(sock);
+    --active_;
+    return ret;
+  }
+
+  const WebServerOptions& options_;
+  std::atomic<int> active_{0};
+};
 
 void JsonReply(httplib::Response& res, int status, const json& body) {
   res.status = status;
@@ -34,6 +218,37 @@ int HttpStatusFor(const Status& s) {
 
 double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
+// A request's body, at most `max_bytes` however it is sent; nothing, with the reply made and the
+// connection to be closed, when it is refused. cpp-httplib 0.11 caps only a Content-Length body
+// and reads a chunked one, or one with neither header until the client closes, whole.
+std::optional<std::string> ReadBody(const httplib::Request& req, httplib::Response& res,
+                                    const httplib::ContentReader& reader, size_t max_bytes) {
+  std::string te = req.get_header_value("Transfer-Encoding");
+  std::transform(te.begin(), te.end(), te.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  // Neither header: no body (RFC 9112 6.3), not a wait for the client to close.
+  if (te.find("chunked") == std::string::npos && !req.has_header("Content-Length")) return std::string();
+  std::string body;
+  bool over = false;
+  const bool ok = reader([&](const char* data, size_t n) {
+    if (body.size() + n > max_bytes) {
+      over = true;
+      return false;
+    }
+    body.append(data, n);
+    return true;
+  });
+  if (ok) return body;
+  CloseAfter(res);
+  if (over || res.status == 413) {
+    ErrorReply(res, 413, "request body over 1 MiB");
+  } else if (t_connection != nullptr && t_connection->timed_out) {
+    ErrorReply(res, 408, "request body not sent in time");
+  } else {
+    ErrorReply(res, 400, "request body: cannot read it (cut short or badly chunked)");
+  }
+  return std::nullopt;
+}
+
 // A stream's slot in the server's count, released when the stream's provider is destroyed.
 struct StreamSlot {
   explicit StreamSlot(std::atomic<int>& n) : count(n) {}
@@ -44,7 +259,8 @@ struct StreamSlot {
 }  // namespace
 
 WebServer::WebServer(WebServerOptions options, ServeBackend& backend, std::span<const WebAsset> assets)
-    : options_(std::move(options)), backend_(backend), assets_(assets), server_(std::make_unique<httplib::Server>()) {
+    : options_(std::move(options)), backend_(backend), assets_(assets),
+      server_(std::make_unique<GuardedHttpServer>(options_)) {
   Routes();
 }
 
@@ -91,8 +307,8 @@ void WebServer::Routes() {
   httplib::Server& svr = *server_;
   svr.set_keep_alive_timeout(2);
   svr.set_payload_max_length(options_.max_body_bytes);
-  svr.set_read_timeout(10, 0);
-  svr.set_write_timeout(10, 0);
+  svr.set_read_timeout(static_cast<time_t>(options_.read_timeout_s), 0);
+  svr.set_write_timeout(static_cast<time_t>(options_.read_timeout_s), 0);
 
   const size_t max_body = options_.max_body_bytes;
   auto too_large = [max_body](const httplib::Request& req) {
@@ -104,28 +320,49 @@ void WebServer::Routes() {
   };
   // A client that waits for "100 Continue" learns of the limit before it sends the body.
   svr.set_expect_100_continue_handler([too_large](const httplib::Request& req, httplib::Response& res) {
+    HeadersDone();
     if (too_large(req)) {
       ErrorReply(res, 413, "request body over 1 MiB");
-      res.set_header("Connection", "close");
+      CloseAfter(res);
       return 413;
     }
     return 100;
   });
-  svr.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
-    if (IsTraversal(req.target) || IsTraversal(req.path)) {
-      ErrorReply(res, 400, "path not allowed");
-      res.set_header("Connection", "close");
+  // Rebinding matters where a browser on this machine is the way in: a loopback address (beyond
+  // it the token is the gate), or wherever the user names the hosts.
+  const bool check_host = IsLoopbackHost(options_.listen.host) || !options_.allowed_hosts.empty();
+  svr.set_pre_routing_handler([this, check_host](const httplib::Request& req, httplib::Response& res) {
+    HeadersDone();
+    // Every refusal closes the connection: its body, if any, is not read.
+    auto refuse = [&res](int status, const std::string& message) {
+      ErrorReply(res, status, message);
+      CloseAfter(res);
       return httplib::Server::HandlerResponse::Handled;
+    };
+    if (IsTraversal(req.target) || IsTraversal(req.path)) return refuse(400, "path not allowed");
+    const std::string& method = req.method;
+    if (method != "GET" && method != "HEAD" && method != "POST" && method != "PUT" && method != "DELETE" &&
+        method != "OPTIONS") {
+      res.set_header("Allow", "GET, HEAD, POST, PUT, DELETE, OPTIONS");
+      return refuse(405, fmt::format("method '{}' not allowed", Excerpt(method, 20)));
+    }
+    const std::string host = req.get_header_value("Host");
+    if (check_host && !HostAllowed(host, options_.listen, options_.allowed_hosts)) {
+      return refuse(403, fmt::format("Host '{}' is not this server's name: use its address or localhost, or start it "
+                                     "with --allow-host {}",
+                                     Excerpt(host, 80), Excerpt(HostName(host), 80)));
     }
     if (!options_.token.empty()) {
       const std::string given = RequestToken(req.get_header_value("Authorization"), req.get_param_value("token"));
       if (!TokenEquals(options_.token, given)) {
-        ErrorReply(res, 401, given.empty() ? "a token is needed: Authorization: Bearer TOKEN or ?token=TOKEN"
-                                           : "wrong token");
         res.set_header("WWW-Authenticate", "Bearer");
-        res.set_header("Connection", "close");  // its body, if any, is not read
-        return httplib::Server::HandlerResponse::Handled;
+        return refuse(401, given.empty() ? "a token is needed: Authorization: Bearer TOKEN or ?token=TOKEN"
+                                         : "wrong token");
       }
+    }
+    if (auto r = CrossSiteWriteRefusal(method, host, req.get_header_value("Origin"),
+                                       req.get_header_value("Sec-Fetch-Site"), req.get_header_value("Content-Type"))) {
+      return refuse(r->http_status, r->message);
     }
     // A body over the limit: cpp-httplib reads and drops it, then answers 413 (answering here,
     // before it is read, would reset the connection under a client still sending).
@@ -188,10 +425,14 @@ void WebServer::Routes() {
     LiveState& st = backend_.state();
     res.set_content(MetricsText(*st.Latest(), st.running()), "text/plain; version=0.0.4; charset=utf-8");
   });
-  svr.Post("/api/calibrate", [this](const httplib::Request& req, httplib::Response& res) {
-    const json body = json::parse(req.body, nullptr, false);
-    if (body.is_discarded()) return ErrorReply(res, 400, "body: expected JSON");
-    auto r = backend_.Calibrate(body);
+  const size_t max_body_bytes = options_.max_body_bytes;
+  svr.Post("/api/calibrate", [this, max_body_bytes](const httplib::Request& req, httplib::Response& res,
+                                                    const httplib::ContentReader& reader) {
+    const auto text = ReadBody(req, res, reader, max_body_bytes);
+    if (!text) return;
+    const auto body = ParseJsonBody(*text);
+    if (!body.ok()) return ErrorReply(res, 400, body.status().message());
+    auto r = backend_.Calibrate(*body);
     if (!r.ok()) return ErrorReply(res, HttpStatusFor(r.status()) == 500 ? 500 : 400, r.status().message());
     JsonReply(res, 200, *r);
   });
@@ -204,12 +445,18 @@ void WebServer::Routes() {
   svr.Get("/api/board/views", [this, board_reply](const httplib::Request& req, httplib::Response& res) {
     board_reply(res, backend_.BoardViews(req.get_param_value("camera")));
   });
-  svr.Post("/api/board/views", [this, board_reply](const httplib::Request& req, httplib::Response& res) {
-    const json body = json::parse(req.body, nullptr, false);
-    if (body.is_discarded()) return ErrorReply(res, 400, "body: expected JSON");
-    board_reply(res, backend_.AddBoardView(body));
+  svr.Post("/api/board/views", [this, board_reply, max_body_bytes](const httplib::Request& req, httplib::Response& res,
+                                                                   const httplib::ContentReader& reader) {
+    const auto text = ReadBody(req, res, reader, max_body_bytes);
+    if (!text) return;
+    const auto body = ParseJsonBody(*text);
+    if (!body.ok()) return ErrorReply(res, 400, body.status().message());
+    board_reply(res, backend_.AddBoardView(*body));
   });
-  svr.Delete("/api/board/views", [this, board_reply](const httplib::Request& req, httplib::Response& res) {
+  svr.Delete("/api/board/views", [this, board_reply, max_body_bytes](const httplib::Request& req,
+                                                                     httplib::Response& res,
+                                                                     const httplib::ContentReader& reader) {
+    if (!ReadBody(req, res, reader, max_body_bytes)) return;  // none expected; read so that none is left
     int index = -1;
     if (req.has_param("index")) {
       const std::string v = req.get_param_value("index");
@@ -220,10 +467,14 @@ void WebServer::Routes() {
     }
     board_reply(res, backend_.RemoveBoardViews(req.get_param_value("camera"), index));
   });
-  svr.Post("/api/board/calibrate", [this, board_reply](const httplib::Request& req, httplib::Response& res) {
-    const json body = json::parse(req.body, nullptr, false);
-    if (body.is_discarded()) return ErrorReply(res, 400, "body: expected JSON");
-    board_reply(res, backend_.CalibrateBoard(body));
+  svr.Post("/api/board/calibrate", [this, board_reply, max_body_bytes](const httplib::Request& req,
+                                                                       httplib::Response& res,
+                                                                       const httplib::ContentReader& reader) {
+    const auto text = ReadBody(req, res, reader, max_body_bytes);
+    if (!text) return;
+    const auto body = ParseJsonBody(*text);
+    if (!body.ok()) return ErrorReply(res, 400, body.status().message());
+    board_reply(res, backend_.CalibrateBoard(*body));
   });
   svr.Get("/api/board/view.jpg", [this](const httplib::Request& req, httplib::Response& res) {
     const std::string v = req.get_param_value("index");
@@ -235,10 +486,13 @@ void WebServer::Routes() {
     res.set_header("Cache-Control", "no-store");
     res.set_content(*jpeg, "image/jpeg");
   });
-  svr.Put("/api/site", [this](const httplib::Request& req, httplib::Response& res) {
-    const json body = json::parse(req.body, nullptr, false);
-    if (body.is_discarded()) return ErrorReply(res, 400, "body: expected JSON");
-    auto r = backend_.UpdateSite(body);
+  svr.Put("/api/site", [this, max_body_bytes](const httplib::Request& req, httplib::Response& res,
+                                              const httplib::ContentReader& reader) {
+    const auto text = ReadBody(req, res, reader, max_body_bytes);
+    if (!text) return;
+    const auto body = ParseJsonBody(*text);
+    if (!body.ok()) return ErrorReply(res, 400, body.status().message());
+    auto r = backend_.UpdateSite(*body);
     if (!r.ok()) return ErrorReply(res, HttpStatusFor(r.status()) == 500 ? 500 : 400, r.status().message());
     JsonReply(res, 200, *r);
   });
@@ -368,6 +622,15 @@ void WebServer::Routes() {
         });
   });
 
+  // Writes to anything else: 404 without reading the body (cpp-httplib would read it whole).
+  auto no_such_write = [](const httplib::Request& req, httplib::Response& res, const httplib::ContentReader&) {
+    ErrorReply(res, 404, fmt::format("not found: {} {}", req.method, Excerpt(req.path, 80)));
+    CloseAfter(res);
+  };
+  svr.Post(".*", no_such_write);
+  svr.Put(".*", no_such_write);
+  svr.Delete(".*", no_such_write);
+
   // The pages: "/" is index.html, "/<file>" a file of the bundle.
   svr.Get(R"(/([A-Za-z0-9_.-]*))", [this](const httplib::Request& req, httplib::Response& res) {
     const std::string name = StaticFileName(req.path);
@@ -378,7 +641,7 @@ void WebServer::Routes() {
         return;
       }
     }
-    ErrorReply(res, 404, fmt::format("not found: {}", req.path));
+    ErrorReply(res, 404, fmt::format("not found: {}", Excerpt(req.path, 80)));
   });
 }
 

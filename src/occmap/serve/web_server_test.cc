@@ -76,7 +76,7 @@ int OpenStream(int port, const std::string& target) {
   addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
   timeval tv{10, 0};
   ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  const std::string request = "GET " + target + " HTTP/1.1\r\nHost: x\r\n\r\n";
+  const std::string request = "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
   if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 ||
       ::send(fd, request.data(), request.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(request.size())) {
     ::close(fd);
@@ -184,22 +184,66 @@ TEST_F(WebServerTest, RefusesTraversal) {
 TEST_F(WebServerTest, RefusesBodiesOverOneMebibyte) {
   StartServer("");
   const std::string big(size_t{1} << 20 | 1, 'x');
-  const std::string r = Exchange(port_, "PUT /api/site HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+  const std::string r = Exchange(port_, "PUT /api/site HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
                                         "Content-Length: " + std::to_string(big.size()) + "\r\nConnection: close\r\n\r\n" + big);
   EXPECT_EQ(StatusOf(r), 413) << r.substr(0, 200);
   EXPECT_TRUE(backend_.last_put.is_null());
   // With "Expect: 100-continue" the refusal comes before the body is sent.
-  const std::string e = Exchange(port_, "PUT /api/site HTTP/1.1\r\nHost: x\r\nExpect: 100-continue\r\n"
+  const std::string e = Exchange(port_, "PUT /api/site HTTP/1.1\r\nHost: 127.0.0.1\r\nExpect: 100-continue\r\n"
                                         "Content-Length: 5000000\r\nConnection: close\r\n\r\n");
   EXPECT_EQ(StatusOf(e), 413) << e;
   const std::string small = R"({"zones": []})";
-  const std::string ok = Exchange(port_, "PUT /api/site HTTP/1.1\r\nHost: x\r\nContent-Length: " +
+  const std::string ok = Exchange(port_, "PUT /api/site HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: " +
                                              std::to_string(small.size()) + "\r\nConnection: close\r\n\r\n" + small);
   EXPECT_EQ(StatusOf(ok), 200) << ok;
   EXPECT_EQ(backend_.last_put, json::parse(small));
-  const std::string bad = Exchange(port_, "POST /api/calibrate HTTP/1.1\r\nHost: x\r\nContent-Length: 3\r\nConnection: close\r\n\r\n{x}");
+  const std::string bad = Exchange(port_, "POST /api/calibrate HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+                                         "Content-Length: 3\r\nConnection: close\r\n\r\n{x}");
   EXPECT_EQ(StatusOf(bad), 400);
   EXPECT_NE(bad.find("\"error\""), std::string::npos);
+}
+
+// cpp-httplib 0.11 capped only a Content-Length body: a chunked one was read whole (256 MiB).
+TEST_F(WebServerTest, ChunkedBodiesAreCappedAndLengthlessOnesAreEmpty) {
+  StartServer("");
+  const std::string head = "PUT /api/site HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+                           "Transfer-Encoding: chunked\r\n\r\n";
+  std::string chunks;
+  const std::string piece(size_t{256} << 10, ' ');
+  for (int i = 0; i < 8; ++i) chunks += fmt::format("{:x}\r\n", piece.size()) + piece + "\r\n";  // 2 MiB
+  const std::string big = Exchange(port_, head + chunks + "0\r\n\r\n");
+  EXPECT_EQ(StatusOf(big), 413) << big.substr(0, 200);
+  EXPECT_NE(big.find("Connection: close"), std::string::npos);
+  EXPECT_TRUE(backend_.last_put.is_null());
+  const std::string small = Exchange(port_, head + "e\r\n{\"zones\": []}\r\n0\r\n\r\n");
+  EXPECT_EQ(StatusOf(small), 200) << small;
+  EXPECT_EQ(backend_.last_put, json::parse(R"({"zones": []})"));
+  // Neither Content-Length nor chunked: no body (was: read until the client closed).
+  const std::string none = Exchange(port_, "POST /api/calibrate HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                                           "Content-Type: application/json\r\n\r\n", "}");
+  EXPECT_EQ(StatusOf(none), 400) << none;
+  EXPECT_NE(none.find("body: expected JSON"), std::string::npos) << none;
+  EXPECT_EQ(StatusOf(Exchange(port_, "PATCH /api/site HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")), 405);
+  EXPECT_EQ(StatusOf(Exchange(port_, "POST /nowhere HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+                                     "Transfer-Encoding: chunked\r\n\r\n" + chunks)), 404);
+}
+
+TEST_F(WebServerTest, ForeignHostsAndCrossSiteWritesAreRefused) {
+  StartServer("");
+  const std::string foreign = Exchange(port_, "GET /api/site HTTP/1.1\r\nHost: attacker.example:80\r\nConnection: close\r\n\r\n");
+  EXPECT_EQ(StatusOf(foreign), 403) << foreign;
+  EXPECT_EQ(foreign.find("\"name\":\"fake\""), std::string::npos);
+  EXPECT_EQ(StatusOf(Exchange(port_, "GET /api/site HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n")), 200);
+  const std::string body = R"({"zones": []})";
+  auto put = [&](const std::string& headers) {
+    return StatusOf(Exchange(port_, "PUT /api/site HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n" + headers +
+                                        "Content-Length: " + std::to_string(body.size()) + "\r\n\r\n" + body));
+  };
+  EXPECT_EQ(put("Content-Type: text/plain\r\n"), 415);
+  EXPECT_EQ(put("Content-Type: application/json\r\nOrigin: http://attacker.example\r\n"), 403);
+  EXPECT_EQ(put("Content-Type: application/json\r\nSec-Fetch-Site: cross-site\r\n"), 403);
+  EXPECT_TRUE(backend_.last_put.is_null());
+  EXPECT_EQ(put("Content-Type: application/json\r\nOrigin: http://127.0.0.1\r\nSec-Fetch-Site: same-origin\r\n"), 200);
 }
 
 TEST_F(WebServerTest, TokenOnEveryRequest) {
@@ -228,7 +272,7 @@ TEST_F(WebServerTest, NonLoopbackNeedsAToken) {
 TEST_F(WebServerTest, EventsDeliverFramesAndStreamsAreCapped) {
   StartServer("");
   PublishFrame(41);
-  const std::string events = Exchange(port_, "GET /events HTTP/1.1\r\nHost: x\r\n\r\n", "event: state");
+  const std::string events = Exchange(port_, "GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", "event: state");
   EXPECT_EQ(StatusOf(events), 200) << events;
   EXPECT_NE(events.find("text/event-stream"), std::string::npos);
   EXPECT_NE(events.find("event: frame\ndata: {"), std::string::npos) << events;
