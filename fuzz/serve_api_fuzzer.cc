@@ -6,7 +6,9 @@
 // stops at once).
 //
 // Input: requests separated by NUL bytes (at most 6), each "METHOD PATH\nBODY", so that one
-// input can add board views and then calibrate, or calibrate and then save the site.
+// input can add board views and then calibrate, or calibrate and then save the site. Bodies are
+// parsed by ParseJsonBody (web_api.h) as the server parses them; fuzz/dict/serve_api.dict holds
+// the routes, keys and runs of brackets for depth.
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -15,6 +17,7 @@
 
 #include "fuzz/fuzz_util.h"
 #include "occmap/serve/serve_session.h"
+#include "occmap/serve/web_api.h"
 
 namespace {
 
@@ -93,16 +96,20 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const size_t eol = request.find('\n');
     const std::string_view route = request.substr(0, eol);
     const std::string_view body_text = eol == std::string_view::npos ? std::string_view() : request.substr(eol + 1);
-    const json body = json::parse(body_text, nullptr, false);
-    if (body.is_discarded()) continue;  // 400 "body: expected JSON"
+    // As the server parses it: nesting over 64 levels is a 400 before json::parse.
+    const auto body = occmap::ParseJsonBody(body_text);
+    if (!body.ok()) {
+      Reply(body.status());
+      continue;
+    }
     if (route == "POST /api/calibrate") {
-      Reply(s.Calibrate(body));
+      Reply(s.Calibrate(*body));
     } else if (route == "POST /api/board/views") {
-      Reply(s.AddBoardView(body));
+      Reply(s.AddBoardView(*body));
     } else if (route == "POST /api/board/calibrate") {
-      Reply(s.CalibrateBoard(body));
+      Reply(s.CalibrateBoard(*body));
     } else if (route == "PUT /api/site") {
-      Reply(s.UpdateSite(body));
+      Reply(s.UpdateSite(*body));
     }
     (void)s.SiteJson().dump();  // GET /api/site, as the pages read it after a save
   }

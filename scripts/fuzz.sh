@@ -8,7 +8,8 @@
 # -fsanitize=fuzzer,address,undefined; build/fuzz, apart from the main build), seeds each
 # target from its committed corpus fuzz/corpus/NAME and, at run time, from the shared datasets
 # ($OCCMAP_DATASETS, default ../shared/datasets; never copied into the repository). The corpus
-# a run grows stays in build/fuzz/corpus/NAME; crashes go to build/fuzz/artifacts/. Prints per
+# a run grows stays in build/fuzz/corpus/NAME; crashes go to build/fuzz/artifacts/. A target with
+# fuzz/dict/NAME.dict gets it (keys, and bracket runs that reach the nesting limit). Prints per
 # target the executions, the coverage (libFuzzer's cov: edges, ft: features) and the verdict.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -78,7 +79,9 @@ for t in "${targets[@]}"; do
   mkdir -p "$corpus" "$seeds/$t"
   log=$build/$t.log
   set +e
-  "$bin" "$corpus" "fuzz/corpus/$t" "$seeds/$t" -max_total_time="$seconds" -print_final_stats=1 -rss_limit_mb=4096 \
+  dict=()
+  [ -f "fuzz/dict/$t.dict" ] && dict=(-dict="fuzz/dict/$t.dict")
+  "$bin" "$corpus" "fuzz/corpus/$t" "$seeds/$t" "${dict[@]}" -max_total_time="$seconds" -print_final_stats=1 -rss_limit_mb=4096 \
     -timeout=20 -max_len=65536 -artifact_prefix="$build/artifacts/$t-" >"$log" 2>&1
   rc=$?
   set -e
