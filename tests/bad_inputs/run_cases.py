@@ -2,7 +2,7 @@
 """The bad-input corpus: every case runs the real `occmap` binary on one bad file or option and
 checks its exit code and the words of its message (the file and the field at fault).
 
-Usage: run_cases.py OCCMAP_BINARY [--jobs N] [--keep] [--only SUBSTRING] [--list]
+Usage: run_cases.py OCCMAP_BINARY [--jobs N] [--keep] [--only SUBSTRING[,SUBSTRING...]] [--list]
 
 The cases are the table CASES below. Fixtures are made once per run with occmap itself (`synth`
 of the lab and clemson scenes at quarter size, one short `run`, one table cache), in a temporary
@@ -940,7 +940,7 @@ def main():
     CLEMSON_SITE = open(f"{work}/clemson/site.yaml").read()
     LAB_SCENE = open(f"{work}/lab/scene.yaml").read()
     t_fixtures = time.monotonic() - t0
-    cases = [c for c in CASES if only is None or only in c.name]
+    cases = [c for c in CASES if only is None or any(o in c.name for o in only.split(","))]
     failures = []
     cases_dir = os.path.join(root, "cases")
     with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
