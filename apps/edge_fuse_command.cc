@@ -250,7 +250,7 @@ Status RunFuseCommand(FuseCommand cmd, int threads, const std::string& data_root
   if (!cmd.sync.empty()) cmd.options.sync = cmd.sync == "index" ? FrameSync::kIndex : FrameSync::kTimestamp;
   o.output_mode = cmd.atomic_outputs ? OutputMode::kAtomic : OutputMode::kLive;
   o.wall_clock_times = !cmd.no_wall_clock;
-  OCCMAP_ASSIGN_OR_RETURN(const LiveSinks live, AddLiveSinks(site, cmd.live, o));
+  OCCMAP_ASSIGN_OR_RETURN(const LiveSinks live, AddLiveSinks(site, cmd.live, o, "occmap fuse"));
   if (cmd.listen.empty() && (!cmd.token.empty() || !cmd.token_file.empty())) {
     return InvalidInput("--token, --token-file: need --listen HOST:PORT");
   }

@@ -2,6 +2,8 @@
 
 #include <fmt/core.h>
 
+#include <unistd.h>
+
 #include <cstdio>
 #include <filesystem>
 
@@ -49,11 +51,17 @@ Result<std::optional<MqttOptions>> MqttOptionsFor(const Site& site, const LiveOu
   return options;
 }
 
-Result<LiveSinks> AddLiveSinks(const Site& site, const LiveOutputsCommand& cmd, RunOptions& run) {
+Result<LiveSinks> AddLiveSinks(const Site& site, const LiveOutputsCommand& cmd, RunOptions& run,
+                               const std::string& program) {
   LiveSinks sinks;
   OCCMAP_ASSIGN_OR_RETURN(std::optional<MqttOptions> mqtt, MqttOptionsFor(site, cmd));
   if (mqtt) {
-    sinks.mqtt = std::make_shared<MqttSink>(*mqtt);
+    // From the publisher's network thread: one line per failure streak and per recovery.
+    const bool terminal = ::isatty(STDERR_FILENO) == 1;
+    auto say = [program, terminal](const std::string& line) {
+      std::fputs(fmt::format("{}{}: {}\n", terminal ? "\r\033[K" : "", program, line).c_str(), stderr);
+    };
+    sinks.mqtt = std::make_shared<MqttSink>(*mqtt, say);
     run.sinks.push_back(sinks.mqtt);
   }
   if (cmd.ros_map_dir.empty()) {

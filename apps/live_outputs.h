@@ -34,8 +34,10 @@ struct LiveSinks {
 void AddLiveOutputOptions(CLI::App& cmd, LiveOutputsCommand& live);
 // The MQTT options: the site's outputs.mqtt, the command line's over them; none without either.
 Result<std::optional<MqttOptions>> MqttOptionsFor(const Site& site, const LiveOutputsCommand& cmd);
-// Adds the sinks the command asks for to the run's options.
-Result<LiveSinks> AddLiveSinks(const Site& site, const LiveOutputsCommand& cmd, RunOptions& run);
+// Adds the sinks the command asks for to the run's options; the MQTT link's failures and
+// recoveries are said on stderr as "<program>: mqtt: ...".
+Result<LiveSinks> AddLiveSinks(const Site& site, const LiveOutputsCommand& cmd, RunOptions& run,
+                               const std::string& program);
 // What the sinks did: MQTT counters, the ROS maps written.
 void PrintLiveSinks(const LiveSinks& sinks);
 

@@ -249,7 +249,7 @@ Status RunRun(const CommonOptions& common, RunCommand cmd) {
     if (!(*cmd.min_blob_area_m2 >= 0)) return InvalidInput("--min-blob-area-m2: expected >= 0");
     site.objects.min_area_m2 = *cmd.min_blob_area_m2;
   }
-  OCCMAP_ASSIGN_OR_RETURN(LiveSinks live, AddLiveSinks(site, cmd.live, cmd.options));
+  OCCMAP_ASSIGN_OR_RETURN(LiveSinks live, AddLiveSinks(site, cmd.live, cmd.options, "occmap run"));
   // Before any thread starts (the context's pool, the MQTT client's), so that every thread
   // inherits the mask.
   StopOnSignals signals(cmd.options.out_dir);

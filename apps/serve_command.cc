@@ -129,7 +129,7 @@ Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_ro
   // the command line asks for these outputs.
   LiveSinks live;
   if (auto site = LoadSite(cmd.site_path, so.load); site.ok()) {
-    OCCMAP_ASSIGN_OR_RETURN(live, AddLiveSinks(*site, cmd.live, o));
+    OCCMAP_ASSIGN_OR_RETURN(live, AddLiveSinks(*site, cmd.live, o, "occmap serve"));
   } else if (!cmd.live.mqtt_url.empty() || !cmd.live.ros_map_dir.empty()) {
     return site.status();
   }

@@ -1,6 +1,12 @@
 #include "occmap/publish/mqtt_publisher.h"
 
+#include <fmt/core.h>
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <functional>
+#include <mutex>
 
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -23,7 +29,33 @@ MqttOptions OptionsFor(int port) {
   return o;
 }
 
-MqttPublisherInfo Lab() { return {"lab", {"Door West", "desk"}, {"gate"}}; }
+MqttPublisherInfo Lab() { return {"lab", {"Door West", "desk"}, {"gate"}, {}, {}}; }
+
+// What on_status said, from the network thread.
+struct StatusLines {
+  std::mutex mutex;
+  std::vector<std::string> lines;
+  std::function<void(const std::string&)> Callback() {
+    return [this](const std::string& line) {
+      std::lock_guard<std::mutex> lock(mutex);
+      lines.push_back(line);
+    };
+  }
+  std::vector<std::string> Get() {
+    std::lock_guard<std::mutex> lock(mutex);
+    return lines;
+  }
+};
+
+template <typename Predicate>
+bool WaitUntil(Predicate done, std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (!done()) {
+    if (std::chrono::steady_clock::now() >= deadline) return false;
+    std::this_thread::sleep_for(10ms);
+  }
+  return true;
+}
 
 std::string Last(TestSubscriber& sub, const std::string& topic) {
   const std::vector<ReceivedMessage> m = sub.On(topic);
@@ -152,6 +184,149 @@ TEST(MqttPublisher, ABrokerThatGoesAwayIsReconnectedAndTheLostFramesCounted) {
   EXPECT_EQ(mqtt.counters().connects, 2);
   mqtt.PublishFrame({R"({"frame":12})", {}, {}, {}});
   EXPECT_TRUE(sub.WaitFor("occmap/test/tracks", R"({"frame":12})"));
+}
+
+TEST(MqttPublisher, ClearsWhatAnEarlierRunLeftRetainedAndItNoLongerHas) {
+  TestBroker broker;
+  ASSERT_TRUE(broker.Start()) << broker.error();
+  TestSubscriber sub(broker.port(), "#");
+  ASSERT_TRUE(sub.WaitSubscribed());
+  {
+    MqttPublisherInfo before = Lab();
+    before.cameras = {"c1", "c2"};
+    Result<std::unique_ptr<MqttPublisher>> first = MqttPublisher::Start(OptionsFor(broker.port()), before);
+    ASSERT_TRUE(first.ok());
+    ASSERT_TRUE((*first)->WaitConnected(5s));
+    (*first)->PublishCameras({"streaming", "streaming"}, {10, 9.5});
+    (*first)->PublishFrame({"{}", {}, {1, 0}, {{2, 1}}, 1});
+    ASSERT_TRUE(sub.WaitFor("occmap/test/cameras/c2/fps", "9.50"));
+    ASSERT_TRUE(sub.WaitFor("occmap/test/zones/door_west/count", "1"));
+    (*first)->Stop();
+  }
+  // The site lost the zone "Door West", the line and camera c2.
+  Result<std::unique_ptr<MqttPublisher>> second =
+      MqttPublisher::Start(OptionsFor(broker.port()), {"lab", {"desk"}, {}, {"c1"}, {}});
+  ASSERT_TRUE(second.ok());
+  const std::vector<std::string> removed = {
+      "homeassistant/binary_sensor/occmap_test/zone_door_west_occupied/config",
+      "homeassistant/sensor/occmap_test/zone_door_west_count/config",
+      "homeassistant/sensor/occmap_test/line_gate_in/config",
+      "homeassistant/sensor/occmap_test/line_gate_out/config",
+      "homeassistant/sensor/occmap_test/camera_c2_state/config",
+      "homeassistant/sensor/occmap_test/camera_c2_fps/config",
+      "occmap/test/zones/door_west/count",
+      "occmap/test/zones/door_west/occupied",
+      "occmap/test/lines/gate/in",
+      "occmap/test/lines/gate/out",
+      "occmap/test/cameras/c2/state",
+      "occmap/test/cameras/c2/fps",
+  };
+  for (const std::string& topic : removed) EXPECT_TRUE(sub.WaitForCleared(topic)) << topic;
+  EXPECT_EQ((*second)->counters().cleared, static_cast<int64_t>(removed.size()));
+
+  // A newcomer gets this run's entities and nothing of the removed ones.
+  TestSubscriber late(broker.port(), "#");
+  ASSERT_TRUE(late.WaitSubscribed());
+  ASSERT_TRUE(late.WaitForAll({"homeassistant/sensor/occmap_test/zone_desk_count/config",
+                               "homeassistant/sensor/occmap_test/camera_c1_state/config",
+                               "homeassistant/sensor/occmap_test/people/config", "occmap/test/zones/desk/count"}));
+  // Retained messages come on subscribing, before anything published after it.
+  ASSERT_TRUE(late.Publish("sync/late", "x"));
+  ASSERT_TRUE(late.WaitFor("sync/late", "x"));
+  for (const ReceivedMessage& m : late.Messages()) {
+    EXPECT_EQ(std::find(removed.begin(), removed.end(), m.topic), removed.end()) << m.topic << " is still retained";
+  }
+  // Topics both runs have carry this run's values (the earlier run left 1).
+  EXPECT_EQ(Last(late, "occmap/test/people"), "0");
+}
+
+TEST(MqttPublisher, SendsDiscoveryAgainWhenHomeAssistantComesBack) {
+  TestBroker broker;
+  ASSERT_TRUE(broker.Start()) << broker.error();
+  TestSubscriber ha(broker.port(), "#");
+  ASSERT_TRUE(ha.WaitSubscribed());
+  Result<std::unique_ptr<MqttPublisher>> started = MqttPublisher::Start(OptionsFor(broker.port()), Lab());
+  ASSERT_TRUE(started.ok());
+  ASSERT_TRUE((*started)->WaitConnected(5s));
+  const std::string people = "homeassistant/sensor/occmap_test/people/config";
+  // The state sent on connecting ends with the last line's "out" count.
+  ASSERT_TRUE(ha.WaitFor("occmap/test/lines/gate/out"));
+  const size_t configs = ha.On(people).size(), counts = ha.On("occmap/test/zones/desk/count").size();
+  ASSERT_EQ(configs, 1u);
+  // Home Assistant's birth message after its restart (it lost the entities it had not stored).
+  ASSERT_TRUE(ha.Publish("homeassistant/status", "online"));
+  ASSERT_TRUE(WaitUntil([&] { return ha.On(people).size() == configs + 1; }, 10s));
+  EXPECT_TRUE(WaitUntil([&] { return ha.On("occmap/test/zones/desk/count").size() == counts + 1; }, 10s));
+  // "offline" (Home Assistant stopping) sends nothing.
+  const size_t before = ha.On(people).size();
+  ASSERT_TRUE(ha.Publish("homeassistant/status", "offline"));
+  ASSERT_TRUE(ha.Publish("sync/ha", "x"));
+  ASSERT_TRUE(ha.WaitFor("sync/ha"));
+  (*started)->PublishStats("{}");
+  ASSERT_TRUE(ha.WaitFor("occmap/test/stats"));
+  EXPECT_EQ(ha.On(people).size(), before);
+}
+
+TEST(MqttPublisher, SaysOnceWhyItCannotConnectAndWhenItIsBack) {
+  const int port = occmap::testing::FreeLoopbackPort();
+  StatusLines said;
+  MqttPublisherInfo info = Lab();
+  info.on_status = said.Callback();
+  Result<std::unique_ptr<MqttPublisher>> started = MqttPublisher::Start(OptionsFor(port), info);
+  ASSERT_TRUE(started.ok());
+  MqttPublisher& mqtt = **started;
+  ASSERT_TRUE(WaitUntil([&] { return mqtt.counters().failures >= 2; }, 20s));
+  const std::vector<std::string> down = said.Get();
+  ASSERT_EQ(down.size(), 1u) << "said once, not at every retry";
+  EXPECT_EQ(down[0], fmt::format("mqtt: cannot publish to mqtt://127.0.0.1:{}: Connection refused; retrying, messages "
+                                 "are dropped until it is back",
+                                 port));
+  EXPECT_EQ(mqtt.counters().error, "Connection refused");
+  EXPECT_EQ(mqtt.counters().broker, fmt::format("mqtt://127.0.0.1:{}", port));
+  mqtt.PublishFrame({"{}", {}, {}, {}, -1});
+
+  TestBroker broker(port);
+  ASSERT_TRUE(broker.Start()) << broker.error();
+  ASSERT_TRUE(mqtt.WaitConnected(40s));
+  ASSERT_TRUE(WaitUntil([&] { return said.Get().size() == 2; }, 5s));
+  EXPECT_THAT(said.Get()[1], ::testing::StartsWith(fmt::format("mqtt: connected to mqtt://127.0.0.1:{} again after ", port)));
+  EXPECT_THAT(said.Get()[1], ::testing::EndsWith(" s; 1 messages dropped meanwhile"));
+  EXPECT_EQ(mqtt.counters().error, "");
+
+  // The broker going away is said once more.
+  broker.Stop();
+  ASSERT_TRUE(WaitUntil([&] { return said.Get().size() == 3; }, 10s));
+  EXPECT_THAT(said.Get()[2], ::testing::HasSubstr("cannot publish to"));
+  EXPECT_NE(mqtt.counters().error, "");
+}
+
+TEST(MqttPublisher, ARefusedLoginIsToldWithTheBrokersReason) {
+  TestBroker broker(0, "allow_anonymous false");
+  ASSERT_TRUE(broker.Start()) << broker.error();
+  StatusLines said;
+  MqttPublisherInfo info = Lab();
+  info.on_status = said.Callback();
+  MqttOptions options = OptionsFor(broker.port());
+  options.username = "nobody";
+  Result<std::unique_ptr<MqttPublisher>> started = MqttPublisher::Start(options, info);
+  ASSERT_TRUE(started.ok());
+  ASSERT_TRUE(WaitUntil([&] { return (*started)->counters().failures >= 2; }, 20s));
+  EXPECT_EQ((*started)->counters().error, "Connection Refused: not authorised.");
+  ASSERT_EQ(said.Get().size(), 1u);
+  EXPECT_THAT(said.Get()[0], ::testing::HasSubstr(": Connection Refused: not authorised.; retrying"));
+}
+
+TEST(MqttPublisher, AnUnknownHostIsToldAsSuch) {
+  MqttOptions options = OptionsFor(1883);
+  options.broker.host = "occmap-no-such-host.invalid";
+  StatusLines said;
+  MqttPublisherInfo info = Lab();
+  info.on_status = said.Callback();
+  Result<std::unique_ptr<MqttPublisher>> started = MqttPublisher::Start(options, info);
+  ASSERT_TRUE(started.ok());
+  ASSERT_TRUE(WaitUntil([&] { return !said.Get().empty(); }, 30s));
+  EXPECT_EQ((*started)->counters().error, "Lookup error.");
+  EXPECT_FALSE((*started)->counters().connected);
 }
 
 TEST(MqttPublisher, StopsPromptlyWithNoBroker) {

@@ -64,7 +64,10 @@ inline bool PortAccepts(int port) {
 
 class TestBroker {
  public:
-  explicit TestBroker(int port = 0) : port_(port > 0 ? port : FreeLoopbackPort()) {
+  // extra_config: lines added to the generated config ("allow_anonymous false" refuses every
+  // login).
+  explicit TestBroker(int port = 0, std::string extra_config = "")
+      : port_(port > 0 ? port : FreeLoopbackPort()), extra_config_(std::move(extra_config)) {
     dir_ = std::filesystem::temp_directory_path() / ("occmap-broker-" + std::to_string(::getpid()) + "-" + std::to_string(port_));
   }
   ~TestBroker() {
@@ -83,8 +86,11 @@ class TestBroker {
     const std::filesystem::path conf = dir_ / "mosquitto.conf";
     // The log goes to stderr, redirected here: run as root, mosquitto drops to its own user,
     // who could not open a log file in this folder.
-    std::ofstream(conf) << "listener " << port_ << " 127.0.0.1\nallow_anonymous true\npersistence false\n"
-                        << "log_dest stderr\n";
+    const bool anonymous = extra_config_.find("allow_anonymous") == std::string::npos;
+    std::ofstream(conf) << "listener " << port_ << " 127.0.0.1\n"
+                        << (anonymous ? "allow_anonymous true\n" : "") << "persistence false\n"
+                        << "log_dest stderr\n"
+                        << extra_config_ << "\n";
     const std::string conf_text = conf.string();
     const std::string log_text = (dir_ / "broker.log").string();
     const char* argv[] = {kMosquittoBinary, "-c", conf_text.c_str(), nullptr};
@@ -134,6 +140,7 @@ class TestBroker {
 
  private:
   int port_ = 0;
+  std::string extra_config_;
   pid_t pid_ = -1;
   std::filesystem::path dir_;
   std::string error_;
@@ -158,6 +165,12 @@ class TestSubscriber {
       auto* s = static_cast<TestSubscriber*>(self);
       std::lock_guard<std::mutex> lock(s->mutex_);
       s->subscribed_ = true;
+      s->cv_.notify_all();
+    });
+    mosquitto_publish_callback_set(mosq_, [](mosquitto*, void* self, int mid) {
+      auto* s = static_cast<TestSubscriber*>(self);
+      std::lock_guard<std::mutex> lock(s->mutex_);
+      s->published_mid_ = mid;
       s->cv_.notify_all();
     });
     mosquitto_message_callback_set(mosq_, [](mosquitto*, void* self, const mosquitto_message* m) {
@@ -198,6 +211,30 @@ class TestSubscriber {
       return false;
     });
   }
+  // Waits for an empty payload on `topic` (a retained topic cleared).
+  bool WaitForCleared(const std::string& topic, std::chrono::milliseconds timeout = std::chrono::seconds(10)) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    return cv_.wait_for(lock, timeout, [&] {
+      for (const ReceivedMessage& m : messages_) {
+        if (m.topic == topic && m.payload.empty()) return true;
+      }
+      return false;
+    });
+  }
+  // Publishes (QoS 1) and waits until the broker has it.
+  bool Publish(const std::string& topic, const std::string& payload, bool retain = false) {
+    int mid = 0;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      published_mid_ = -1;
+    }
+    if (mosquitto_publish(mosq_, &mid, topic.c_str(), static_cast<int>(payload.size()), payload.data(), 1, retain) !=
+        MOSQ_ERR_SUCCESS) {
+      return false;
+    }
+    std::unique_lock<std::mutex> lock(mutex_);
+    return cv_.wait_for(lock, std::chrono::seconds(5), [&] { return published_mid_ == mid; });
+  }
   std::vector<ReceivedMessage> Messages() {
     std::lock_guard<std::mutex> lock(mutex_);
     return messages_;
@@ -217,6 +254,7 @@ class TestSubscriber {
   std::mutex mutex_;
   std::condition_variable cv_;
   bool subscribed_ = false;
+  int published_mid_ = -1;
   std::vector<ReceivedMessage> messages_;
 };
 
