@@ -267,6 +267,7 @@ Status RunFuseCommand(FuseCommand cmd, int threads, const std::string& data_root
     OCCMAP_ASSIGN_OR_RETURN(std::string site_text, ReadFileToString(site.file));
     view = std::make_shared<LiveState>();
     view->SetStarting();
+    if (live.mqtt) view->SetMqtt(live.mqtt);
     o.sink_frames = true;  // each camera's changes, the tiles' pictures
     o.sinks.push_back(std::make_shared<LiveStateSink>(view));
     backend = std::make_unique<ViewBackend>(view, site, std::move(site_text), o.out_dir, "occmap fuse");

@@ -143,6 +143,7 @@ Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_ro
   // Before any thread starts, so that every thread inherits the blocked signals.
   StopOnSignals signals(cmd.out_dir);
   OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<ServeSession> session, ServeSession::Create(so));
+  if (live.mqtt) session->state().SetMqtt(live.mqtt);  // its link's state in /api/state, /metrics
   WebServer server(wo, *session, EmbeddedWebAssets());
   OCCMAP_ASSIGN_OR_RETURN(int port, server.Bind());
   server.Start();

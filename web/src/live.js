@@ -171,6 +171,9 @@ function Stats({ state, frame, site }) {
         <dt>tracks</dt><dd data-testid="track-count">${frame ? (frame.tracks || []).length : '–'}</dd>
         <dt>detections</dt><dd>${frame ? (frame.detections || []).length : '–'}</dd>
         <dt>latency</dt><dd>p50 ${fmt(lat.p50, 0)} · p95 ${fmt(lat.p95, 0)} · p99 ${fmt(lat.p99, 0)} ms</dd>
+        ${state && state.mqtt ? html`<dt>MQTT</dt><dd data-testid="mqtt-state" class=${state.mqtt.connected ? '' : 'bad'}>${
+          state.mqtt.connected ? 'connected to ' + state.mqtt.broker : `not connected to ${state.mqtt.broker}: ${state.mqtt.error}`}
+          · ${state.mqtt.published} sent · ${state.mqtt.dropped} dropped</dd>` : null}
         <dt>up</dt><dd>${state ? fmt(state.uptime_s, 0) + ' s' : '–'}${state && state.starting ? ' (starting: backgrounds, tables)' : state && state.running === false ? ` (stopped: ${state.stop_reason || 'inputs ended'})` : ''}</dd>
       </dl>
       <h3>Stage time <span class="hint">(the stages overlap)</span></h3>

@@ -53,9 +53,14 @@ function App() {
       <span class="grow"></span>
       <span class="status">
         frame <b data-testid="frame">${frame ? frame.frame : state && state.frame >= 0 ? state.frame : "–"}</b>${' · '}${fps !== undefined && fps !== null ? Number(fps).toFixed(1) : '–'} fps
-        · <span class=${'dot ' + (connected ? 'on' : 'off')}></span>${connected ? 'live' : 'reconnecting'}
+        · <span class=${'dot ' + (connected && pipeline.on ? 'on' : 'off')}></span><span data-testid="pipeline-state"
+          title=${pipeline.title}>${pipeline.label}</span>
         ${state && state.starting ? html`<span class="badge warn" data-testid="starting"
           title="opening the cameras, taking their backgrounds, loading or building the tables">starting…</span>` : null}
+        ${state && state.mqtt ? html`<span class=${'badge ' + (state.mqtt.connected ? 'up' : 'down')} data-testid="mqtt"
+          title=${state.mqtt.connected ? `publishing to ${state.mqtt.broker}`
+            : `cannot publish to ${state.mqtt.broker}: ${state.mqtt.error}; ${state.mqtt.dropped} messages dropped`}>${
+          state.mqtt.connected ? 'MQTT' : 'MQTT down'}</span>` : null}
       </span>
     </header>
     ${failed ? html`<div class="banner" data-testid="pipeline-error"><b>The pipeline stopped:</b> ${failed}

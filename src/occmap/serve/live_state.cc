@@ -82,6 +82,16 @@ int64_t LiveState::next_version() {
   return ++version_;
 }
 
+void LiveState::SetMqtt(std::shared_ptr<const MqttSink> mqtt) {
+  std::lock_guard lock(mu_);
+  mqtt_ = std::move(mqtt);
+}
+
+std::shared_ptr<const MqttSink> LiveState::mqtt() const {
+  std::lock_guard lock(mu_);
+  return mqtt_;
+}
+
 Status LiveStateSink::Open(const SinkStart& start) {
   camera_ids_ = start.camera_ids;
   zone_names_.clear();
@@ -120,6 +130,8 @@ Status LiveStateSink::Consume(const FrameRecord& record, const RunStats& stats) 
   s->line_counts = record.lines.counts;
   s->line_counts.resize(line_names_.size());
   s->stats = stats;
+  // On the writer thread, where the MQTT sink changes its publisher (Open, Close).
+  if (const auto mqtt = state_->mqtt()) s->mqtt = mqtt->counters();
   s->camera_ids = camera_ids_;
   const size_t n = camera_ids_.size();
   const bool same_cameras = previous->camera_ids == camera_ids_;
@@ -149,6 +161,7 @@ Status LiveStateSink::Close(const RunStats& stats) {
   const std::shared_ptr<const LiveSnapshot> previous = state_->Latest();
   auto s = std::make_shared<LiveSnapshot>(*previous);
   s->stats = stats;
+  if (const auto mqtt = state_->mqtt()) s->mqtt = mqtt->counters();
   s->version = state_->next_version();
   state_->Publish(std::move(s));
   state_->SetRunning(false, stats.stop_reason);

@@ -16,11 +16,13 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "occmap/lut/floor_grid.h"
 #include "occmap/pipeline/frame_sink.h"
+#include "occmap/pipeline/mqtt_sink.h"
 
 namespace occmap {
 
@@ -49,6 +51,8 @@ struct LiveSnapshot {
   std::vector<Image<uint8_t>> frames_gray;
   std::vector<Image<Rgb8>> frames_rgb;  // empty unless the run reads colour
   std::vector<Image<uint8_t>> change_masks;
+  // The MQTT link's figures and state as of this frame set; none when the run has no MQTT.
+  std::optional<MqttCounters> mqtt;
 };
 
 class LiveState {
@@ -77,12 +81,16 @@ class LiveState {
   // The run's frame rate (SinkStart::fps), 0 before it opens.
   void SetFps(double fps) { fps_ = fps; }
   double fps() const { return fps_.load(); }
+  // The run's MQTT sink, whose counters each snapshot carries (set before the run starts).
+  void SetMqtt(std::shared_ptr<const MqttSink> mqtt);
+  std::shared_ptr<const MqttSink> mqtt() const;
 
  private:
   mutable std::mutex mu_;
   mutable std::condition_variable cv_;
   std::shared_ptr<const LiveSnapshot> latest_;
   std::shared_ptr<const LiveCoverage> coverage_;
+  std::shared_ptr<const MqttSink> mqtt_;
   int64_t coverage_version_ = 0;
   bool running_ = false;
   bool starting_ = false;

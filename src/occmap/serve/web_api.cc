@@ -331,6 +331,15 @@ json FrameEventJson(const LiveSnapshot& s) {
           {"tracks", tracks}, {"zones", zones}, {"lines", lines}};
 }
 
+// The MQTT link as /api/state gives it; null without MQTT.
+json MqttJson(const LiveSnapshot& s) {
+  if (!s.mqtt) return nullptr;
+  const MqttCounters& m = *s.mqtt;
+  return {{"broker", m.broker},           {"connected", m.connected},     {"error", m.error.empty() ? json(nullptr) : json(m.error)},
+          {"published", m.published},     {"dropped", m.dropped},         {"connects", m.connects},
+          {"disconnects", m.disconnects}, {"failures", m.failures},       {"cleared", m.cleared}};
+}
+
 json StateJson(const LiveSnapshot& s, bool running, double uptime_s, bool starting, std::string_view ended) {
   json cams = json::array();
   for (const CameraStats& c : s.stats.cameras) {
@@ -360,7 +369,8 @@ json StateJson(const LiveSnapshot& s, bool running, double uptime_s, bool starti
           {"tracks_total", s.stats.tracks},
           {"zone_events", s.stats.zone_events},
           {"stop_reason", !running && !starting && !ended.empty() ? std::string(ended) : s.stats.stop_reason},
-          {"stages_s", StagesJson(s.stats.stages)}};
+          {"stages_s", StagesJson(s.stats.stages)},
+          {"mqtt", MqttJson(s)}};
 }
 
 std::vector<std::vector<std::vector<std::array<double, 2>>>> MaskPolygonsFromText(const Site& site,
@@ -494,6 +504,19 @@ std::string MetricsText(const LiveSnapshot& s, bool running) {
   for (size_t i = 0; i < s.zone_names.size(); ++i) {
     o += fmt::format("occmap_zone_objects{{zone=\"{}\"}} {}\n", Label(s.zone_names[i]),
                      i < s.zone_counts.size() ? s.zone_counts[i] : 0);
+  }
+  if (s.mqtt) {
+    const MqttCounters& m = *s.mqtt;
+    head("occmap_mqtt_connected", "gauge", "1 while the MQTT broker is connected");
+    o += fmt::format("occmap_mqtt_connected{{broker=\"{}\"}} {}\n", Label(m.broker), m.connected ? 1 : 0);
+    head("occmap_mqtt_messages_published_total", "counter", "MQTT messages handed to the broker's connection");
+    o += fmt::format("occmap_mqtt_messages_published_total {}\n", m.published);
+    head("occmap_mqtt_messages_dropped_total", "counter", "per-frame MQTT messages dropped: no connection or queue full");
+    o += fmt::format("occmap_mqtt_messages_dropped_total {}\n", m.dropped);
+    head("occmap_mqtt_connects_total", "counter", "MQTT connections made");
+    o += fmt::format("occmap_mqtt_connects_total {}\n", m.connects);
+    head("occmap_mqtt_connection_failures_total", "counter", "MQTT connection attempts that failed and connections lost");
+    o += fmt::format("occmap_mqtt_connection_failures_total {}\n", m.failures);
   }
   head("occmap_line_crossings_total", "counter", "crossings of each counting line, by direction");
   for (size_t i = 0; i < s.line_names.size(); ++i) {

@@ -235,6 +235,40 @@ TEST(WebApi, FrameAndStateJson) {
   EXPECT_EQ(st["stages_s"]["tables"], 3);
   EXPECT_EQ(st["stages_s"]["track"], 0);
   EXPECT_EQ(st["stages_s"].size(), 9u);
+  EXPECT_TRUE(st["mqtt"].is_null()) << "no MQTT in this run";
+}
+
+TEST(WebApi, TheMqttLinkInStateAndMetrics) {
+  LiveSnapshot s = TestSnapshot();
+  MqttCounters m;
+  m.connected = false;
+  m.connects = 1;
+  m.disconnects = 1;
+  m.failures = 3;
+  m.published = 120;
+  m.dropped = 7;
+  m.broker = "mqtt://broker.lan:1883";
+  m.error = "Connection refused";
+  s.mqtt = m;
+  EXPECT_EQ(StateJson(s, true, 5)["mqtt"], (json{{"broker", "mqtt://broker.lan:1883"},
+                                                {"connected", false},
+                                                {"error", "Connection refused"},
+                                                {"published", 120},
+                                                {"dropped", 7},
+                                                {"connects", 1},
+                                                {"disconnects", 1},
+                                                {"failures", 3},
+                                                {"cleared", 0}}));
+  const std::string text = MetricsText(s, true);
+  for (const char* line : {"occmap_mqtt_connected{broker=\"mqtt://broker.lan:1883\"} 0\n",
+                           "occmap_mqtt_messages_published_total 120\n", "occmap_mqtt_messages_dropped_total 7\n",
+                           "occmap_mqtt_connects_total 1\n", "occmap_mqtt_connection_failures_total 3\n"}) {
+    EXPECT_NE(text.find(line), std::string::npos) << line << "\n" << text;
+  }
+  EXPECT_EQ(MetricsText(TestSnapshot(), true).find("occmap_mqtt"), std::string::npos) << "no MQTT: no MQTT figures";
+  s.mqtt->connected = true;
+  s.mqtt->error.clear();
+  EXPECT_TRUE(StateJson(s, true, 5)["mqtt"]["error"].is_null());
 }
 
 TEST(WebApi, MetricsText) {
