@@ -354,7 +354,16 @@ TEST_F(FullLab, LineCrossingsMatchTheGroundTruthInBothDirections) {
   ASSERT_NE(demo_, nullptr);
   auto site = LoadSite(Dataset() / "site.yaml");
   ASSERT_TRUE(site.ok()) << site.status().message();
-  site->tracking.lines = {LineOptions{"middle", {4.5, 0.0}, {4.5, 6.5}}};
+  // Every crossing, at the frame it happens (no band, every time): the truth's own rule. The
+  // defaults (a band, once per track and direction) are tested on the plaza's truth
+  // (track/count_lines_test.cc).
+  LineOptions middle;
+  middle.name = "middle";
+  middle.from_m = {4.5, 0.0};
+  middle.to_m = {4.5, 6.5};
+  middle.hysteresis_m = 0;
+  middle.once_per_track = false;
+  site->tracking.lines = {middle};
   RunOptions run;
   run.out_dir = dir_->path() / "run_lines";
   run.occupancy_video = run.mosaic_video = false;

@@ -24,7 +24,7 @@ TEST(MqttSink, PublishesTheRecordsTracksEventsAndCountsAndStatsAtTheEnd) {
   Site site;
   site.name = "Lab";
   site.tracking.zones = {ZoneOptions{"door", {{0, 0}, {1, 0}, {1, 1}}, std::nullopt}};
-  site.tracking.lines = {LineOptions{"gate", {0, 0}, {0, 2}}};
+  site.tracking.lines = {LineOptions{"gate", {0, 0}, {0, 2}, 0.2, true}};
   MqttOptions options;
   options.broker = {"127.0.0.1", broker.port()};
   options.stats_every_s = 3600;  // only the one at the end

@@ -12,7 +12,7 @@ Site TwoCameraSite() {
   Site site;
   site.name = "t";
   site.tracking.zones.push_back(ZoneOptions{"door", {{0, 0}, {1, 0}, {1, 1}}, std::nullopt});
-  site.tracking.lines.push_back(LineOptions{"gate", {0, 0}, {0, 1}});
+  site.tracking.lines.push_back(LineOptions{"gate", {0, 0}, {0, 1}, 0.2, true});
   return site;
 }
 

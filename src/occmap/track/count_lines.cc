@@ -27,11 +27,12 @@ std::string_view ToString(LineDirection direction) {
   return direction == LineDirection::kIn ? "in" : "out";
 }
 
-int SideOfLine(const Eigen::Vector2d& from_m, const Eigen::Vector2d& to_m, const Eigen::Vector2d& point_m) {
+int SideOfLine(const Eigen::Vector2d& from_m, const Eigen::Vector2d& to_m, const Eigen::Vector2d& point_m,
+               double band_m) {
   const Eigen::Vector2d ab = to_m - from_m;
   // The cross product over the length is the signed distance from the line.
   const double distance_m = Cross(ab, point_m - from_m) / ab.norm();
-  if (std::abs(distance_m) <= kOnLineM) return 0;
+  if (std::abs(distance_m) <= std::max(band_m, kOnLineM)) return 0;
   return distance_m > 0 ? 1 : -1;
 }
 
@@ -57,15 +58,21 @@ LineFrame LineCounter::Update(int64_t frame, double time_s, const std::vector<Tr
       auto it = sides_[l].find(t->id);
       Side state = it != sides_[l].end() ? it->second : Side{};
       const Eigen::Vector2d point_m(t->x_m, t->y_m);
-      const int side = t->coasting ? 0 : SideOfLine(line.from_m, line.to_m, point_m);
+      const int side = t->coasting ? 0 : SideOfLine(line.from_m, line.to_m, point_m, line.hysteresis_m);
       if (side != 0) {
         if (state.side != 0 && side != state.side && StepMeetsSegment(line.from_m, line.to_m, state.point_m, point_m)) {
           // Right (-1) to left (+1) is "in".
-          const LineDirection direction = side > 0 ? LineDirection::kIn : LineDirection::kOut;
-          (direction == LineDirection::kIn ? counts_[l].in : counts_[l].out) += 1;
-          events.push_back(LineEvent{frame, time_s, line.name, t->id, direction, counts_[l]});
+          const bool in = side > 0;
+          bool& counted = in ? state.counted_in : state.counted_out;
+          if (!counted || !line.once_per_track) {
+            (in ? counts_[l].in : counts_[l].out) += 1;
+            events.push_back(LineEvent{frame, time_s, line.name, t->id, in ? LineDirection::kIn : LineDirection::kOut,
+                                       counts_[l]});
+          }
+          counted = true;
         }
-        state = Side{side, point_m};
+        state.side = side;
+        state.point_m = point_m;
       }
       now.emplace(t->id, state);
     }

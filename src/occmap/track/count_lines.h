@@ -4,11 +4,14 @@
 // Direction: looking from a line's `from_m` to its `to_m`, "in" is a crossing from the right
 // side to the left side, "out" from left to right (for a line from (0, 0) to (0, 1), "in" is
 // moving towards -x).
-// A crossing, per track: the track was last seen strictly on one side, is now strictly on the
-// other, and the straight step between those two positions meets the segment (ends included).
-// A position on the line (within 1 nm) is on neither side: a track that touches the line and
-// turns back crosses nothing; one that stops on it and then goes on crosses once, when it
-// leaves on the far side. Going round an end of the segment crosses nothing.
+// A crossing, per track: the track was last seen on one side, is now on the other, and the
+// straight step between those two positions meets the segment (ends included). A side starts
+// LineOptions::hysteresis_m from the line (1 nm with 0): a position within that band is on
+// neither side, so a track that enters the band and turns back crosses nothing, one that
+// lingers in it and then goes on crosses once, when it leaves on the far side, and a track
+// jittering on the line crosses nothing. Going round an end of the segment crosses nothing.
+// With LineOptions::once_per_track (the default) a track counts at most once in each direction:
+// one who wanders over the line and back is one "in" and one "out", however often.
 // Only measured positions count: a coasting track (no detection this frame) keeps its last
 // side until it is measured again, so a prediction never crosses a line on its own; a track
 // no longer reported is forgotten (memory stays bounded by the live tracks).
@@ -57,8 +60,9 @@ struct LineFrame {
 };
 
 // The side of the directed line through from_m and to_m the point is on: +1 left, -1 right,
-// 0 within 1 nm of the line.
-int SideOfLine(const Eigen::Vector2d& from_m, const Eigen::Vector2d& to_m, const Eigen::Vector2d& point_m);
+// 0 within band_m of the line (at least 1 nm).
+int SideOfLine(const Eigen::Vector2d& from_m, const Eigen::Vector2d& to_m, const Eigen::Vector2d& point_m,
+               double band_m = 0);
 
 class LineCounter {
  public:
@@ -79,6 +83,7 @@ class LineCounter {
   struct Side {
     int side = 0;                     // of the last position off the line; 0: none yet
     Eigen::Vector2d point_m{0, 0};    // that position
+    bool counted_in = false, counted_out = false;  // once_per_track: already counted
   };
 
   std::vector<LineOptions> lines_;

@@ -39,9 +39,21 @@ std::string CrossingsOf(LineCounter& counter, const std::vector<std::vector<Eige
   return s;
 }
 
-LineCounter Gate() {
-  // A gate along x = 0 from y = 0 to y = 2: "in" is towards -x (left of the upward line).
-  Result<LineCounter> created = LineCounter::Create({{"gate", {0, 0}, {0, 2}}});
+LineOptions Line(std::string name, Eigen::Vector2d from_m, Eigen::Vector2d to_m, double hysteresis_m = 0,
+                 bool once_per_track = false) {
+  LineOptions l;
+  l.name = std::move(name);
+  l.from_m = from_m;
+  l.to_m = to_m;
+  l.hysteresis_m = hysteresis_m;
+  l.once_per_track = once_per_track;
+  return l;
+}
+
+// A gate along x = 0 from y = 0 to y = 2: "in" is towards -x (left of the upward line). The
+// geometry's tests use no band and count every crossing; the defaults have their own tests.
+LineCounter Gate(double hysteresis_m = 0, bool once_per_track = false) {
+  Result<LineCounter> created = LineCounter::Create({Line("gate", {0, 0}, {0, 2}, hysteresis_m, once_per_track)});
   EXPECT_TRUE(created.ok()) << created.status().ToString();
   return std::move(created).value();
 }
@@ -128,7 +140,7 @@ TEST(LineCounter, CoastingPredictionsNeverCrossAndEndedTracksAreForgotten) {
 }
 
 TEST(LineCounter, LinesCountIndependentlyInTheirOrder) {
-  Result<LineCounter> created = LineCounter::Create({{"b", {0, 0}, {0, 2}}, {"a", {1, 2}, {1, 0}}});
+  Result<LineCounter> created = LineCounter::Create({Line("b", {0, 0}, {0, 2}), Line("a", {1, 2}, {1, 0})});
   ASSERT_TRUE(created.ok());
   LineCounter lines = std::move(created).value();
   // Line "a" points down: moving towards -x crosses it from left to right ("out").
@@ -139,12 +151,66 @@ TEST(LineCounter, LinesCountIndependentlyInTheirOrder) {
 )");
 }
 
+TEST(LineCounter, TheDefaultsAreABandOf20CmAndOneCountPerTrackAndDirection) {
+  const LineOptions defaults;
+  EXPECT_EQ(defaults.hysteresis_m, 0.2);
+  EXPECT_TRUE(defaults.once_per_track);
+  EXPECT_EQ(SideOfLine({0, 0}, {0, 2}, {-0.15, 1}, 0.2), 0) << "inside the band";
+  EXPECT_EQ(SideOfLine({0, 0}, {0, 2}, {-0.25, 1}, 0.2), 1);
+  EXPECT_EQ(SideOfLine({0, 0}, {0, 2}, {0.25, 1}, 0.2), -1);
+}
+
+TEST(LineCounter, JitterOnTheLineInsideTheBandCountsNothing) {
+  // Someone standing on the gate, their track jittering +-15 cm around x = 0.05 for 3 s, then
+  // walking back to where they came from.
+  std::vector<Eigen::Vector2d> path = Walk({1, 1}, {-0.2, 0}, 5);
+  for (int k = 0; k < 30; ++k) path.push_back({0.05 + (k % 2 == 0 ? 0.15 : -0.15), 1 + 0.01 * k});
+  const std::vector<Eigen::Vector2d> back = Walk({0.2, 1.3}, {0.2, 0}, 5);
+  path.insert(path.end(), back.begin(), back.end());
+  LineCounter banded = Gate(0.2);
+  EXPECT_EQ(CrossingsOf(banded, {path}), "");
+  LineCounter bare = Gate(0.0);
+  EXPECT_EQ(CrossingsOf(bare, {path}).size() > 0, true) << "without the band every jitter across x = 0 counts";
+  EXPECT_GE(bare.counts()[0].in, 10);
+}
+
+TEST(LineCounter, ABandDelaysACrossingUntilTheFarSide) {
+  // 0.1 m per frame from x = 0.55: in the band (|x| <= 0.2) from frame 4 (0.15) to 7 (-0.15),
+  // past it at frame 8 (-0.25).
+  LineCounter gate = Gate(0.2);
+  EXPECT_EQ(CrossingsOf(gate, {Walk({0.55, 1}, {-0.1, 0}, 10)}),
+            R"({"frame":8,"time_s":0.8,"line":"gate","track_id":1,"event":"cross","direction":"in","in":1,"out":0}
+)");
+}
+
+TEST(LineCounter, ATrackWanderingOverTheLineCountsOncePerDirection) {
+  // In, out, in, out, in: 1.5 m swings across the gate.
+  std::vector<Eigen::Vector2d> path;
+  for (int swing = 0; swing < 5; ++swing) {
+    const double from = swing % 2 == 0 ? 0.75 : -0.75;
+    const std::vector<Eigen::Vector2d> leg = Walk({from, 1}, {from > 0 ? -0.25 : 0.25, 0}, 7);
+    path.insert(path.end(), leg.begin(), leg.end());
+  }
+  LineCounter once = Gate(0.2, /*once_per_track=*/true);
+  (void)CrossingsOf(once, {path});
+  EXPECT_EQ(once.counts()[0], (LineCounts{1, 1}));
+  LineCounter every = Gate(0.2, /*once_per_track=*/false);
+  (void)CrossingsOf(every, {path});
+  EXPECT_EQ(every.counts()[0], (LineCounts{3, 2}));
+  // Another track is counted on its own.
+  LineCounter two = Gate(0.2, true);
+  (void)CrossingsOf(two, {path, Walk({1, 0.5}, {-0.25, 0}, 9)});
+  EXPECT_EQ(two.counts()[0], (LineCounts{2, 1}));
+}
+
 TEST(LineCounter, CreateRefusesWhatValidateRefuses) {
-  EXPECT_EQ(LineCounter::Create({{"", {0, 0}, {1, 0}}}).status().message(), "tracking.lines[0].name: expected a non-empty name");
-  EXPECT_EQ(LineCounter::Create({{"a", {0, 0}, {0, 0}}}).status().message(),
+  EXPECT_EQ(LineCounter::Create({Line("", {0, 0}, {1, 0})}).status().message(), "tracking.lines[0].name: expected a non-empty name");
+  EXPECT_EQ(LineCounter::Create({Line("a", {0, 0}, {0, 0})}).status().message(),
             "tracking.lines[0].to: expected a point at least 1 mm from 'from', found 0 m from it");
-  EXPECT_EQ(LineCounter::Create({{"a", {0, 0}, {1, 0}}, {"a", {0, 1}, {1, 1}}}).status().message(),
+  EXPECT_EQ(LineCounter::Create({Line("a", {0, 0}, {1, 0}), Line("a", {0, 1}, {1, 1})}).status().message(),
             "tracking.lines[1].name: duplicate line name 'a'");
+  EXPECT_EQ(LineCounter::Create({Line("a", {0, 0}, {1, 0}, -0.1)}).status().message(),
+            "tracking.lines[0].hysteresis_m: expected 0..2 m, found -0.1");
 }
 
 }  // namespace

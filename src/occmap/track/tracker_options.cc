@@ -121,6 +121,9 @@ std::optional<Problem> CheckLine(const std::vector<LineOptions>& lines, size_t k
     return Problem{"to", fmt::format("expected a point at least 1 mm from 'from', found {} m from it",
                                      (line.to_m - line.from_m).norm())};
   }
+  if (!(line.hysteresis_m >= 0 && line.hysteresis_m <= 2)) {
+    return Problem{"hysteresis_m", fmt::format("expected 0..2 m, found {}", line.hysteresis_m)};
+  }
   return std::nullopt;
 }
 
@@ -283,13 +286,15 @@ Status ParseTrackerOptions(const YamlField& field, TrackerOptions& options, std:
     parsed.lines.clear();
     for (size_t k = 0; k < list->size(); ++k) {
       OCCMAP_ASSIGN_OR_RETURN(YamlField element, list->At(k));
-      OCCMAP_RETURN_IF_ERROR(element.CheckKeys({"name", "from", "to"}));
+      OCCMAP_RETURN_IF_ERROR(element.CheckKeys({"name", "from", "to", "hysteresis_m", "once_per_track"}));
       LineOptions line;
       OCCMAP_ASSIGN_OR_RETURN(line.name, element.GetString("name"));
       OCCMAP_ASSIGN_OR_RETURN(std::vector<double> from, element.GetDoubles("from", 2));
       OCCMAP_ASSIGN_OR_RETURN(std::vector<double> to, element.GetDoubles("to", 2));
       line.from_m = {from[0], from[1]};
       line.to_m = {to[0], to[1]};
+      OCCMAP_ASSIGN_OR_RETURN(line.hysteresis_m, element.GetDouble("hysteresis_m", line.hysteresis_m));
+      OCCMAP_ASSIGN_OR_RETURN(line.once_per_track, element.GetBool("once_per_track", line.once_per_track));
       parsed.lines.push_back(std::move(line));
       if (auto p = CheckLine(parsed.lines, k)) return SubField(element, p->key).Error(p->what);
     }

@@ -87,6 +87,12 @@ struct LineOptions {
   std::string name;
   Eigen::Vector2d from_m = Eigen::Vector2d::Zero();  // world metres, finite, >= 1 mm apart
   Eigen::Vector2d to_m = Eigen::Vector2d::Zero();
+  // A track is on a side only when farther than this from the line (the band between is
+  // neither side): a position jittering on the line crosses nothing. Finite, 0..2 m.
+  double hysteresis_m = 0.2;
+  // A track counts at most once in each direction (people counters' rule: one who wanders
+  // back and forth over the line is one visitor).
+  bool once_per_track = true;
 };
 
 struct TrackerOptions {

@@ -60,6 +60,7 @@ tracking:
       polygon: [[2, 2], [3, 2], [3, 3]]
   lines:
     - {name: gate, from: [0, -1], to: [0.5, 2]}
+    - {name: door, from: [3, 0], to: [3, 1], hysteresis_m: 0.35, once_per_track: false}
 )",
                               options);
   ASSERT_TRUE(status.ok()) << status.ToString();
@@ -81,10 +82,14 @@ tracking:
   EXPECT_EQ(options.zones[0].polygon_m[1], Eigen::Vector2d(1.5, 0));
   EXPECT_EQ(options.zones[0].dwell_s, 5.0);
   EXPECT_FALSE(options.zones[1].dwell_s.has_value());
-  ASSERT_EQ(options.lines.size(), 1u);
+  ASSERT_EQ(options.lines.size(), 2u);
   EXPECT_EQ(options.lines[0].name, "gate");
   EXPECT_EQ(options.lines[0].from_m, Eigen::Vector2d(0, -1));
   EXPECT_EQ(options.lines[0].to_m, Eigen::Vector2d(0.5, 2));
+  EXPECT_EQ(options.lines[0].hysteresis_m, 0.2);
+  EXPECT_TRUE(options.lines[0].once_per_track);
+  EXPECT_EQ(options.lines[1].hysteresis_m, 0.35);
+  EXPECT_FALSE(options.lines[1].once_per_track);
 }
 
 TEST(ParseTrackerOptions, AnEmptySectionKeepsTheDefaults) {
@@ -171,7 +176,9 @@ TEST(ParseTrackerOptions, MalformedInputsGiveLocatedMessagesAndLeaveTheOptionsAl
       {"tracking:\n  lines:\n    - {name: door, from: [0, 0], to: [0, 0.0001]}",
        "site.yaml:3: tracking.lines[0].to: expected a point at least 1 mm from 'from', found 0.0001 m from it"},
       {"tracking:\n  lines:\n    - {name: door, from: [0, 0], to: [1, 0], width: 2}",
-       "site.yaml:3: tracking.lines[0]: unknown field 'width' (expected one of: name, from, to)"},
+       "site.yaml:3: tracking.lines[0]: unknown field 'width' (expected one of: name, from, to, hysteresis_m, once_per_track)"},
+      {"tracking:\n  lines:\n    - {name: door, from: [0, 0], to: [1, 0], hysteresis_m: 3}",
+       "site.yaml:3: tracking.lines[0].hysteresis_m: expected 0..2 m, found 3"},
       {"tracking:\n  lines:\n    - {name: a, from: [0, 0], to: [1, 0]}\n    - {name: a, from: [0, 1], to: [1, 1]}",
        "site.yaml:4: tracking.lines[1].name: duplicate line name 'a'"},
   };
