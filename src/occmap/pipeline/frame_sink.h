@@ -92,6 +92,7 @@ struct StageSeconds {
 struct LatencyFigures {
   int64_t count = 0;
   double p50_ms = 0, p95_ms = 0, p99_ms = 0, max_ms = 0;
+  double sum_ms = 0;  // of every frame set's latency
 };
 
 // The run's figures so far, as of the frame set being consumed (or the end, for Close).

@@ -23,9 +23,11 @@ class LatencyHistogram {
     bin = bin < 0 ? 0 : bin >= kBins ? kBins - 1 : bin;
     ++counts_[static_cast<size_t>(bin)];
     ++count_;
+    sum_s_ += seconds;
     if (seconds > max_s_) max_s_ = seconds;
   }
   int64_t count() const { return count_; }
+  double sum_s() const { return sum_s_; }  // of every sample (a Prometheus summary's _sum)
   double max_s() const { return max_s_; }
   // The q-quantile (0 < q <= 1) in seconds: the centre of the bin holding the ceil(q n)-th
   // smallest sample; 0 without samples.
@@ -43,6 +45,7 @@ class LatencyHistogram {
  private:
   std::array<int64_t, kBins> counts_{};
   int64_t count_ = 0;
+  double sum_s_ = 0;
   double max_s_ = 0;
 };
 

@@ -18,6 +18,7 @@ LatencyFigures Figures(const LatencyHistogram& h) {
   f.p95_ms = 1e3 * h.Percentile(0.95);
   f.p99_ms = 1e3 * h.Percentile(0.99);
   f.max_ms = 1e3 * h.max_s();
+  f.sum_ms = 1e3 * h.sum_s();
   return f;
 }
 

@@ -4,9 +4,17 @@
 #include <yaml-cpp/yaml.h>
 
 #include <arpa/inet.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <sstream>
 #include <charconv>
 #include <cmath>
 #include "occmap/lut/visibility_image.h"
@@ -442,11 +450,62 @@ json SiteJson(const Site& site, std::string_view text) {
           {"yaml", std::string(text)}};
 }
 
+std::string ProcessMetricsText() {
+  std::string o;
+  auto head = [&](const char* name, const char* type, const char* help) {
+    o += fmt::format("# HELP {} {}\n# TYPE {} {}\n", name, help, name, type);
+  };
+  // /proc/self/stat: fields after the command's closing parenthesis; utime and stime (14, 15)
+  // in clock ticks, starttime (22) in ticks since boot, vsize (23) in bytes, rss (24) in pages.
+  std::ifstream stat_file("/proc/self/stat");
+  std::string stat((std::istreambuf_iterator<char>(stat_file)), std::istreambuf_iterator<char>());
+  const size_t paren = stat.rfind(')');
+  if (paren == std::string::npos) return o;
+  std::istringstream fields(stat.substr(paren + 2));
+  std::vector<std::string> f;
+  for (std::string v; fields >> v;) f.push_back(v);
+  if (f.size() < 22) return o;
+  auto number = [&](int field) { return std::strtod(f[static_cast<size_t>(field - 3)].c_str(), nullptr); };
+  const double ticks = static_cast<double>(::sysconf(_SC_CLK_TCK));
+  const double page = static_cast<double>(::sysconf(_SC_PAGESIZE));
+  head("process_cpu_seconds_total", "counter", "user and system CPU time of the process");
+  o += fmt::format("process_cpu_seconds_total {:g}\n", (number(14) + number(15)) / ticks);
+  head("process_resident_memory_bytes", "gauge", "resident memory");
+  o += fmt::format("process_resident_memory_bytes {:.0f}\n", number(24) * page);
+  head("process_virtual_memory_bytes", "gauge", "virtual memory");
+  o += fmt::format("process_virtual_memory_bytes {:.0f}\n", number(23));
+  std::ifstream uptime_file("/proc/uptime");
+  double uptime_s = 0;
+  if (uptime_file >> uptime_s) {
+    const double now_s = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+    head("process_start_time_seconds", "gauge", "start of the process, seconds since 1970");
+    o += fmt::format("process_start_time_seconds {:.0f}\n", now_s - uptime_s + number(22) / ticks);
+  }
+  std::error_code ec;
+  int64_t fds = 0;
+  for (auto it = std::filesystem::directory_iterator("/proc/self/fd", ec); !ec && it != std::filesystem::directory_iterator();
+       it.increment(ec)) {
+    ++fds;
+  }
+  head("process_open_fds", "gauge", "open file descriptors");
+  o += fmt::format("process_open_fds {}\n", fds);
+  if (rlimit limit{}; ::getrlimit(RLIMIT_NOFILE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY) {
+    head("process_max_fds", "gauge", "the limit of open file descriptors");
+    o += fmt::format("process_max_fds {}\n", static_cast<uint64_t>(limit.rlim_cur));
+  }
+  return o;
+}
+
 std::string MetricsText(const LiveSnapshot& s, bool running) {
   std::string o;
   auto head = [&](const char* name, const char* type, const char* help) {
     o += fmt::format("# HELP {} {}\n# TYPE {} {}\n", name, help, name, type);
   };
+#ifndef OCCMAP_VERSION
+#define OCCMAP_VERSION "unknown"
+#endif
+  head("occmap_build_info", "gauge", "the program's version, as a label (always 1)");
+  o += fmt::format("occmap_build_info{{version=\"{}\"}} 1\n", OCCMAP_VERSION);
   head("occmap_up", "gauge", "1 while the pipeline runs");
   o += fmt::format("occmap_up {}\n", running ? 1 : 0);
   head("occmap_frames_total", "counter", "frame sets processed");
@@ -475,6 +534,7 @@ std::string MetricsText(const LiveSnapshot& s, bool running) {
   o += fmt::format("occmap_latency_seconds{{quantile=\"0.5\"}} {:g}\n", l.p50_ms / 1000);
   o += fmt::format("occmap_latency_seconds{{quantile=\"0.95\"}} {:g}\n", l.p95_ms / 1000);
   o += fmt::format("occmap_latency_seconds{{quantile=\"0.99\"}} {:g}\n", l.p99_ms / 1000);
+  o += fmt::format("occmap_latency_seconds_sum {:g}\n", l.sum_ms / 1000);
   o += fmt::format("occmap_latency_seconds_count {}\n", l.count);
   head("occmap_camera_background_age_seconds", "gauge", "mean age of the camera's background pixels");
   for (const CameraStats& c : s.stats.cameras) {
@@ -524,7 +584,7 @@ std::string MetricsText(const LiveSnapshot& s, bool running) {
     o += fmt::format("occmap_line_crossings_total{{line=\"{}\",direction=\"in\"}} {}\n", Label(s.line_names[i]), c.in);
     o += fmt::format("occmap_line_crossings_total{{line=\"{}\",direction=\"out\"}} {}\n", Label(s.line_names[i]), c.out);
   }
-  return o;
+  return o + ProcessMetricsText();
 }
 
 std::string MapPng(const OccupancyMap& map) {

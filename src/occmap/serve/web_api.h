@@ -82,7 +82,12 @@ nlohmann::json SiteJson(const Site& site, std::string_view site_text);
 // The mask polygons of each camera in the site text, by camera id (empty for image masks).
 std::vector<std::vector<std::vector<std::array<double, 2>>>> MaskPolygonsFromText(const Site& site,
                                                                                    std::string_view site_text);
+// Ends with ProcessMetricsText(); starts with occmap_build_info{version}.
 std::string MetricsText(const LiveSnapshot& s, bool running);
+// The process's own figures under Prometheus's standard names (from /proc/self):
+// process_cpu_seconds_total, process_resident_memory_bytes, process_virtual_memory_bytes,
+// process_start_time_seconds, process_open_fds, process_max_fds.
+std::string ProcessMetricsText();
 
 // The map as an RGB PNG, one pixel per cell, row 0 = the largest y: free white, occupied
 // black, unseen (205, 205, 205). Empty string before the first map.

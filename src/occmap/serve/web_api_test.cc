@@ -193,7 +193,7 @@ LiveSnapshot TestSnapshot() {
   s.stats.elapsed_s = 2;
   s.stats.frames_per_second = 6.5;
   s.stats.cameras = {CameraStats{"c1", true, true, 13, 2, 1}, CameraStats{"c2", true, false, 10, 0, 3}};
-  s.stats.latency = {13, 20, 40, 50, 60};
+  s.stats.latency = {13, 20, 40, 50, 60, 520};
   s.stats.cameras[0].background_age_s = 42.5;  // c2 gives masks: no background (NaN)
   s.stats.cameras[0].background_cache = BackgroundCacheFigures{"/cache/c1-y.png", 4, 2, 30, "disk full"};  // a live camera
   s.stats.stages.decode = 1.5;
@@ -286,6 +286,20 @@ TEST(WebApi, MetricsText) {
         "occmap_background_cache_failures_total{camera=\"c1\"} 2\n"}) {
     EXPECT_NE(m.find(line), std::string::npos) << line << "\n" << m;
   }
+  // The summary's sum (13 frame sets of 20-60 ms, set below as 0.52 s), the build, the process.
+  for (const char* line : {"occmap_latency_seconds_sum 0.52\n", "occmap_latency_seconds_count 13\n",
+                           "occmap_build_info{version=\"0.1.0\"} 1\n", "# TYPE process_cpu_seconds_total counter\n",
+                           "# TYPE process_resident_memory_bytes gauge\n", "# TYPE process_open_fds gauge\n"}) {
+    EXPECT_NE(m.find(line), std::string::npos) << line << "\n" << m;
+  }
+  auto value = [&](const std::string& name) {
+    const size_t at = m.find("\n" + name + " ");
+    return at == std::string::npos ? -1.0 : std::stod(m.substr(at + name.size() + 2));
+  };
+  EXPECT_GT(value("process_resident_memory_bytes"), 1e6);
+  EXPECT_GE(value("process_open_fds"), 3);
+  EXPECT_GT(value("process_start_time_seconds"), 1.7e9);
+  EXPECT_GE(value("process_cpu_seconds_total"), 0);
   EXPECT_EQ(m.find("occmap_camera_background_age_seconds{camera=\"c2\"}"), std::string::npos) << "no background: no sample";
   EXPECT_EQ(m.find("occmap_background_cache_failures_total{camera=\"c2\"}"), std::string::npos) << "no cache refreshed";
   // Every sample line: name{labels} value.
@@ -295,7 +309,7 @@ TEST(WebApi, MetricsText) {
     ASSERT_NE(end, std::string::npos);
     const std::string l = m.substr(start, end - start);
     if (l[0] != '#') {
-      EXPECT_EQ(l.rfind("occmap_", 0), 0u) << l;
+      EXPECT_TRUE(l.rfind("occmap_", 0) == 0 || l.rfind("process_", 0) == 0) << l;
     }
     start = end + 1;
   }
