@@ -21,6 +21,7 @@
 
 #include "calibrate_command.h"
 #include "live_outputs.h"
+#include "suggest.h"
 #include "run_support.h"
 #include "edge_fuse_command.h"
 #include "serve_command.h"
@@ -703,6 +704,23 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
+    // A mistyped command ("occmap runn"): CLI11 would only say that one is required.
+    if (app.get_subcommands().empty()) {
+      std::vector<std::string> names;
+      for (const CLI::App* sub : app.get_subcommands({})) names.push_back(sub->get_name());
+      for (int k = 1; k < argc; ++k) {
+        const std::string_view arg = argv[k];
+        if (arg == "--threads" || arg == "--data-root") ++k;  // their values
+        if (arg.empty() || arg.front() == '-') continue;
+        if (std::find(names.begin(), names.end(), arg) != names.end()) break;
+        const std::string nearest = NearestName(arg, names);
+        std::fputs(fmt::format("occmap: error: unknown command '{}'{}; `occmap --help` lists them\n", arg,
+                               nearest.empty() ? "" : fmt::format(" (did you mean '{}'?)", nearest))
+                       .c_str(),
+                   stderr);
+        return 2;
+      }
+    }
     const int code = app.exit(e);
     return code == 0 ? 0 : 2;
   }

@@ -27,6 +27,10 @@ check() {  # check NAME EXPECTED_EXIT PATTERN -- command...
 
 check version 0 '^0\.1\.0' -- "$occmap" --version
 check no_subcommand 2 'subcommand' -- "$occmap"
+check mistyped_command 2 "^occmap: error: unknown command 'runn' \(did you mean 'run'\?\); \`occmap --help\` lists them" -- "$occmap" runn site.yaml
+check mistyped_command_after_options 2 "unknown command 'sevre' \(did you mean 'serve'\?\)" -- "$occmap" --threads 2 sevre site.yaml
+check command_prefix 2 "unknown command 'cal' \(did you mean 'calibrate'\?\)" -- "$occmap" cal
+check unknown_command 2 "^occmap: error: unknown command 'xyzzy'; " -- "$occmap" xyzzy
 check missing_site_argument 2 'site is required' -- "$occmap" lut
 check unknown_option 2 'unknown|not expected|Extras' -- "$occmap" lut x.yaml --bogus
 check missing_site 2 "^occmap: error: file not found: '$work/none.yaml'" -- "$occmap" lut "$work/none.yaml"
