@@ -9,6 +9,8 @@ include(CMakePackageConfigHelpers)
 set(OCCMAP_INSTALLED_MODULES util geometry calib lut detect fusion objects track publish io site sim eval pipeline demo)
 add_library(occmap_all INTERFACE)
 target_link_libraries(occmap_all INTERFACE occmap_pipeline occmap_sim occmap_eval occmap_demo)
+# The headers are C++20: a consumer under its compiler's default (C++17 for GCC 12) gets it too.
+target_compile_features(occmap_all INTERFACE cxx_std_20)
 set_target_properties(occmap_all PROPERTIES EXPORT_NAME occmap)
 set(occmap_export_targets occmap_all occmap_opencv occmap_warnings)
 foreach(m ${OCCMAP_INSTALLED_MODULES})

@@ -54,6 +54,21 @@ set +e
 set -e
 [ $code -eq 2 ] && grep -q "missing.yaml" "$tmp/err" || fail "consumer on a missing site: exit $code"
 
+# README's "Use from C++", its two blocks exactly as printed, under the compiler's default
+# standard: occmap::occmap must bring C++20 itself.
+mkdir -p "$tmp/readme"
+awk '/^## Use from C\+\+/ {on = 1} on && /^```cmake$/ {f = "CMakeLists.txt"; next} on && /^```cpp$/ {f = "main.cc"; next}
+     on && /^```$/ {if (f == "main.cc") exit; f = ""; next} f != "" {print > (dir "/" f)}' dir="$tmp/readme" "$src/README.md"
+[ -s "$tmp/readme/CMakeLists.txt" ] && [ -s "$tmp/readme/main.cc" ] || fail "README's C++ example not found"
+cmake -S "$tmp/readme" -B "$tmp/readme/build" -G Ninja -DCMAKE_PREFIX_PATH="$tmp/prefix" -DCMAKE_BUILD_TYPE=Release \
+  >"$tmp/readme.log" 2>&1 || { cat "$tmp/readme.log"; fail "README's CMakeLists.txt does not configure"; }
+nice -n 10 cmake --build "$tmp/readme/build" -j2 >>"$tmp/readme.log" 2>&1 \
+  || { tail -30 "$tmp/readme.log"; fail "README's example does not build"; }
+set +e
+"$tmp/readme/build/count_people" "$tmp/missing.yaml" 2>"$tmp/err"; code=$?
+set -e
+[ $code -eq 2 ] && grep -q "missing.yaml" "$tmp/err" || fail "README's example on a missing site: exit $code"
+
 # The Python module from the installed tree.
 if [ -d "$tmp/prefix/lib/python3/dist-packages/occmap" ]; then
   where=$(cd "$tmp" && PYTHONPATH="$tmp/prefix/lib/python3/dist-packages" "$python" -c \
