@@ -87,6 +87,14 @@ done
 dpkg -x "$deb" "$tmp/root"
 [ -f "$tmp/root/usr/share/man/man1/occmap.1.gz" ] || fail "the package has no occmap.1.gz"
 "$tmp/root/usr/bin/occmap" --help | grep -q "demo" || fail "--help"
+# The module where Debian's python3 looks (/usr/lib/python3/dist-packages), importable by it.
+if [ -d "$tmp/prefix/lib/python3/dist-packages/occmap" ] && [ -x /usr/bin/python3 ]; then
+  ls "$tmp/root/usr/lib/python3/dist-packages/occmap/"_occmap*.so >/dev/null 2>&1 \
+    || fail "the package has no occmap module in /usr/lib/python3/dist-packages"
+  version=$(cd "$tmp" && PYTHONPATH="$tmp/root/usr/lib/python3/dist-packages" /usr/bin/python3 -c \
+    'import occmap; print(occmap.__version__)') || fail "Debian's python3 cannot import the package's occmap"
+  [ "$version" = "$(dpkg-deb -f "$deb" Version)" ] || fail "occmap.__version__ '$version' is not the package's"
+fi
 (cd "$tmp" && "$tmp/root/usr/bin/occmap" --threads 2 demo --frames 10 --out "$tmp/demo" >"$tmp/demo.log") || fail "occmap demo from the package"
 [ -f "$tmp/demo/summary.json" ] || [ -n "$(ls "$tmp/demo")" ] || fail "demo wrote nothing"
 echo "install test passed"

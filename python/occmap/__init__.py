@@ -18,14 +18,19 @@ InternalError (RuntimeError).
 import json as _json
 import os as _os
 
+try:  # the arrays are NumPy's: say so at import rather than at the first call
+    import numpy as _numpy  # noqa: F401
+except ImportError as _e:  # pragma: no cover - depends on the system
+    raise ImportError("occmap needs NumPy: apt install python3-numpy (or pip install numpy)") from _e
+
 from ._occmap import *  # noqa: F401,F403
-from ._occmap import _load_site_file, _parse_site
+from ._occmap import __version__, _load_site_file, _parse_site
 
 __all__ = [
     "Error", "InvalidInputError", "NotFoundError", "DataLossError", "ResourceExhaustedError", "IoError",
     "InternalError", "UNSEEN", "FREE", "OCCUPIED", "Grid", "Camera", "Site", "Tables", "Map", "Fusion",
     "Detection", "Objects", "ObjectDetector", "Track", "Tracker", "detection_metrics", "tracking_metrics",
-    "read_image", "load_site",
+    "read_image", "load_site", "__version__",
 ]
 
 

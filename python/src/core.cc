@@ -139,13 +139,47 @@ class PyFusion {
 
   const GroundLut& lut() const { return tables_->cached.lut; }
 
-  std::shared_ptr<Map> Fuse(const std::vector<std::optional<U8Array>>& masks) {
+  std::shared_ptr<Map> Fuse(const std::vector<std::optional<py::array>>& masks) {
     CheckCount(masks.size(), "masks");
+    std::vector<U8Array> arrays(masks.size());
     std::vector<ImageView<const uint8_t>> views(masks.size());
     for (size_t c = 0; c < masks.size(); ++c) {
-      if (masks[c]) views[c] = GrayView(*masks[c], "masks[" + std::to_string(c) + "] (camera " + CameraId(c) + ")");
+      if (!masks[c]) continue;
+      const std::string what = "masks[" + std::to_string(c) + "] (camera " + CameraId(c) + ")";
+      arrays[c] = MaskArray(*masks[c], what);
+      views[c] = GrayView(arrays[c], what);
+      CheckMaskShape(c, views[c], what);
     }
     return FuseWith(views, [&](size_t c, ImageView<uint8_t> out) { MaskToChanges(views[c], out); });
+  }
+
+  // A mask as 0 / non-zero bytes: bool and integer arrays (a non-zero value of any width is
+  // foreground, never truncated to a byte); floats are refused: a segmenter's 0.7 is not 0 or
+  // 1 until the caller says where the threshold is.
+  static U8Array MaskArray(const py::array& mask, const std::string& what) {
+    const char kind = mask.dtype().kind();
+    if (kind == 'f' || kind == 'c') {
+      ThrowInvalid(what + ": expected a mask of booleans or integers (non-zero = foreground), found " +
+                   std::string(py::str(mask.dtype())) + " values: threshold it first, e.g. mask > 0.5");
+    }
+    if (kind != 'b' && kind != 'u' && kind != 'i') {
+      ThrowInvalid(what + ": expected a mask of booleans or integers, found dtype " + std::string(py::str(mask.dtype())));
+    }
+    if (kind == 'b' || mask.dtype().itemsize() == 1) return U8Array::ensure(mask);
+    return U8Array::ensure(py::module_::import("numpy").attr("not_equal")(mask, 0));
+  }
+
+  // A mask of any size is resampled to the camera's, but not one of another shape: a
+  // transposed (columns, rows) array would put every change in the wrong place.
+  void CheckMaskShape(size_t c, ImageView<const uint8_t> mask, const std::string& what) const {
+    const ImageSize size = lut().image_size(static_cast<int>(c));
+    const double camera_aspect = static_cast<double>(size.width) / size.height;
+    const double mask_aspect = static_cast<double>(mask.width()) / mask.height();
+    if (std::abs(mask_aspect / camera_aspect - 1) > 0.02) {
+      ThrowInvalid(what + ": expected an array of the camera's shape (" + std::to_string(size.height) + ", " +
+                   std::to_string(size.width) + ") or a scale of it, found (" + std::to_string(mask.height()) + ", " +
+                   std::to_string(mask.width()) + ")");
+    }
   }
 
   // The bench's C++ side (scripts/bench_python.py): what fuse() does after the arguments are
@@ -655,10 +689,11 @@ void BindCore(py::module_& m) {
            "method: 'image-based' or 'map-based'; max_free_views: k of the vote rule (0: the paper's AND);\n"
            "tolerance_px: dilation of each mask. Each defaults to the site's setting.")
       .def("fuse", &PyFusion::Fuse, "masks"_a,
-           "Fuses one mask per camera (site order): 2-D arrays, non-zero = foreground, of any size\n"
-           "(resampled to the camera's, nearest pixel) and any integer or bool type; None for a camera\n"
-           "without a frame (its cells seen by no other camera become UNSEEN). Returns a Map.\n"
-           "Raises InvalidInputError on a wrong count or shape. Releases the GIL.")
+           "Fuses one mask per camera (site order): 2-D arrays, non-zero = foreground, of the camera's\n"
+           "shape (rows, columns) or a scale of it (resampled to the camera's, nearest pixel), of any\n"
+           "integer or bool type (float masks raise: threshold them first, e.g. mask > 0.5); None for\n"
+           "a camera without a frame (its cells seen by no other camera become UNSEEN). Returns a Map.\n"
+           "Raises InvalidInputError on a wrong count, shape or dtype. Releases the GIL.")
       .def("_fuse_repeatedly", &PyFusion::FuseRepeatedly, "masks"_a, "repeats"_a,
            "Bench only: fuse()'s C++ work `repeats` times in a C++ loop; seconds per call.")
       .def("fuse_frames", &PyFusion::FuseFrames, "frames"_a, "backgrounds"_a, "threshold"_a = py::none(),

@@ -51,6 +51,7 @@ PyObject* NewException(py::module_& m, const char* name, const char* doc, py::tu
 
 PYBIND11_MODULE(_occmap, m) {
   m.doc() = "occmap's C++ core: sites, lookup tables, fusion, objects, trackers, simulator, metrics.";
+  m.attr("__version__") = OCCMAP_VERSION;
 
   py::object error = py::reinterpret_borrow<py::object>(
       NewException(m, "Error", "Base class of occmap's errors; the message is occmap's own (file, line, field).",

@@ -124,6 +124,29 @@ def test_bad_input_raises_the_documented_types(tmp_path, lab):
         fusion.fuse([mask] * 3)
     with pytest.raises(occmap.InvalidInputError, match=r"masks\[2\].*2-D"):
         fusion.fuse([mask, mask, np.zeros((480, 640, 3), np.uint8), mask])
+    # A transposed mask (columns, rows) is refused, a scaled one resampled.
+    with pytest.raises(occmap.InvalidInputError, match=r"masks\[1\].*camera's shape \(480, 640\).*found \(640, 480\)"):
+        fusion.fuse([mask, mask.T.copy(), mask, mask])
+    assert fusion.fuse([mask, np.zeros((240, 320), np.uint8), mask, mask]) is not None
+    # A segmenter's float mask (0.7 would have become 0): refused, with the way out.
+    with pytest.raises(occmap.InvalidInputError, match=r"masks\[0\].*float64.*threshold it first"):
+        fusion.fuse([np.full((480, 640), 0.7), mask, mask, mask])
+
+
+def test_integer_masks_of_any_width_are_foreground_where_non_zero(lab):
+    site = occmap.load_site(lab["site"])
+    tables = occmap.Tables(site)
+    masks = [occmap.read_image(lab["data"] / "gt" / "changes" / c.id / "000005.png") for c in site.cameras]
+    expected = occmap.Fusion(tables).fuse(masks)
+    # 256 as uint16 is foreground (a cast to bytes would make it 0).
+    wide = [(m > 0).astype(np.uint16) * 256 for m in masks]
+    assert occmap.Fusion(tables).fuse(wide) == expected
+    assert occmap.Fusion(tables).fuse([(m > 0).astype(np.int64) * -3 for m in masks]) == expected
+
+
+def test_version():
+    assert occmap.__version__ == "0.1.0"
+    assert "__version__" in occmap.__all__
     with pytest.raises(occmap.InvalidInputError, match="image-based or map-based"):
         occmap.Fusion(tables, method="magic")
     with pytest.raises(occmap.InvalidInputError, match="max_free_views"):
