@@ -19,6 +19,7 @@ test('a failed run: its message in a banner and in the pipeline panel', { timeou
     const banner = await page.textContent('[data-testid=pipeline-error]');
     assert.match(banner, /640x480, expected the (site's )?image size 1280x720/, banner);
     assert.match(banner, /Correct the site file/);
+    assert.strictEqual(await page.textContent('[data-testid=pipeline-state]'), 'failed', 'the header no longer says live');
     const st = await page.evaluate(() => fetch('/api/state').then((r) => r.json()));
     assert.strictEqual(st.running, false);
     assert.match(st.stop_reason, /^error: .*1280x720/);

@@ -17,7 +17,9 @@ export function createFloorMap(div, grid) {
   const bounds = gridBounds(grid);
   const overlay = L.imageOverlay(url('/api/map.png', { v: 0 }), bounds, { className: 'map-image' }).addTo(map);
   L.rectangle(bounds, { color: '#555', weight: 1, fill: false, interactive: false }).addTo(map);
-  map.fitBounds(bounds, { padding: [8, 8] });
+  addMetreAxes(map, bounds);
+  L.control.scale({ imperial: false, maxWidth: 140, position: 'bottomright' }).addTo(map);
+  map.fitBounds(bounds, { padding: [24, 24] });
   let loading = false;
   let wanted = null;
   let version_shown = 0;
@@ -36,6 +38,29 @@ export function createFloorMap(div, grid) {
   const resize = new ResizeObserver(() => map.invalidateSize());
   resize.observe(div);
   return { map, overlay, bounds, refresh, destroy: () => { resize.disconnect(); map.remove(); } };
+}
+
+// Tick labels in metres along the floor's lower and left edges, every 0.5, 1, 2, 5, 10, ... m so
+// that at most about 10 fit along the longer side.
+function addMetreAxes(map, bounds) {
+  const [[y0, x0], [y1, x1]] = bounds;
+  const span = Math.max(x1 - x0, y1 - y0);
+  const raw = span / 10;
+  const decade = 10 ** Math.floor(Math.log10(raw));
+  const step = [1, 2, 5, 10].map((k) => Number((k * decade).toPrecision(6))).find((s) => s >= raw);
+  // Below the lower edge, centred; left of the left edge, right-aligned (Leaflet places a marker
+  // by its anchor: its own transform is Leaflet's).
+  const label = (text, latlng, cls) => L.marker(latlng, {
+    interactive: false, keyboard: false,
+    icon: L.divIcon({ className: `axis-label ${cls}`, html: text, iconSize: [44, 14],
+                      iconAnchor: cls.includes('axis-x') ? [22, -3] : [48, 7] }),
+  }).addTo(map);
+  const digits = step < 1 ? 1 : 0;
+  // Integer multiples of the step, so that no sum of steps drifts.
+  for (let k = Math.ceil(x0 / step - 1e-9); k * step <= x1 + 1e-9; ++k) label((k * step).toFixed(digits), [y0, k * step], 'axis-x');
+  for (let k = Math.ceil(y0 / step - 1e-9); k * step <= y1 + 1e-9; ++k) label((k * step).toFixed(digits), [k * step, x0], 'axis-y');
+  label('x (m)', [y0, x1], 'axis-x axis-name');
+  label('y (m)', [y1, x0], 'axis-y axis-name');
 }
 
 // A camera's picture in pixels; setUrl replaces it (the grid overlay after a calibration).

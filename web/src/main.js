@@ -42,6 +42,7 @@ function App() {
   // says): its message, which otherwise only the terminal shows.
   const failed = state && state.running === false && !state.starting && /^error: /.test(state.stop_reason || '')
     ? state.stop_reason.slice(7) : null;
+  const pipeline = pipelineState(state, connected);
   return html`
     <header>
       <span class="brand">occmap</span>
@@ -70,6 +71,18 @@ function App() {
         ? html`<${LiveView} site=${site} state=${state} frame=${frame} />`
         : html`<${SetupView} site=${site} frame=${frame} onSaved=${setSite} />`}
     </main>`;
+}
+
+// What the header says of the pipeline: the page's link to the server first, then the run's
+// life from /api/state (running, starting, ended as inputs ran out or a stop, failed).
+function pipelineState(state, connected) {
+  if (!connected) return { label: 'reconnecting', on: false, title: 'the page lost its link to occmap serve' };
+  if (!state) return { label: 'connecting', on: false, title: '' };
+  if (state.starting) return { label: 'starting', on: false, title: 'opening the cameras, backgrounds, tables' };
+  if (state.running) return { label: 'running', on: true, title: 'the pipeline runs' };
+  const reason = state.stop_reason || 'inputs ended';
+  const ended = ['end of streams', 'frame limit', 'stop requested', 'stopped', 'inputs ended'].includes(reason);
+  return { label: ended ? 'ended' : 'failed', on: false, title: `the pipeline stopped: ${reason}` };
 }
 
 render(html`<${App} />`, document.getElementById('app'));
