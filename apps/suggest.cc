@@ -1,24 +1,10 @@
 #include "suggest.h"
 
 #include <algorithm>
-#include <numeric>
+
+#include "occmap/util/yaml_util.h"  // EditDistance
 
 namespace occmap {
-
-int EditDistance(std::string_view a, std::string_view b) {
-  std::vector<int> row(b.size() + 1);
-  std::iota(row.begin(), row.end(), 0);
-  for (size_t i = 1; i <= a.size(); ++i) {
-    int diagonal = row[0];
-    row[0] = static_cast<int>(i);
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const int up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diagonal = up;
-    }
-  }
-  return row[b.size()];
-}
 
 std::string NearestName(std::string_view typed, const std::vector<std::string>& names) {
   constexpr int kMaxEdits = 2;

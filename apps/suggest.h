@@ -8,9 +8,6 @@
 
 namespace occmap {
 
-// Levenshtein distance (insertions, deletions, substitutions of one character).
-int EditDistance(std::string_view a, std::string_view b);
-
 // The name nearest to `typed` within 2 edits (or of which `typed` is a prefix of 2 or more
 // characters, "cal" -> "calibrate"); empty when none is that near or two tie.
 std::string NearestName(std::string_view typed, const std::vector<std::string>& names);
