@@ -621,18 +621,25 @@ TEST(StreamSource, AFifoIsReadUntilItsWriterCloses) {
   // Read-write: a writer from the start (no race with the source's open), never a reader.
   const int writer = ::open(fifo.c_str(), O_RDWR | O_CLOEXEC);
   ASSERT_GE(writer, 0);
+  // The writer closes only once the source has the FIFO open: a FIFO's buffered bytes are
+  // dropped when its last open end closes, and a clip smaller than the pipe's buffer is written
+  // before the source opens it.
+  std::atomic<bool> opened{false};
   std::thread feed([&] {
     for (size_t at = 0; at < clip.size();) {
       const ssize_t n = ::write(writer, clip.data() + at, clip.size() - at);
       if (n <= 0) break;
       at += static_cast<size_t>(n);
     }
+    while (!opened.load()) std::this_thread::sleep_for(std::chrono::milliseconds(5));
     ::close(writer);
   });
   auto source = OpenFrameSource({FrameSourceSpec::Kind::kStream, fifo.string()}, {});
-  ASSERT_TRUE(source.ok()) << source.status().message();
-  EXPECT_EQ(ReadAll(**source).size(), static_cast<size_t>(kFrames));
+  opened = true;
+  const size_t frames = source.ok() ? ReadAll(**source).size() : 0;
   feed.join();
+  ASSERT_TRUE(source.ok()) << source.status().message();
+  EXPECT_EQ(frames, static_cast<size_t>(kFrames));
 }
 
 // Issue 39: a stream from a FIFO blocked in open(2) (no writer) or read(2) (a silent writer),
