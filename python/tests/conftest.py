@@ -35,7 +35,7 @@ def mask_site(dataset: pathlib.Path) -> pathlib.Path:
     text = re.sub(r"\n\s*background: [^\n]*", "", text)
     # A zone and a counting line across the room, for the events.
     text += ("tracking:\n  zones: [{name: middle, polygon: [[2, 1], [7, 1], [7, 5.5], [2, 5.5]]}]\n"
-             "  lines: [{name: gate, from: [4.0, 0], to: [4.0, 6.5]}]\n")
+             "  lines: [{name: gate, from: [4.0, 0], to: [4.0, 6.5], hysteresis_m: 0}]\n")
     path = dataset / "mask_site.yaml"
     path.write_text(text)
     return path

@@ -131,22 +131,6 @@ def test_bad_input_raises_the_documented_types(tmp_path, lab):
     # A segmenter's float mask (0.7 would have become 0): refused, with the way out.
     with pytest.raises(occmap.InvalidInputError, match=r"masks\[0\].*float64.*threshold it first"):
         fusion.fuse([np.full((480, 640), 0.7), mask, mask, mask])
-
-
-def test_integer_masks_of_any_width_are_foreground_where_non_zero(lab):
-    site = occmap.load_site(lab["site"])
-    tables = occmap.Tables(site)
-    masks = [occmap.read_image(lab["data"] / "gt" / "changes" / c.id / "000005.png") for c in site.cameras]
-    expected = occmap.Fusion(tables).fuse(masks)
-    # 256 as uint16 is foreground (a cast to bytes would make it 0).
-    wide = [(m > 0).astype(np.uint16) * 256 for m in masks]
-    assert occmap.Fusion(tables).fuse(wide) == expected
-    assert occmap.Fusion(tables).fuse([(m > 0).astype(np.int64) * -3 for m in masks]) == expected
-
-
-def test_version():
-    assert occmap.__version__ == "0.1.0"
-    assert "__version__" in occmap.__all__
     with pytest.raises(occmap.InvalidInputError, match="image-based or map-based"):
         occmap.Fusion(tables, method="magic")
     with pytest.raises(occmap.InvalidInputError, match="max_free_views"):
@@ -177,6 +161,22 @@ def test_version():
     with pytest.raises(occmap.IoError, match="a_file/data") as e:
         occmap.Simulator("lab", frames=1).write_dataset(tmp_path / "a_file" / "data")
     assert isinstance(e.value, OSError) and isinstance(e.value, occmap.Error)
+
+
+def test_integer_masks_of_any_width_are_foreground_where_non_zero(lab):
+    site = occmap.load_site(lab["site"])
+    tables = occmap.Tables(site)
+    masks = [occmap.read_image(lab["data"] / "gt" / "changes" / c.id / "000005.png") for c in site.cameras]
+    expected = occmap.Fusion(tables).fuse(masks)
+    # 256 as uint16 is foreground (a cast to bytes would make it 0).
+    wide = [(m > 0).astype(np.uint16) * 256 for m in masks]
+    assert occmap.Fusion(tables).fuse(wide) == expected
+    assert occmap.Fusion(tables).fuse([(m > 0).astype(np.int64) * -3 for m in masks]) == expected
+
+
+def test_version():
+    assert occmap.__version__ == "0.1.0"
+    assert "__version__" in occmap.__all__
 
 
 def test_metrics_on_lists():

@@ -804,7 +804,7 @@ annotations_case("annotations_no_id", '[{"positionID": 3, "views": []}]', ["pers
 
 # --- command-line options ----------------------------------------------------------------------
 add("cli_no_subcommand", ["{bin}"], ["subcommand"])
-add("cli_unknown_subcommand", ["{bin}", "fly"], ["subcommand"])
+add("cli_unknown_subcommand", ["{bin}", "fly"], ["unknown command", "fly"])
 add("cli_unknown_option", ["{bin}", "check", "{w}/lab/site.yaml", "--bogus"], ["--bogus"])
 add("cli_threads_negative", ["{bin}", "--threads", "-1", "check", "{w}/lab/site.yaml"], ["--threads"])
 add("cli_threads_huge", ["{bin}", "--threads", "100000", "check", "{w}/lab/site.yaml"], ["--threads"])
