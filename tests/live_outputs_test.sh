@@ -47,7 +47,9 @@ YAML
 url="mqtt://127.0.0.1:$port"
 
 # --- A whole run, watched by a subscriber.
-mosquitto_sub -h 127.0.0.1 -p "$port" -t 'occmap/#' -t 'homeassistant/#' -F '%r %t %p' >"$work/sub.log" 2>&1 &
+# The map is a binary PNG: the text log leaves it out, the retained check below reads it.
+mosquitto_sub -h 127.0.0.1 -p "$port" -t 'occmap/#' -t 'homeassistant/#' -T 'occmap/lab/map' -F '%r %t %p' \
+  >"$work/sub.log" 2>&1 &
 sub_pid=$!
 sleep 0.3
 if "$occmap" run "$work/lab/site.yaml" --out "$work/run" --no-cache --no-video --mqtt "$url" >"$work/run.log" 2>&1; then ok; else
@@ -91,8 +93,9 @@ print(f"mqtt: {frames} frames, {len(events)} events ({len(crossings)} crossings)
 PY
 
 # --- What stays on the broker: the retained state and the discovery configs.
-mosquitto_sub -h 127.0.0.1 -p "$port" -t 'occmap/lab/#' -t 'homeassistant/#' --retained-only -W 2 -F '%r %t %p' \
-  >"$work/retained.log" 2>/dev/null
+mosquitto_sub -h 127.0.0.1 -p "$port" -t 'occmap/lab/#' -t 'homeassistant/#' -T 'occmap/lab/map' --retained-only -W 2 \
+  -F '%r %t %p' >"$work/retained.log" 2>/dev/null
+mosquitto_sub -h 127.0.0.1 -p "$port" -t 'occmap/lab/map' --retained-only -C 1 -W 2 -N >"$work/map.png" 2>/dev/null
 python3 - "$work" <<'PY' && ok || fail "retained state"
 import json, sys
 work = sys.argv[1]
@@ -110,6 +113,10 @@ for t in ["occmap/lab/zones/whole_room/count", "occmap/lab/zones/whole_room/occu
 last = json.loads(last_counts[-1])
 assert int(retained["occmap/lab/lines/middle/in"]) == last["in"] and int(retained["occmap/lab/lines/middle/out"]) == last["out"]
 assert "occmap/lab/tracks" not in retained
+png = open(f"{work}/map.png", "rb").read()
+assert png[:8] == b"\x89PNG\r\n\x1a\n", png[:16]
+cam = json.loads(retained["homeassistant/image/occmap_lab/map/config"])
+assert cam["image_topic"] == "occmap/lab/map" and cam["content_type"] == "image/png", cam
 PY
 
 # --- kill -9 during a run: the broker publishes the last will, "offline".
