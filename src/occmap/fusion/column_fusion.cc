@@ -26,6 +26,7 @@ Status ColumnFusionOptions::Validate(double column_height_m, int num_cameras) co
                                     max_free_views));
   if (min_changed_views < 1)
     return InvalidInput(fmt::format("min_changed_views: expected at least 1, found {}", min_changed_views));
+  if (min_views < 1) return InvalidInput(fmt::format("min_views: expected at least 1, found {}", min_views));
   if (max_rows < 1) return InvalidInput(fmt::format("max_rows: expected at least 1, found {}", max_rows));
   return Status::Ok();
 }
@@ -173,8 +174,13 @@ int RowStride(const ColumnSpans& s, int max_rows) {
 
 constexpr int kCoarseRows = 4;
 
-CellState Decide(int tested, int free_votes, const ColumnFusionOptions& o) {
-  if (tested == 0) return CellState::kUnseen;
+// o.min_views, or every active camera when fewer are active (a site of one camera, or one left).
+int MinViews(const std::vector<bool>& active, const ColumnFusionOptions& o) {
+  return std::min(o.min_views, static_cast<int>(std::count(active.begin(), active.end(), true)));
+}
+
+CellState Decide(int tested, int free_votes, const ColumnFusionOptions& o, int min_views) {
+  if (tested == 0 || tested < min_views) return CellState::kUnseen;
   if (free_votes == 0) return CellState::kOccupied;
   return free_votes <= o.max_free_views && tested - free_votes >= o.min_changed_views ? CellState::kOccupied
                                                                                         : CellState::kFree;
@@ -184,7 +190,7 @@ CellState Decide(int tested, int free_votes, const ColumnFusionOptions& o) {
 // the reference (ColumnFusion::Fuse reads the same spans from its plan).
 template <typename CountFn>
 CellState CandidateState(const ColumnLut& columns, int64_t k, const std::vector<bool>& active,
-                         const ColumnFusionOptions& o, const CountFn& count) {
+                         const ColumnFusionOptions& o, int min_views, const CountFn& count) {
   const double h = columns.options().height_m;
   int tested = 0, free_votes = 0;
   for (int c = 0; c < columns.num_cameras(); ++c) {
@@ -223,7 +229,7 @@ CellState CandidateState(const ColumnLut& columns, int64_t k, const std::vector<
       if (free_votes > o.max_free_views) return CellState::kFree;
     }
   }
-  return Decide(tested, free_votes, o);
+  return Decide(tested, free_votes, o, min_views);
 }
 
 }  // namespace
@@ -294,6 +300,7 @@ void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector
   const Plan& plan = *held;
   const double h = columns_.options().height_m;
   const ColumnFusionOptions& o = options;
+  const int min_views = MinViews(active, o);
   // As CandidateState, the first look's spans read from the plan, and every camera's first look
   // before any camera's whole band: the state depends only on how many cameras test and how many
   // of them vote free, not on the order they are asked in (more than max_free_views free votes
@@ -333,7 +340,7 @@ void ColumnFusion::Fuse(std::span<const ChangeRowSums> counts, const std::vector
         if (++free_votes > o.max_free_views) return CellState::kFree;
       }
     }
-    return Decide(tested, free_votes, o);
+    return Decide(tested, free_votes, o, min_views);
   };
   ParallelFor(
       ctx, 0, grid.num_cells(),
@@ -352,7 +359,9 @@ void ColumnFusion::FuseReference(std::span<const ImageView<const uint8_t>> chang
     for (int x = x0; x <= x1; ++x) n += changes[c](x, y) != 0 ? 1 : 0;
     return n;
   };
-  for (int64_t k = 0; k < grid.num_cells(); ++k) map.states()[k] = CandidateState(columns_, k, active, options, count);
+  const int min_views = MinViews(active, options);
+  for (int64_t k = 0; k < grid.num_cells(); ++k)
+    map.states()[k] = CandidateState(columns_, k, active, options, min_views, count);
 }
 
 }  // namespace occmap

@@ -3,9 +3,9 @@
 // every active camera that sees it sees change over at least min_changed of the image of the
 // column's band (z from band_low_m to band_high_m, radius_m around the axis); cameras whose
 // view of it a static occluder hides, or whose image holds less than half of the band's rows,
-// abstain. Tri-state as the floor AND (Fusion): unseen when no camera tests it, occupied when
-// every testing camera says changed, or when at most max_free_views say free and at least
-// min_changed_views others say changed.
+// abstain. Tri-state as the floor AND (Fusion): unseen when fewer than min_views cameras test
+// it, occupied when every testing camera says changed, or when at most max_free_views say free
+// and at least min_changed_views others say changed.
 //
 // Why: legs leave the floor cell under a person unchanged in some views (the floor AND misses
 // the person), while the band above it is a torso in every view that sees it; a static occluder
@@ -53,6 +53,10 @@ struct ColumnFusionOptions {
   double min_changed = 0.5;   // the fraction of its pixels that must have changed
   int max_free_views = 1;     // views that may say free (0 .. max(1, cameras - 1)) ...
   int min_changed_views = 2;  // ... when at least this many say changed
+  // Cameras that must test a position (fewer: unseen), or all active ones when fewer are
+  // active: one view cannot place a person on the floor, and what a single view sees changed
+  // at the floor's edge (a wall the exposure brightens, a person in front) is not a person there.
+  int min_views = 2;
   int max_rows = 24;          // rows of the band read per camera (evenly spaced)
   Status Validate(double column_height_m, int num_cameras) const;
 };

@@ -169,6 +169,51 @@ TEST(ColumnFusionTest, OneCamouflagedViewIsOutvotedByTwoThatSeeTheTorso) {
   EXPECT_EQ(state(vote, {true, true, true, true}), CellState::kFree);
 }
 
+// One view cannot place a person: a position only one camera tests is unseen, whatever that
+// camera sees, while two or more cameras are active; a site with one active camera left tests
+// with it alone.
+TEST(ColumnFusionTest, APositionOneCameraTestsIsUnseenWhileOthersAreActive) {
+  // Pillars between the person and cameras 1, 2 and 3 (at the room's corners, 2.7 m up).
+  std::vector<Occluder> pillars;
+  for (const Eigen::Vector2d& at : {Eigen::Vector2d(2.47, 1.13), Eigen::Vector2d(2.47, 1.87), Eigen::Vector2d(1.53, 1.87)}) {
+    Occluder pillar;
+    pillar.shape = Occluder::Shape::kCylinder;
+    pillar.centre_m = at;
+    pillar.size_m = {0.4, 0.4};
+    pillar.height_m = 3;
+    pillars.push_back(pillar);
+  }
+  testing::PeopleRoom scene(pillars);
+  scene.Paint(2.0, 1.5);
+  const int64_t cell = scene.columns.candidates().CellAt(2.0, 1.5);
+  for (int c = 1; c < 4; ++c) ASSERT_TRUE(scene.columns.view(c, cell).blocked) << c;
+  ASSERT_FALSE(scene.columns.view(0, cell).blocked);
+  ColumnFusion fusion(scene.columns);
+  Context ctx(1);
+  const auto state = [&](const ColumnFusionOptions& o, const std::vector<bool>& active) {
+    OccupancyMap fast, reference;
+    fusion.Fuse(scene.Sums(), active, o, ctx, fast);
+    fusion.FuseReference(scene.Views(), active, o, reference);
+    EXPECT_EQ(fast, reference);
+    return fast.state(cell);
+  };
+  const ColumnFusionOptions defaults;
+  EXPECT_EQ(defaults.min_views, 2);
+  EXPECT_EQ(state(defaults, {true, true, true, true}), CellState::kUnseen);
+  EXPECT_EQ(state(defaults, {true, true, false, false}), CellState::kUnseen);
+  EXPECT_EQ(state(defaults, {true, false, false, false}), CellState::kOccupied);  // the one camera left
+  ColumnFusionOptions one = defaults;
+  one.min_views = 1;
+  EXPECT_EQ(state(one, {true, true, true, true}), CellState::kOccupied);
+  // Without the pillars every camera tests it: occupied.
+  testing::PeopleRoom open;
+  open.Paint(2.0, 1.5);
+  ColumnFusion open_fusion(open.columns);
+  OccupancyMap map;
+  open_fusion.Fuse(open.Sums(), std::vector<bool>(4, true), defaults, ctx, map);
+  EXPECT_EQ(map.state(cell), CellState::kOccupied);
+}
+
 TEST(ColumnFusionTest, FastEqualsReferenceAndOneThreadEqualsTwo) {
   testing::PeopleRoom scene;
   std::mt19937 rng(7);
@@ -217,6 +262,11 @@ TEST(ColumnFusionTest, OptionsAreChecked) {
   EXPECT_TRUE(o.Validate(1.7, 1).ok());
   o.min_changed_views = 0;
   EXPECT_FALSE(o.Validate(1.7, 4).ok());
+  o = {};
+  o.min_views = 0;
+  EXPECT_FALSE(o.Validate(1.7, 4).ok());
+  o.min_views = 5;  // more than the cameras: every active camera must test
+  EXPECT_TRUE(o.Validate(1.7, 4).ok());
 }
 
 }  // namespace

@@ -37,7 +37,8 @@ Status ParsePeopleOptions(const YamlField& f, int num_cameras, PeopleOptions& o)
   OCCMAP_ASSIGN_OR_RETURN(o.columns.step_m, f.GetDouble("step_m", o.columns.step_m));
   if (Status s = o.columns.Validate(FloorGrid{}); !s.ok()) return f.Error(s.message());
   if (auto c = f.Find("column")) {
-    OCCMAP_RETURN_IF_ERROR(c->CheckKeys({"band_m", "radius_m", "min_changed", "max_free_views", "min_changed_views", "max_rows"}));
+    OCCMAP_RETURN_IF_ERROR(c->CheckKeys({"band_m", "radius_m", "min_changed", "max_free_views", "min_changed_views", "min_views",
+                                            "max_rows"}));
     if (c->Has("band_m")) {
       OCCMAP_ASSIGN_OR_RETURN(std::vector<double> band, c->GetDoubles("band_m", 2));
       o.column.band_low_m = band[0];
@@ -49,6 +50,8 @@ Status ParsePeopleOptions(const YamlField& f, int num_cameras, PeopleOptions& o)
     o.column.max_free_views = static_cast<int>(std::clamp<int64_t>(k, -1, 1000));
     OCCMAP_ASSIGN_OR_RETURN(int64_t views, c->GetInt("min_changed_views", o.column.min_changed_views));
     o.column.min_changed_views = static_cast<int>(std::clamp<int64_t>(views, -1, 1000));
+    OCCMAP_ASSIGN_OR_RETURN(int64_t min_views, c->GetInt("min_views", o.column.min_views));
+    o.column.min_views = static_cast<int>(std::clamp<int64_t>(min_views, -1, 1000));
     OCCMAP_ASSIGN_OR_RETURN(int64_t rows, c->GetInt("max_rows", o.column.max_rows));
     o.column.max_rows = static_cast<int>(std::clamp<int64_t>(rows, -1, 100000));
     if (Status s = o.column.Validate(o.columns.height_m, num_cameras); !s.ok()) return c->Error(s.message());

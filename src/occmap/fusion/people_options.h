@@ -14,7 +14,7 @@
 //     height_m: 1.7          # the column and the person model: floor to this height
 //     step_m: 0.1            # candidate spacing
 //     column: {band_m: [0.8, 1.5], radius_m: 0.1, min_changed: 0.5, max_free_views: 1,
-//              min_changed_views: 2}
+//              min_changed_views: 2, min_views: 2}
 //     explain: {radius_m: 0.15, unchanged_weight: 0.9, min_gain: 0.7, min_separation_m: 0.35,
 //               moves: 2, move_radius_m: 0.5, ground_band: 0.2, ground_weight: 2}
 //     occluders: {learn: false, max_changed: 0.1, min_others: 2, episode_frames: 20,
