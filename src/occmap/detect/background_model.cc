@@ -188,6 +188,11 @@ Status ShadowOptions::Validate() const {
                                     min_texture_correlation));
   }
   if (!(flat_std >= 0)) return InvalidInput(fmt::format("backgrounds.shadows.flat_std: expected >= 0, found {}", flat_std));
+  if (!(soft_min_ratio > 0 && soft_min_ratio < soft_max_ratio && soft_max_ratio < 1)) {
+    return InvalidInput(fmt::format(
+        "backgrounds.shadows: expected 0 < soft_min_ratio < soft_max_ratio < 1, found soft_min_ratio {} and soft_max_ratio {}",
+        soft_min_ratio, soft_max_ratio));
+  }
   return Status::Ok();
 }
 
@@ -794,10 +799,22 @@ uint8_t BackgroundModel::Classify(int y, int u, int v, int by, int eu, int ev, i
   if (!changed) return kBackground;
   const ShadowOptions& s = options_.shadows;
   if (!s.enabled || d >= 0 || expected <= 0) return kChanged;
-  if (y < static_cast<int>(std::ceil(s.min_ratio * expected)) || y > static_cast<int>(std::floor(s.max_ratio * expected))) {
-    return kChanged;
-  }
-  return FitsShadowLook(y, u, v, expected, eu, ev, nullptr) ? kShadow : kChanged;
+  const bool cast =
+      y >= static_cast<int>(std::ceil(s.min_ratio * expected)) && y <= static_cast<int>(std::floor(s.max_ratio * expected));
+  if (cast && FitsShadowLook(y, u, v, expected, eu, ev, nullptr)) return kShadow;
+  const bool soft = s.soft && chroma_ && y >= static_cast<int>(std::ceil(s.soft_min_ratio * expected)) &&
+                    y <= static_cast<int>(std::floor(s.soft_max_ratio * expected));
+  return soft && FitsSoftShadow(y, u, v, expected, eu, ev) ? kSoftShadow : kChanged;
+}
+
+bool BackgroundModel::FitsSoftShadow(int y, int u, int v, int ey, int eu, int ev) const {
+  float q[3] = {0, 0, 0};
+  ChannelPattern(y, u, v, ey, eu, ev, q);
+  const bool learned = options_.shadows.learn && look_.ratio > 0;
+  float distance = 0;
+  for (int c = 0; c < 3; ++c)
+    distance = std::max(distance, std::abs(q[c] - (learned ? look_.pattern[static_cast<size_t>(c)] : 0.0f)));
+  return distance <= static_cast<float>(options_.shadows.max_channel_spread);
 }
 
 bool BackgroundModel::FitsShadowLook(int y, int u, int v, int ey, int eu, int ev, ShadowLearning* learn) const {
@@ -937,7 +954,7 @@ void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold
     for (int x = 0; x < width_; ++x) {
       const PixelLevels p = LevelsAt(frame, x, y);
       uint8_t cls = Classify(p.y, p.u, p.v, p.by, p.eu, p.ev, threshold);
-      if (cls == kShadow && !TextureLikeBackground(frame.y, x, y)) cls = kChanged;
+      if ((cls == kShadow || cls == kSoftShadow) && !TextureLikeBackground(frame.y, x, y)) cls = kChanged;
       changes(x, y) = cls == kChanged ? 1 : 0;
       classes(x, y) = cls;
     }
@@ -1187,9 +1204,15 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
     pred_[level] = expected;
     shadow_lo_[level] = static_cast<int>(std::ceil(s.min_ratio * expected));
     shadow_hi_[level] = static_cast<int>(std::floor(s.max_ratio * expected));
+    soft_lo_[level] = static_cast<int>(std::ceil(s.soft_min_ratio * expected));
+    soft_hi_[level] = static_cast<int>(std::floor(s.soft_max_ratio * expected));
     if (!s.enabled || expected <= 0) {
       shadow_lo_[level] = 256;
       shadow_hi_[level] = -1;
+    }
+    if (!s.enabled || !s.soft || !chroma_ || expected <= 0) {
+      soft_lo_[level] = 256;
+      soft_hi_[level] = -1;
     }
   }
   const int tc = chroma_ ? options_.chroma_threshold : 0;
@@ -1242,11 +1265,10 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
       if (cls[x] == kBackground) continue;
       const int b = b8[x];
       const int expected = pred_[b];
-      if (fy[x] >= expected || fy[x] < shadow_lo_[b] || fy[x] > shadow_hi_[b]) {
-        rat[x] = 0;
-        continue;
-      }
-      rat[x] = static_cast<uint8_t>(std::min(255, (fy[x] * 255 + expected / 2) / expected));
+      const bool cast = fy[x] < expected && fy[x] >= shadow_lo_[b] && fy[x] <= shadow_hi_[b];
+      const bool soft = fy[x] < expected && fy[x] >= soft_lo_[b] && fy[x] <= soft_hi_[b];
+      rat[x] = cast ? static_cast<uint8_t>(std::min(255, (fy[x] * 255 + expected / 2) / expected)) : 0;
+      if (!cast && !soft) continue;
       int eu = 0, ev = 0, u = 0, v = 0;
       if (chroma_) {
         eu = reu[x >> 1];
@@ -1254,8 +1276,10 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
         u = fu[x >> 1];
         v = fv[x >> 1];
       }
-      if (FitsShadowLook(fy[x], u, v, expected, eu, ev, learn) && TextureLikeBackground(frame.y, x, y)) {
-        cls[x] = kShadow;
+      const bool cast_fits = cast && FitsShadowLook(fy[x], u, v, expected, eu, ev, learn);
+      const bool fits = cast_fits || (soft && FitsSoftShadow(fy[x], u, v, expected, eu, ev));
+      if (fits && TextureLikeBackground(frame.y, x, y)) {
+        cls[x] = cast_fits ? kShadow : kSoftShadow;
         out[x] = 0;
         --row_changed;
         ++shadow;
@@ -1347,7 +1371,7 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
           alt_frames_[i] = 0;
         }
       }
-      if (prot[x] >= kPerson || cls == kShadow) {
+      if (prot[x] >= kPerson || cls == kShadow || cls == kSoftShadow) {
         steady_frames_[i] = 0;
         continue;
       }

@@ -94,6 +94,14 @@ struct ShadowOptions {
   bool learn = true;
   double ratio_window = 0.2;
   double max_channel_spread = 0.06;
+  // Soft shadows, learned or not: under diffuse light (overcast sky, indoors) a body near the
+  // floor hides part of the sky and the floor around its feet dims by a ratio that grades from
+  // about soft_min_ratio to 1, keeping its colour (the white pattern, or the learned one), with
+  // no one ratio for a look to learn. Needs chroma (luma alone cannot tell them from clothing);
+  // what a shaded side of a person passes is sent back by the floor check.
+  bool soft = true;
+  double soft_min_ratio = 0.7;
+  double soft_max_ratio = 0.95;
   // Texture: over the (2 r + 1)^2 window around the pixel, a shadow's luma correlates with the
   // background's (normalised cross-correlation >= min_texture_correlation). Where the
   // background is flat (standard deviation under flat_std) texture cannot tell.
@@ -316,12 +324,14 @@ class BackgroundModel {
   // by every darker pixel) is used; from it on only taught pixels count, and a look they do not
   // confirm within the first seconds is dropped.
   void LearnShadows(const YuvView& frame, ImageView<const uint8_t> teach);
-  // The last DetectChanges' class per pixel: kBackground, kChanged or kShadow; and, where it is
+  // The last DetectChanges' class per pixel: kBackground, kChanged, kShadow or kSoftShadow; and, where it is
   // not kBackground, the frame/background brightness ratio x 255 of a pixel darker within the
   // shadows' range, else 0 (with the shadow test on).
   ImageView<const uint8_t> pixel_ratios() const { return {ratio_.data(), width_, height_, width_}; }
   ImageView<const uint8_t> pixel_classes() const { return {class_.data(), width_, height_, width_}; }
-  enum Class : uint8_t { kBackground = 0, kChanged = 1, kShadow = 2 };
+  // kSoftShadow: a soft shadow (ShadowOptions::soft), which the floor check keeps only where
+  // another camera confirms its floor cell dark.
+  enum Class : uint8_t { kBackground = 0, kChanged = 1, kShadow = 2, kSoftShadow = 3 };
 
   // After the fusion: protection per pixel (kFree, kObject, kPerson, kWalkedPerson), the
   // frame's index.
@@ -371,6 +381,8 @@ class BackgroundModel {
     bool pending = false;
   };
   bool FitsShadowLook(int y, int u, int v, int ey, int eu, int ev, ShadowLearning* learn) const;
+  // The soft-shadow test (ShadowOptions::soft) of a darker pixel within its ratio range.
+  bool FitsSoftShadow(int y, int u, int v, int ey, int eu, int ev) const;
   void LearnShadowLook(const ShadowLearning& frame);
   // The texture part of the shadow test at (x, y).
   bool TextureLikeBackground(ImageView<const uint8_t> frame_y, int x, int y) const;
@@ -429,6 +441,7 @@ class BackgroundModel {
   // Tables of the last frame's transfer, per background level.
   int pred_[256];          // expected frame luma
   int shadow_lo_[256], shadow_hi_[256];  // luma range of a shadow
+  int soft_lo_[256], soft_hi_[256];      // luma range of a soft shadow (empty: off)
 };
 
 }  // namespace occmap

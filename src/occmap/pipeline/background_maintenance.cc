@@ -572,6 +572,7 @@ ShadowCheck::ShadowCheck(const GroundLut& lut) : lut_(lut) {
   cell_state_.assign(static_cast<size_t>(lut.grid().num_cells()), kCellUnknown);
   lit_.assign(static_cast<size_t>(lut.num_cameras()), 0);
   dark_.assign(static_cast<size_t>(lut.num_cameras()), 0);
+  shaded_.assign(static_cast<size_t>(lut.num_cameras()), 0);
 }
 
 int64_t ShadowCheck::Apply(const std::vector<ImageView<const uint8_t>>& classes,
@@ -606,20 +607,38 @@ int64_t ShadowCheck::Apply(const std::vector<ImageView<const uint8_t>>& classes,
       for (uint32_t q : lut_.l2_pixels_of(cell)) {
         const uint8_t v = pixels_[q];
         if (v == kAbstain) continue;
-        (v == BackgroundModel::kBackground ? lit_ : dark_)[camera_of_[q]] += 1;
+        const size_t k = camera_of_[q];
+        if (v == BackgroundModel::kBackground) {
+          lit_[k] += 1;
+        } else {
+          dark_[k] += 1;
+          shaded_[k] += v == BackgroundModel::kShadow || v == BackgroundModel::kSoftShadow;
+        }
       }
-      int viewing = 0, lit = 0;
+      int viewing = 0, lit = 0, shaded = 0;
       for (int n = 0; n < cameras; ++n) {
         const size_t k = static_cast<size_t>(n);
         if (lit_[k] + dark_[k] == 0) continue;
         ++viewing;
         lit += lit_[k] > dark_[k];
-        lit_[k] = dark_[k] = 0;
+        shaded += 2 * shaded_[k] > lit_[k] + dark_[k];
+        lit_[k] = dark_[k] = shaded_[k] = 0;
       }
-      cell_state_[cell] = lit >= 2 && 2 * lit >= viewing - 1 ? kCellLit : kCellNotDark;
+      // Dark (a soft shadow's confirmation): cameras that see it mostly shadowed, other than
+      // the one asking (which does), one at least and no fewer than those that see it lit.
+      // Changed does not confirm: the floor behind a person is hidden by their legs from the
+      // cameras beside the asking one.
+      const int others_shaded = shaded - 1;
+      cell_state_[cell] = lit >= 2 && 2 * lit >= viewing - 1 ? kCellLit
+                          : others_shaded >= 1 && others_shaded >= lit ? kCellDark
+                                                                       : kCellNotDark;
       touched_.push_back(cell);
     }
     return cell_state_[cell] == kCellLit;
+  };
+  auto dark_cell = [&](uint32_t cell) {
+    lit_cell(cell);
+    return cell_state_[cell] == kCellDark;
   };
   // A far camera's pixel spans several cells and sees a thin shadow (a leg's) unchanged: the
   // cells around must be lit too.
@@ -646,9 +665,13 @@ int64_t ShadowCheck::Apply(const std::vector<ImageView<const uint8_t>>& classes,
       const uint8_t* c = cls.row(y);
       uint8_t* o = out.row(y);
       for (int x = 0; x < size.width; ++x) {
-        if (c[x] != BackgroundModel::kShadow) continue;
+        if (c[x] != BackgroundModel::kShadow && c[x] != BackgroundModel::kSoftShadow) continue;
         const uint32_t cell = l1[static_cast<size_t>(y) * size.width + x];
-        if (cell == sentinel || !lit_around(cell)) continue;
+        if (c[x] == BackgroundModel::kSoftShadow) {
+          if (cell != sentinel && dark_cell(cell)) continue;  // soft: kept only where confirmed
+        } else if (cell == sentinel || !lit_around(cell)) {
+          continue;
+        }
         o[x] = 1;
         ++turned;
       }

@@ -234,9 +234,13 @@ class ShadowTeachers {
 // cameras see that cell lit. A shadow pixel whose floor cell (L1) is seen unchanged by at least
 // half of the other active cameras that view it (L2; a camera sees the cell unchanged when most
 // of its pixels there are kBackground), and by two at least, is a change after all. Pixels whose
-// ray leaves the grid, and cells only their own camera sees, keep their class. It fails where a
-// static structure hides the floor from the other cameras and looks like the background there
-// (the cell seems lit behind it), and for clothing in front of someone else's cast shadow.
+// ray leaves the grid, and cells only their own camera sees, keep their class. A soft shadow
+// (BackgroundModel::kSoftShadow: no learned look vouches for it) needs the reverse: it stays a
+// shadow only where another camera sees its cell shadowed too, and no fewer see it shadowed
+// than lit; grey trousers on grey paving pass the soft test, and their ray meets the floor
+// behind the person, lit or hidden by their legs. It fails where a static structure hides the floor from the other cameras and
+// looks like the background there (the cell seems lit behind it), and for clothing in front of
+// someone else's cast shadow.
 //
 //   ShadowCheck check(lut);
 //   check.Apply(classes, changes);   // after each camera's DetectChanges, before dilation
@@ -256,6 +260,7 @@ class ShadowCheck {
   std::vector<uint8_t> cell_state_;   // per cell: unknown, lit or not
   std::vector<uint32_t> touched_;     // cells whose state was set this frame
   std::vector<int> lit_, dark_;       // per camera, pixels of the cell being asked
+  std::vector<int> shaded_;           // of the dark ones, those a shadow class
 };
 
 }  // namespace occmap

@@ -714,3 +714,87 @@ TEST(ShadowCheck, ShadowsOverFloorTheOthersSeeLitAreChanges) {
 
 }  // namespace
 }  // namespace occmap
+
+namespace occmap {
+namespace {
+
+// A soft shadow (no learned look vouches for it) stays a shadow only where another camera sees
+// its floor cell shadowed as well: a contact shadow that every camera sees soft stays; grey
+// clothing that camera 0 takes for a soft shadow, over floor the others see lit, or hidden by
+// the person (changed), is a change; with no other camera seeing its cell shadowed it is a
+// change too (where the cast rule would keep it).
+TEST(ShadowCheck, SoftShadowsStayOnlyWhereAnotherCameraSeesTheirFloorShadowed) {
+  testing::SmallRoom room(160, 120);
+  auto lut = SmallRoomLut(room);
+  ASSERT_TRUE(lut.ok()) << lut.status().message();
+  const auto in_contact = [](const Eigen::Vector2d& p) { return p.x() >= 1.0 && p.x() < 1.5 && p.y() >= 1.0 && p.y() < 1.5; };
+  const auto in_lit = [](const Eigen::Vector2d& p) { return p.x() >= 3.0 && p.x() < 3.4 && p.y() >= 2.0 && p.y() < 2.4; };
+  const auto in_hidden = [](const Eigen::Vector2d& p) { return p.x() >= 2.4 && p.x() < 2.8 && p.y() >= 0.4 && p.y() < 0.8; };
+  std::vector<Image<uint8_t>> classes, changes;
+  int64_t contact = 0, lit = 0, hidden = 0;
+  for (size_t n = 0; n < room.cameras.size(); ++n) {
+    Image<uint8_t>& c = classes.emplace_back(160, 120, BackgroundModel::kBackground);
+    changes.emplace_back(160, 120, uint8_t{0});
+    for (int y = 0; y < 120; ++y) {
+      for (int x = 0; x < 160; ++x) {
+        const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
+        if (!p) continue;
+        if (in_contact(*p)) {
+          c(x, y) = n == 2 ? BackgroundModel::kChanged : BackgroundModel::kSoftShadow;
+          contact += n == 0;
+        } else if (in_lit(*p) && n == 0) {
+          c(x, y) = BackgroundModel::kSoftShadow;
+          ++lit;
+        } else if (in_hidden(*p)) {
+          c(x, y) = n == 0 ? BackgroundModel::kSoftShadow : BackgroundModel::kChanged;
+          hidden += n == 0;
+        }
+      }
+    }
+  }
+  ASSERT_GT(contact, 200);
+  ASSERT_GT(lit, 50);
+  ASSERT_GT(hidden, 50);
+  std::vector<ImageView<const uint8_t>> class_views;
+  std::vector<ImageView<uint8_t>> change_views;
+  for (const auto& c : classes) class_views.push_back(c.view());
+  for (auto& c : changes) change_views.push_back(c.view());
+  ShadowCheck check(*lut);
+  check.Apply(class_views, change_views);
+  int64_t turned_contact = 0, turned_lit = 0, turned_hidden = 0;
+  for (int y = 0; y < 120; ++y) {
+    for (int x = 0; x < 160; ++x) {
+      if (changes[0](x, y) == 0) continue;
+      const auto p = room.cameras[0].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
+      ASSERT_TRUE(p.has_value());
+      turned_contact += in_contact(*p);
+      turned_lit += in_lit(*p);
+      turned_hidden += in_hidden(*p);
+    }
+  }
+  // The contact shadow's rim (cells half outside) may turn; its body stays.
+  EXPECT_LT(turned_contact, contact / 5);
+  EXPECT_GT(turned_lit, lit * 4 / 5);
+  EXPECT_GT(turned_hidden, hidden * 4 / 5);
+  // The same pixels as cast shadows: the cast rule keeps the hidden patch (nobody sees it lit).
+  for (auto& c : classes) {
+    for (int y = 0; y < 120; ++y) {
+      for (int x = 0; x < 160; ++x) if (c(x, y) == BackgroundModel::kSoftShadow) c(x, y) = BackgroundModel::kShadow;
+    }
+  }
+  for (auto& c : changes) {
+    for (int y = 0; y < 120; ++y) std::fill_n(c.row(y), 160, uint8_t{0});
+  }
+  check.Apply(class_views, change_views);
+  int64_t cast_hidden = 0;
+  for (int y = 0; y < 120; ++y) {
+    for (int x = 0; x < 160; ++x) {
+      const auto p = room.cameras[0].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
+      if (p && in_hidden(*p)) cast_hidden += changes[0](x, y) != 0;
+    }
+  }
+  EXPECT_LT(cast_hidden, hidden / 5);
+}
+
+}  // namespace
+}  // namespace occmap

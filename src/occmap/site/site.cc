@@ -440,7 +440,8 @@ Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
   if (auto s = f.Find("shadows")) {
     OCCMAP_RETURN_IF_ERROR(s->CheckKeys({"enabled", "min_ratio", "max_ratio", "learn", "ratio_window", "max_channel_spread",
                                          "texture_radius_px",
-                                         "min_texture_correlation", "flat_std", "floor_check"}));
+                                         "min_texture_correlation", "flat_std", "floor_check", "soft", "soft_min_ratio",
+                                         "soft_max_ratio"}));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.enabled, s->GetBool("enabled", b.shadows.enabled));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.min_ratio, s->GetDouble("min_ratio", b.shadows.min_ratio));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.max_ratio, s->GetDouble("max_ratio", b.shadows.max_ratio));
@@ -453,6 +454,9 @@ Status ParseBackgrounds(const YamlField& f, BackgroundOptions& b) {
                             s->GetDouble("min_texture_correlation", b.shadows.min_texture_correlation));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.flat_std, s->GetDouble("flat_std", b.shadows.flat_std));
     OCCMAP_ASSIGN_OR_RETURN(b.shadows.floor_check, s->GetBool("floor_check", b.shadows.floor_check));
+    OCCMAP_ASSIGN_OR_RETURN(b.shadows.soft, s->GetBool("soft", b.shadows.soft));
+    OCCMAP_ASSIGN_OR_RETURN(b.shadows.soft_min_ratio, s->GetDouble("soft_min_ratio", b.shadows.soft_min_ratio));
+    OCCMAP_ASSIGN_OR_RETURN(b.shadows.soft_max_ratio, s->GetDouble("soft_max_ratio", b.shadows.soft_max_ratio));
   }
   // Validate() names the field ("backgrounds.shadows.min_ratio: ..."): the message goes to its line.
   if (Status v = b.Validate(); !v.ok()) {
