@@ -196,7 +196,7 @@ CellState CandidateState(const ColumnLut& columns, int64_t k, const std::vector<
   for (int c = 0; c < columns.num_cameras(); ++c) {
     if (!active[c]) continue;
     const ColumnView& v = columns.view(c, k);
-    if (!v.seen || v.blocked) continue;
+    if (!(v.seen || v.feet_cut) || v.blocked) continue;
     const ColumnSpans s = MakeColumnSpans(v, o.radius_m, o.band_low_m / h, o.band_high_m / h, columns.image_size(c));
     if (2 * s.visible_rows < s.last_row - s.first_row + 1) continue;  // mostly off the image
     // A first look at a few rows: a column less than half as changed as asked there is free
@@ -267,7 +267,7 @@ std::shared_ptr<const ColumnFusion::Plan> ColumnFusion::PlanFor(const ColumnFusi
     plan->first_entry.push_back(static_cast<uint32_t>(plan->entries.size()));
     for (int c = 0; c < columns_.num_cameras(); ++c) {
       const ColumnView& v = columns_.view(c, k);
-      if (!v.seen || v.blocked) continue;
+      if (!(v.seen || v.feet_cut) || v.blocked) continue;
       const ColumnSpans s = MakeColumnSpans(v, o.radius_m, o.band_low_m / h, o.band_high_m / h, columns_.image_size(c));
       if (2 * s.visible_rows < s.last_row - s.first_row + 1) continue;  // mostly off the image: abstains
       Plan::Entry e{static_cast<uint32_t>(plan->spans.size()), 0, static_cast<uint8_t>(c), 0};

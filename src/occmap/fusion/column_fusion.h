@@ -3,9 +3,10 @@
 // every active camera that sees it sees change over at least min_changed of the image of the
 // column's band (z from band_low_m to band_high_m, radius_m around the axis); cameras whose
 // view of it a static occluder hides, or whose image holds less than half of the band's rows,
-// abstain. Tri-state as the floor AND (Fusion): unseen when fewer than min_views cameras test
-// it, occupied when every testing camera says changed, or when at most max_free_views say free
-// and at least min_changed_views others say changed.
+// abstain; a camera that sees the band with the feet below its image (ColumnView::feet_cut: a
+// person close to it) tests. Tri-state as the floor AND (Fusion): unseen when fewer than
+// min_views cameras test it, occupied when every testing camera says changed, or when at most
+// max_free_views say free and at least min_changed_views others say changed.
 //
 // Why: legs leave the floor cell under a person unchanged in some views (the floor AND misses
 // the person), while the band above it is a torso in every view that sees it; a static occluder

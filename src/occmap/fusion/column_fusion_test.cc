@@ -214,6 +214,44 @@ TEST(ColumnFusionTest, APositionOneCameraTestsIsUnseenWhileOthersAreActive) {
   EXPECT_EQ(map.state(cell), CellState::kOccupied);
 }
 
+// A person close to a camera shows it the torso with the feet below the image (the terrace's
+// people walking in past a camera): that camera tests the column, it does not abstain.
+TEST(ColumnFusionTest, ACameraThatSeesTheTorsoWithTheFeetCutOffTests) {
+  testing::PeopleRoom scene;
+  const FloorGrid& g = scene.columns.candidates();
+  int64_t cell = -1;
+  for (int64_t k = 0; k < g.num_cells() && cell < 0; ++k) {
+    const ColumnView& v = scene.columns.view(0, k);
+    if (!v.feet_cut) continue;
+    EXPECT_FALSE(v.seen);
+    EXPECT_GE(v.bottom_row, 240.0f);
+    EXPECT_GE(v.top_row, 0.0f);
+    const ColumnFusionOptions o;
+    const double h = scene.columns.options().height_m;
+    const ColumnSpans band = MakeColumnSpans(v, o.radius_m, o.band_low_m / h, o.band_high_m / h, {320, 240});
+    if (2 * band.visible_rows < band.last_row - band.first_row + 1) continue;  // the band itself cut
+    int others = 0;
+    for (int c = 1; c < 4; ++c) others += scene.columns.view(c, k).seen;
+    if (others >= 2) cell = k;
+  }
+  ASSERT_GE(cell, 0) << "no position with camera 0's feet cut and two other views";
+  const Eigen::Vector2d at = g.CellCenter(cell);
+  scene.Paint(at.x(), at.y());
+  for (int y = 0; y < 240; ++y) std::fill_n(scene.changes[0].row(y), 320, uint8_t{0});  // camera 0 sees nothing
+  ColumnFusion fusion(scene.columns);
+  Context ctx(1);
+  ColumnFusionOptions strict;  // the AND: camera 0's free vote decides
+  strict.max_free_views = 0;
+  OccupancyMap fast, reference;
+  fusion.Fuse(scene.Sums(), std::vector<bool>(4, true), strict, ctx, fast);
+  fusion.FuseReference(scene.Views(), std::vector<bool>(4, true), strict, reference);
+  EXPECT_EQ(fast, reference);
+  EXPECT_EQ(fast.state(cell), CellState::kFree);
+  scene.Paint(at.x(), at.y());  // camera 0 sees the torso: occupied
+  fusion.Fuse(scene.Sums(), std::vector<bool>(4, true), strict, ctx, fast);
+  EXPECT_EQ(fast.state(cell), CellState::kOccupied);
+}
+
 TEST(ColumnFusionTest, FastEqualsReferenceAndOneThreadEqualsTwo) {
   testing::PeopleRoom scene;
   std::mt19937 rng(7);

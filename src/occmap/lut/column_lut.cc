@@ -220,6 +220,8 @@ Result<ColumnLut> BuildColumnLut(const std::vector<LutCameraInput>& cameras, con
               std::swap(v.half_width_top, v.half_width_bottom);
             }
             v.seen = seen;
+            v.feet_cut = !seen && fy >= size.height && fx >= 0 && fx < size.width && top->y() >= 0 &&
+                         top->y() < size.height && camera.InImage(*top);
             v.projected = true;
             if (centre && !hiding.empty()) {
               int hidden = 0;

@@ -65,6 +65,9 @@ struct ColumnView {
   float axis_x_top = 0, axis_x_bottom = 0;   // image column of the axis at those rows
   float half_width_top = 0, half_width_bottom = 0;  // pixels per metre of radius, at those rows
   bool seen = false;     // the foot projects onto a monitored pixel, in front
+  // The foot projects below the image (within its columns) and the column's top into it: a
+  // person this close to the camera shows the torso with the feet cut off.
+  bool feet_cut = false;
   bool projected = false;  // foot and top project (in front), wherever they land
   bool blocked = false;  // a static occluder hides at least half of the column: the camera abstains
   bool learned = false;  // blocked by learning (fusion/occluder_learning.h), not by a given static
