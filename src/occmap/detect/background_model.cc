@@ -18,6 +18,7 @@ namespace {
 constexpr int kBinLevels = 8;  // background levels per bin of the transfer fit
 constexpr int kBins = 256 / kBinLevels;
 constexpr double kFitOutlierLevels = 12;
+constexpr int kModeWindow = 9;
 constexpr double kMinWhiteBalanceShift = 3;  // chroma levels on grey floor
 constexpr double kMinFitShare = 0.5;  // of the grid's samples left by the map's protection
 
@@ -250,28 +251,31 @@ struct LevelPairs {
   }
 };
 
-// The line frame = a background + b through the bins' medians (weighted by their counts),
+// The line frame = a background + b through the bins' densest levels (weighted by their counts),
 // refitted twice without the bins further than kFitOutlierLevels from it; false when fewer than
 // two bins have enough pairs, or the slope is not a photometric change.
-bool FitMedianLine(const LevelPairs& pairs, double* a_out, double* b_out) {
+bool FitDensestLine(const LevelPairs& pairs, double* a_out, double* b_out) {
   const uint32_t min_count = std::max<uint32_t>(16, static_cast<uint32_t>(pairs.total / 500));
   std::vector<std::array<double, 3>> points;  // background level, frame median, weight
   for (int bin = 0; bin < kBins; ++bin) {
     const uint32_t n = pairs.counts[static_cast<size_t>(bin)];
     if (n < min_count) continue;
-    const uint32_t half = (n + 1) / 2;
-    uint32_t acc = 0;
-    int median = 0;
+    // The densest window of kModeWindow levels, not the median: the floor of one level stays
+    // the densest where people of many shades cover more than half of its bin.
+    const uint32_t* h = pairs.hist.data() + static_cast<size_t>(bin) * 256;
+    uint32_t in_window = 0, best = 0;
+    int densest = 0;
     for (int level = 0; level < 256; ++level) {
-      acc += pairs.hist[static_cast<size_t>(bin) * 256 + static_cast<size_t>(level)];
-      if (acc >= half) {
-        median = level;
-        break;
+      in_window += h[level];
+      if (level >= kModeWindow) in_window -= h[level - kModeWindow];
+      if (in_window > best) {
+        best = in_window;
+        densest = level - kModeWindow / 2;
       }
     }
-    // A clipped median says nothing of the slope (the frame saturates there).
-    if (median <= 4 || median >= 251) continue;
-    points.push_back({pairs.sum_b[static_cast<size_t>(bin)] / n, static_cast<double>(median), static_cast<double>(n)});
+    // A clipped level says nothing of the slope (the frame saturates there).
+    if (densest <= 4 || densest >= 251) continue;
+    points.push_back({pairs.sum_b[static_cast<size_t>(bin)] / n, static_cast<double>(densest), static_cast<double>(n)});
   }
   if (points.size() < 2) return false;
   double a = 1, b = 0;
@@ -318,7 +322,7 @@ PhotometricTransfer EstimateTransfer(ImageView<const uint8_t> background_y, Imag
   PhotometricTransfer t;
   t.samples = pairs.total;
   double a = 1, b = 0;
-  if (!FitMedianLine(pairs, &a, &b)) return t;
+  if (!FitDensestLine(pairs, &a, &b)) return t;
   t.gain = a;
   t.offset = b;
   return t;
@@ -380,7 +384,7 @@ ColourTransfer EstimateColourTransfer(ImageView<const uint8_t> background_y, Ima
   ColourTransfer t;
   t.samples = pairs[1].total;
   for (int c = 0; c < 3; ++c) {
-    if (!FitMedianLine(pairs[static_cast<size_t>(c)], &t.gain[static_cast<size_t>(c)], &t.offset[static_cast<size_t>(c)])) {
+    if (!FitDensestLine(pairs[static_cast<size_t>(c)], &t.gain[static_cast<size_t>(c)], &t.offset[static_cast<size_t>(c)])) {
       return ColourTransfer{};
     }
   }

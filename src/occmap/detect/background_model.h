@@ -8,8 +8,8 @@
 // Three parts, each a plain function or class over images (the pipeline wires them to the
 // fused map, pipeline/background_maintenance.h):
 // 1. The photometric transfer of a frame: the affine map background -> frame luma
-//    (frame ~ gain * background + offset) fitted robustly each frame from per-level medians of
-//    a sparse grid of pixels. Auto-exposure, clouds and lights switched on move every pixel at
+//    (frame ~ gain * background + offset) fitted robustly each frame from each background
+//    level's densest frame level over a sparse grid of pixels. Auto-exposure, clouds and lights switched on move every pixel at
 //    once; the transfer follows them in one frame, so the per-pixel model does not need to.
 // 2. Learning without an empty frame (BackgroundLearner): K frames sampled over a long window,
 //    each normalised by its transfer to a provisional median, then one of four estimators:
@@ -190,17 +190,19 @@ struct ColourTransfer {
 // Fitted from the chroma blocks of a grid of step_px pixels, where `exclude` is zero (when not
 // empty: the pixels the fused map protected in the last frame, people and objects, so that a
 // view filling with people does not drag the fit), the block's top-left luma with its chroma
-// taken as one RGB pixel of the background and of the frame: per channel the per-level median
+// taken as one RGB pixel of the background and of the frame: per channel the per-level densest
 // line of EstimateTransfer. Not fitted when a channel has fewer than two usable bins, or when the
 // channels moved alike (grey floor's chroma moves by less than 3 levels from 64 to 192 of luma:
 // exposure alone, which the luma's gain models).
 ColourTransfer EstimateColourTransfer(ImageView<const uint8_t> background_y, ImageView<const uint8_t> background_u,
                                       ImageView<const uint8_t> background_v, const YuvView& frame,
                                       ImageView<const uint8_t> exclude, int step_px = 4);
-// Fitted from the pixels of a grid of step_px: per background level bin (8 levels) the median
-// frame level, then a weighted least-squares line through the bins' medians, refitted without
-// the bins further than 12 levels from it. Background levels under 8 or over 247 and bins
-// whose frame median is clipped (under 5, over 250) are left out. Identity when fewer than two
+// Fitted from the pixels of a grid of step_px: per background level bin (8 levels) the centre
+// of the densest 9-level window of frame levels (not the median: people of many shades who
+// cover more than half of a floor level's pixels leave the floor the densest), then a weighted
+// least-squares line through them, refitted without the bins further than 12 levels from it.
+// Background levels under 8 or over 247 and bins whose densest level is clipped (under 5, over
+// 250) are left out. Identity when fewer than two
 // bins have enough pixels.
 PhotometricTransfer EstimateTransfer(ImageView<const uint8_t> background_y, ImageView<const uint8_t> frame_y,
                                      int step_px = 4, ImageView<const uint8_t> exclude = {});
