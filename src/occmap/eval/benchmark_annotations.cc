@@ -56,7 +56,8 @@ const BenchmarkGrid kTerraceGrid{.title = "EPFL terrace",
                                  .views = 4,
                                  .file_digits = 6,
                                  .default_frame_step = 1,
-                                 .at_cell_centre = true};
+                                 .at_cell_centre = true,
+                                 .identities = false};
 constexpr BenchmarkFormat kFormats[] = {BenchmarkFormat::kWildtrack, BenchmarkFormat::kMultiviewX,
                                         BenchmarkFormat::kTerrace};
 
@@ -524,6 +525,13 @@ Result<EvaluationReport> EvaluateRunOnBenchmark(const fs::path& dataset, const f
                                     files_text));
   }
   OCCMAP_ASSIGN_OR_RETURN(EvaluationReport report, EvaluateRunAgainst(gt, folder->string(), run_dir, options, ctx));
+  if (!GridOf(annotations.format).identities && report.tracking) {
+    // Identity measures against ids that name a person within one file only would be noise.
+    report.tracking.reset();
+    report.notes.push_back(fmt::format("tracking not evaluated: the {} annotations' personID is an index within each "
+                                       "file, not a person across frames",
+                                       GridOf(annotations.format).title));
+  }
   if (summary.files_outside_range > 0) {
     report.notes.push_back(fmt::format("annotations: {} of {} files are outside the numbers evaluated, {}..{} ({}); left out",
                                        summary.files_outside_range, summary.files, range_first, range_last,

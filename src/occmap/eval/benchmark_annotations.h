@@ -79,6 +79,7 @@ struct BenchmarkGrid {
   int file_digits = 0;       // digits of a file name (written; detection by file names)
   int64_t default_frame_step = 1;  // annotation numbers per run frame over the distributed images
   bool at_cell_centre = false;     // an id names its cell's centre (else its corner)
+  bool identities = true;          // personID is a person across frames (else within a file only)
 };
 const BenchmarkGrid& GridOf(BenchmarkFormat format);
 

@@ -600,5 +600,37 @@ TEST(TerraceAnnotations, IdsNameCellCentresAndTheDatasetReads) {
   EXPECT_EQ(read->frames.front().number, 8);
 }
 
+// The terrace's personID is an index within each file: identities are not scored (they would
+// count a switch at nearly every frame), detection is.
+TEST(TerraceAnnotations, TracksAreNotScoredAgainstIdsThatAreNotIdentities) {
+  testing::TempDir dir;
+  const fs::path dataset = dir / "terrace", run = dir / "run";
+  fs::create_directories(dataset / "annotations_positions");
+  fs::create_directories(run);
+  // Two people, their personIDs swapped between the files.
+  testing::WriteText(dataset / "annotations_positions" / "000000.json",
+                     R"([{"personID": 0, "positionID": 639}, {"personID": 1, "positionID": 100}])");
+  testing::WriteText(dataset / "annotations_positions" / "000001.json",
+                     R"([{"personID": 1, "positionID": 639}, {"personID": 0, "positionID": 100}])");
+  const Eigen::Vector2d a = BenchmarkPositionM(BenchmarkFormat::kTerrace, 639);
+  const Eigen::Vector2d b = BenchmarkPositionM(BenchmarkFormat::kTerrace, 100);
+  testing::WriteText(run / "detections.jsonl", DetectionsText({{0, {a, b}}, {1, {a, b}}}));
+  std::string tracks;
+  for (int f = 0; f < 2; ++f) {
+    tracks += fmt::format("{{\"frame\":{},\"time_s\":0,\"tracks\":[{{\"id\":1,\"x_m\":{},\"y_m\":{}}},"
+                          "{{\"id\":2,\"x_m\":{},\"y_m\":{}}}]}}\n",
+                          f, a.x(), a.y(), b.x(), b.y());
+  }
+  testing::WriteText(run / "tracks.jsonl", tracks);
+  const Result<EvaluationReport> report = EvaluateRunOnBenchmark(dataset, run);
+  ASSERT_TRUE(report.ok()) << report.status().message();
+  ASSERT_TRUE(report->detection.has_value());
+  EXPECT_DOUBLE_EQ(report->detection->moda, 1.0);
+  EXPECT_FALSE(report->tracking.has_value());
+  bool said = false;
+  for (const std::string& note : report->notes) said |= note.find("tracking not evaluated") != std::string::npos;
+  EXPECT_TRUE(said);
+}
+
 }  // namespace
 }  // namespace occmap
