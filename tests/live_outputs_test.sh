@@ -54,7 +54,9 @@ sub_pid=$!
 sleep 0.3
 if "$occmap" run "$work/lab/site.yaml" --out "$work/run" --no-cache --no-video --mqtt "$url" >"$work/run.log" 2>&1; then ok; else
   fail "run with --mqtt: exit $?"; tail -5 "$work/run.log"; fi
-sleep 0.5
+# The run's last message is its "offline": wait for it (a loaded machine delivers late), then stop.
+for _ in $(seq 100); do grep -q ' occmap/lab/available offline' "$work/sub.log" && break; sleep 0.1; done
+sleep 0.2
 kill "$sub_pid"; wait "$sub_pid" 2>/dev/null; sub_pid=""
 python3 - "$work" <<'PY' && ok || fail "messages of the run"
 import json, sys
