@@ -140,6 +140,17 @@ TEST(ColumnFusionTest, ACameraHiddenByAnOccluderAbstains) {
   }
 }
 
+// The state of `cell`, fused fast and by the reference (which must agree).
+CellState FusedState(const ColumnFusion& fusion, testing::PeopleRoom& scene, const ColumnFusionOptions& o,
+                     const std::vector<bool>& active, int64_t cell) {
+  Context ctx(1);
+  OccupancyMap fast, reference;
+  fusion.Fuse(scene.Sums(), active, o, ctx, fast);
+  fusion.FuseReference(scene.Views(), active, o, reference);
+  EXPECT_EQ(fast, reference);
+  return fast.state(cell);
+}
+
 // A coat of the background's colour leaves a person's torso unchanged in one view: two or more
 // views that see it changed outvote it (the default), one does not.
 TEST(ColumnFusionTest, OneCamouflagedViewIsOutvotedByTwoThatSeeTheTorso) {
@@ -147,14 +158,9 @@ TEST(ColumnFusionTest, OneCamouflagedViewIsOutvotedByTwoThatSeeTheTorso) {
   scene.Paint(2.0, 1.5);
   for (int y = 0; y < 240; ++y) std::fill_n(scene.changes[0].row(y), 320, uint8_t{0});
   ColumnFusion fusion(scene.columns);
-  Context ctx(1);
   const int64_t cell = scene.columns.candidates().CellAt(2.0, 1.5);
   const auto state = [&](const ColumnFusionOptions& o, const std::vector<bool>& active) {
-    OccupancyMap fast, reference;
-    fusion.Fuse(scene.Sums(), active, o, ctx, fast);
-    fusion.FuseReference(scene.Views(), active, o, reference);
-    EXPECT_EQ(fast, reference);
-    return fast.state(cell);
+    return FusedState(fusion, scene, o, active, cell);
   };
   const ColumnFusionOptions vote;
   EXPECT_EQ(vote.max_free_views, 1);
@@ -189,13 +195,8 @@ TEST(ColumnFusionTest, APositionOneCameraTestsIsUnseenWhileOthersAreActive) {
   for (int c = 1; c < 4; ++c) ASSERT_TRUE(scene.columns.view(c, cell).blocked) << c;
   ASSERT_FALSE(scene.columns.view(0, cell).blocked);
   ColumnFusion fusion(scene.columns);
-  Context ctx(1);
   const auto state = [&](const ColumnFusionOptions& o, const std::vector<bool>& active) {
-    OccupancyMap fast, reference;
-    fusion.Fuse(scene.Sums(), active, o, ctx, fast);
-    fusion.FuseReference(scene.Views(), active, o, reference);
-    EXPECT_EQ(fast, reference);
-    return fast.state(cell);
+    return FusedState(fusion, scene, o, active, cell);
   };
   const ColumnFusionOptions defaults;
   EXPECT_EQ(defaults.min_views, 2);
@@ -208,10 +209,7 @@ TEST(ColumnFusionTest, APositionOneCameraTestsIsUnseenWhileOthersAreActive) {
   // Without the pillars every camera tests it: occupied.
   testing::PeopleRoom open;
   open.Paint(2.0, 1.5);
-  ColumnFusion open_fusion(open.columns);
-  OccupancyMap map;
-  open_fusion.Fuse(open.Sums(), std::vector<bool>(4, true), defaults, ctx, map);
-  EXPECT_EQ(map.state(cell), CellState::kOccupied);
+  EXPECT_EQ(FusedState(ColumnFusion(open.columns), open, defaults, std::vector<bool>(4, true), cell), CellState::kOccupied);
 }
 
 // A person close to a camera shows it the torso with the feet below the image (the terrace's
