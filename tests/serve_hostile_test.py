@@ -7,7 +7,7 @@ Checks, each with the server up afterwards (GET /api/state 200):
 - deep JSON (100,000 levels) in every write route's fields: 400 "nesting deeper than 64 levels"
   (was a SIGSEGV in the message's dump()); a 1 MB value is never echoed whole;
 - DNS rebinding: a foreign Host is refused (403) for reads and writes; localhost, 127.0.0.1 and
-  an --allow-host name are served;
+  an --allow-host name are served;;
 - cross-site writes: Origin of another site, Sec-Fetch-Site cross-site or same-site, a body
   that is not application/json: refused, nothing changed; the same origin's JSON is taken;
 - bodies: a chunked body is cut at 1 MiB (413, the server's memory does not grow by the 64 MiB
@@ -20,37 +20,19 @@ Needs only python3.
 import json
 import os
 import select
-import shutil
 import signal
 import socket
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from serve_lib import ServerTest  # noqa: E402
+
 occmap = sys.argv[1]
-work = tempfile.mkdtemp(prefix="occmap-serve-hostile-")
-failures = []
-procs = []
-
-
-def check(cond, what):
-    print(("ok   " if cond else "FAIL ") + what, flush=True)
-    if not cond:
-        failures.append(what)
-    return cond
-
-
-def start(args, name):
-    log = open(os.path.join(work, name + ".log"), "w")
-    p = subprocess.Popen([occmap, "--threads", "2", "serve"] + args, stdout=subprocess.PIPE, stderr=log, text=True)
-    procs.append(p)
-    line = p.stdout.readline()
-    prefix = "occmap serve: listening on http://127.0.0.1:"
-    if not line.startswith(prefix):
-        raise SystemExit(f"FAIL {name}: expected '{prefix}PORT/', found {line!r} (log {log.name})")
-    return p, int(line[len(prefix):].strip().rstrip("/"))
+h = ServerTest(occmap, "occmap-serve-hostile-")
+check, start, work = h.check, h.start, h.work
 
 
 def exchange(port, head, body=b"", timeout=30):
@@ -259,15 +241,5 @@ try:
     p.send_signal(signal.SIGTERM)
     check(p.wait(timeout=60) == 0, "SIGTERM: exit 0")
 finally:
-    for p in procs:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    if failures:
-        for name in os.listdir(work):
-            if name.endswith(".log"):
-                print(f"--- {name}:\n" + open(os.path.join(work, name)).read()[-3000:])
-    shutil.rmtree(work, ignore_errors=True)
-
-print(f"{len(failures)} failures")
-sys.exit(1 if failures else 0)
+    code = h.finish()
+sys.exit(code)

@@ -15,38 +15,20 @@ refused; a cache folder that cannot be written is said once, not an error; SIGTE
 """
 import json
 import os
-import shutil
 import signal
 import socket
 import subprocess
 import sys
-import tempfile
 import time
 import urllib.error
 import urllib.request
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from serve_lib import ServerTest  # noqa: E402
+
 occmap, src = sys.argv[1], sys.argv[2]
-work = tempfile.mkdtemp(prefix="occmap-serve-test-")
-failures = []
-procs = []
-
-
-def check(cond, what):
-    print(("ok   " if cond else "FAIL ") + what, flush=True)
-    if not cond:
-        failures.append(what)
-    return cond
-
-
-def start(args, name):
-    log = open(os.path.join(work, name + ".log"), "w")
-    p = subprocess.Popen([occmap, "--threads", "2", "serve"] + args, stdout=subprocess.PIPE, stderr=log, text=True)
-    procs.append(p)
-    line = p.stdout.readline()  # "occmap serve: listening on http://127.0.0.1:PORT/"
-    prefix = "occmap serve: listening on http://127.0.0.1:"
-    if not line.startswith(prefix):
-        raise SystemExit(f"FAIL {name}: expected '{prefix}PORT/', found {line!r} (log {log.name})")
-    return p, int(line[len(prefix):].strip().rstrip("/"))
+h = ServerTest(occmap, "occmap-serve-test-")
+check, start, work = h.check, h.start, h.work
 
 
 def request(port, path, method="GET", body=None, headers=None, timeout=30):
@@ -257,15 +239,5 @@ try:
                        capture_output=True, text=True)
     check(r.returncode == 0, f"outputs valid after SIGTERM {r.stdout.strip()}")
 finally:
-    for p in procs:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    if failures:
-        for name in os.listdir(work):
-            if name.endswith(".log"):
-                print(f"--- {name}:\n" + open(os.path.join(work, name)).read()[-3000:])
-    shutil.rmtree(work, ignore_errors=True)
-
-print(f"{len(failures)} failures")
-sys.exit(1 if failures else 0)
+    code = h.finish()
+sys.exit(code)
