@@ -120,6 +120,7 @@ CLI::App* AddFuseCommand(CLI::App& app, FuseCommand& cmd) {
                 "until a signal (port 0: any free port, printed)");
   c->add_option("--token", cmd.token, "--listen: every request needs this token (Authorization: Bearer T or ?token=T)");
   c->add_option("--token-file", cmd.token_file, "--listen: file whose first line is the token");
+  AddAllowHostOption(*c, cmd.allow_hosts);
   return c;
 }
 
@@ -251,8 +252,8 @@ Status RunFuseCommand(FuseCommand cmd, int threads, const std::string& data_root
   o.output_mode = cmd.atomic_outputs ? OutputMode::kAtomic : OutputMode::kLive;
   o.wall_clock_times = !cmd.no_wall_clock;
   OCCMAP_ASSIGN_OR_RETURN(const LiveSinks live, AddLiveSinks(site, cmd.live, o, "occmap fuse"));
-  if (cmd.listen.empty() && (!cmd.token.empty() || !cmd.token_file.empty())) {
-    return InvalidInput("--token, --token-file: need --listen HOST:PORT");
+  if (cmd.listen.empty() && (!cmd.token.empty() || !cmd.token_file.empty() || !cmd.allow_hosts.empty())) {
+    return InvalidInput("--token, --token-file, --allow-host: need --listen HOST:PORT");
   }
   // Before any thread starts, so that every thread inherits the blocked signals.
   StopOnSignals signals(o.out_dir);
@@ -263,7 +264,7 @@ Status RunFuseCommand(FuseCommand cmd, int threads, const std::string& data_root
   std::unique_ptr<ViewBackend> backend;
   std::unique_ptr<WebServer> server;
   if (!cmd.listen.empty()) {
-    OCCMAP_ASSIGN_OR_RETURN(const WebServerOptions wo, WebServerOptionsFrom(cmd.listen, cmd.token, cmd.token_file));
+    OCCMAP_ASSIGN_OR_RETURN(const WebServerOptions wo, WebServerOptionsFrom(cmd.listen, cmd.token, cmd.token_file, cmd.allow_hosts));
     OCCMAP_ASSIGN_OR_RETURN(std::string site_text, ReadFileToString(site.file));
     view = std::make_shared<LiveState>();
     view->SetStarting();

@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 
 #include <string>
+#include <vector>
 
 #include "live_outputs.h"
 #include "occmap/pipeline/edge_fuse.h"
@@ -30,8 +31,10 @@ struct FuseCommand {
   EdgeFuseCommon common;
   FuseOptions options;
   LiveOutputsCommand live;  // --mqtt, --ros-map: the run's outputs for other software
-  // --listen (empty: no web view), --token, --token-file: `occmap serve`'s live view of the fuse.
+  // --listen (empty: no web view), --token, --token-file, --allow-host: `occmap serve`'s live
+  // view of the fuse.
   std::string listen, token, token_file;
+  std::vector<std::string> allow_hosts;
   bool no_video = false;
   bool no_wall_clock = false;
   bool atomic_outputs = false;

@@ -24,9 +24,7 @@ CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd) {
   c->add_option("--listen", cmd.listen, "HOST:PORT to serve on (port 0: any free port, printed)")->capture_default_str();
   c->add_option("--token", cmd.token, "every request needs this token (Authorization: Bearer T or ?token=T)");
   c->add_option("--token-file", cmd.token_file, "file whose first line is the token");
-  c->add_option("--allow-host", cmd.allow_hosts,
-                "a host name the pages may be reached by besides IP addresses and localhost (repeat for more): "
-                "requests naming another host are refused (DNS rebinding)");
+  AddAllowHostOption(*c, cmd.allow_hosts);
   c->add_option("--out", cmd.out_dir, "output folder of the run")->capture_default_str();
   // As `occmap run`'s (-1, "until a source ends", is not a count a user may give).
   c->add_option("--frames", cmd.max_frames, "process at most N frames")
@@ -53,6 +51,12 @@ CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd) {
               "file inputs as fast as they decode (default: at their frame rate, as a live view)");
   AddLiveOutputOptions(*c, cmd.live);
   return c;
+}
+
+void AddAllowHostOption(CLI::App& c, std::vector<std::string>& allow_hosts) {
+  c.add_option("--allow-host", allow_hosts,
+               "a host name the pages may be reached by besides IP addresses and localhost (repeat for more): "
+               "requests naming another host are refused (DNS rebinding)");
 }
 
 Result<WebServerOptions> WebServerOptionsFrom(const std::string& listen_text, const std::string& token_text,

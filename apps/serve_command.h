@@ -40,6 +40,9 @@ struct ServeCommand {
 
 CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd);
 
+// --allow-host NAME...: the one definition for every command with a web server (serve, fuse).
+void AddAllowHostOption(CLI::App& c, std::vector<std::string>& allow_hosts);
+
 // --listen, --token, --token-file: the address (port 0: any free port) and the token, checked:
 // a token of printable ASCII, and one whenever the address is not loopback. `who` names the
 // command in the messages ("occmap serve", "occmap fuse").

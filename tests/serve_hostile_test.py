@@ -7,7 +7,7 @@ Checks, each with the server up afterwards (GET /api/state 200):
 - deep JSON (100,000 levels) in every write route's fields: 400 "nesting deeper than 64 levels"
   (was a SIGSEGV in the message's dump()); a 1 MB value is never echoed whole;
 - DNS rebinding: a foreign Host is refused (403) for reads and writes; localhost, 127.0.0.1 and
-  an --allow-host name are served;;
+  an --allow-host name are served; the same for `occmap fuse --listen` and its --allow-host;
 - cross-site writes: Origin of another site, Sec-Fetch-Site cross-site or same-site, a body
   that is not application/json: refused, nothing changed; the same origin's JSON is taken;
 - bodies: a chunked body is cut at 1 MiB (413, the server's memory does not grow by the 64 MiB
@@ -240,6 +240,21 @@ try:
 
     p.send_signal(signal.SIGTERM)
     check(p.wait(timeout=60) == 0, "SIGTERM: exit 0")
+
+    # --- 2. Host for `occmap fuse --listen`: the same check, with its own --allow-host. No broker
+    # listens on the port given: the fuse waits for one with its view up.
+    with socket.socket() as free:
+        free.bind(("127.0.0.1", 0))
+        broker_port = free.getsockname()[1]
+    f, fport = start([site, "--listen", "127.0.0.1:0", "--broker", f"mqtt://127.0.0.1:{broker_port}", "--no-cache",
+                      "--no-video", "--out", os.path.join(work, "fuse"), "--allow-host", "occmap.test"], "fuse", "fuse")
+    for host, want in [("attacker.example", 403), (f"attacker.example:{fport}", 403), (f"occmap.test:{fport}", 200),
+                       (f"localhost:{fport}", 200), (f"127.0.0.1:{fport}", 200)]:
+        status, reply = request(fport, "GET", "/api/site", host=host)
+        check(status == want and (want == 200 or "--allow-host" in error_of(reply)),
+              f"fuse: GET /api/site, Host: {host}: {want} ({status})")
+    f.send_signal(signal.SIGTERM)
+    check(f.wait(timeout=60) == 0, "fuse: SIGTERM: exit 0")
 finally:
     code = h.finish()
 sys.exit(code)

@@ -824,6 +824,10 @@ add("cli_fuse_token_short", ["{bin}", "fuse", "{w}/lab/site.yaml", "--listen", "
     ["--token", "at least 16 characters, found 5"])
 add("cli_serve_allow_host", ["{bin}", "serve", "{w}/lab/site.yaml", "--allow-host", "a/b", "--out", "{c}/o"],
     ["--allow-host", "a/b"])
+add("cli_fuse_allow_host", ["{bin}", "fuse", "{w}/lab/site.yaml", "--listen", "127.0.0.1:0", "--allow-host", "a b",
+                            "--out", "{c}/o"], ["--allow-host", "a b"])
+add("cli_fuse_allow_host_without_listen", ["{bin}", "fuse", "{w}/lab/site.yaml", "--allow-host", "occmap.test",
+                                           "--out", "{c}/o"], ["--allow-host", "--listen"])
 add("cli_fuse_listen_bad_port", ["{bin}", "fuse", "{w}/lab/site.yaml", "--listen", "127.0.0.1:99999", "--out", "{c}/o"],
     ["--listen", "99999"])
 add("cli_run_sync", ["{bin}", "run", "{w}/lab/site.yaml", "--sync", "clock", "--out", "{c}/o"], ["--sync", "clock"])
