@@ -16,6 +16,7 @@
 #include "occmap/geometry/rotation.h"
 #include "occmap/util/file_util.h"
 #include "occmap/util/safe_files.h"
+#include "occmap/util/text_lines.h"
 #include "occmap/util/yaml_util.h"
 
 namespace occmap {
@@ -23,19 +24,12 @@ namespace {
 
 constexpr std::string_view kColumns = "u_px,v_px,x_m,y_m[,label]";
 
-std::string_view Trim(std::string_view s) {
-  const size_t b = s.find_first_not_of(" \t\r");
-  if (b == std::string_view::npos) return {};
-  const size_t e = s.find_last_not_of(" \t\r");
-  return s.substr(b, e - b + 1);
-}
-
 std::vector<std::string_view> SplitCommas(std::string_view line) {
   std::vector<std::string_view> out;
   size_t start = 0;
   while (true) {
     const size_t comma = line.find(',', start);
-    out.push_back(Trim(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
+    out.push_back(TrimBlanks(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
     if (comma == std::string_view::npos) break;
     start = comma + 1;
   }
@@ -215,20 +209,7 @@ Result<std::vector<FloorPoint>> ParseFloorPoints(std::string_view text, const st
   // Spreadsheets write "CSV UTF-8" with a byte-order mark.
   if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
   bool seen_data = false;
-  int line_no = 0;
-  size_t pos = 0;
-  while (pos <= text.size()) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string_view::npos) end = text.size();
-    std::string_view line = text.substr(pos, end - pos);
-    pos = end + 1;
-    ++line_no;
-    if (const size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
-    line = Trim(line);
-    if (line.empty()) {
-      if (end == text.size()) break;
-      continue;
-    }
+  OCCMAP_RETURN_IF_ERROR(ForEachTextLine(text, [&](int64_t line_no, std::string_view line) -> Status {
     const std::string where = fmt::format("{}:{}", file_name, line_no);
     const std::vector<std::string_view> cols = SplitCommas(line);
     if (!seen_data && !cols.empty() && !ParseFiniteDouble(cols[0]) && cols[0] == "u_px") {
@@ -239,7 +220,7 @@ Result<std::vector<FloorPoint>> ParseFloorPoints(std::string_view text, const st
         return InvalidInput(fmt::format("{}: header: expected '{}', found '{}'", where, kColumns, line));
       }
       seen_data = true;
-      continue;
+      return Status::Ok();
     }
     seen_data = true;
     if (cols.size() != 4 && cols.size() != 5) {
@@ -262,8 +243,8 @@ Result<std::vector<FloorPoint>> ParseFloorPoints(std::string_view text, const st
     if (cols.size() == 5) p.label = std::string(cols[4]);
     p.where = where;
     points.push_back(std::move(p));
-    if (end == text.size()) break;
-  }
+    return Status::Ok();
+  }));
   OCCMAP_RETURN_IF_ERROR(ValidateFloorPoints(points, file_name));
   return points;
 }

@@ -8,6 +8,7 @@
 #include <system_error>
 
 #include "occmap/util/safe_files.h"
+#include "occmap/util/text_lines.h"
 
 namespace occmap {
 namespace {
@@ -38,20 +39,8 @@ Result<std::vector<double>> ParseFrameTimes(std::string_view text, std::string_v
   }
   std::vector<double> times_s;
   int form = 0;  // words per line, fixed by the first line
-  int64_t line_number = 0;
-  size_t pos = 0;
-  while (pos <= text.size()) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string_view::npos) end = text.size();
-    std::string_view line = text.substr(pos, end - pos);
-    pos = end + 1;
-    ++line_number;
-    if (const size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
+  OCCMAP_RETURN_IF_ERROR(ForEachTextLine(text, [&](int64_t line_number, std::string_view line) -> Status {
     const std::vector<std::string_view> words = Words(line);
-    if (words.empty()) {
-      if (end == text.size()) break;
-      continue;
-    }
     const auto where = [&] { return fmt::format("{}:{}", source_name, line_number); };
     if (words.size() > 2) {
       return InvalidInput(fmt::format("{}: expected 'TIME' or 'INDEX TIME', found '{}'", where(), Cut(line)));
@@ -86,8 +75,8 @@ Result<std::vector<double>> ParseFrameTimes(std::string_view text, std::string_v
                                       numbers_fps > 0 ? times_s.back() * numbers_fps : times_s.back()));
     }
     times_s.push_back(time_s);
-    if (end == text.size()) break;
-  }
+    return Status::Ok();
+  }));
   if (times_s.empty()) return InvalidInput(fmt::format("{}: expected a time per image, found none", source_name));
   return times_s;
 }
