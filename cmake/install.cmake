@@ -41,6 +41,9 @@ install(DIRECTORY ${CMAKE_SOURCE_DIR}/sites/ DESTINATION ${CMAKE_INSTALL_DATADIR
         FILES_MATCHING PATTERN "*.yaml")
 install(FILES ${CMAKE_SOURCE_DIR}/README.md ${CMAKE_SOURCE_DIR}/docs/formats.md
         DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT bin)
+# The guides the README links to (docs/NAME.md), so that its links hold in the installed folder.
+install(DIRECTORY ${CMAKE_SOURCE_DIR}/docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}/docs COMPONENT bin
+        FILES_MATCHING PATTERN "*.md" PATTERN "perf-log.md" EXCLUDE)
 if(TARGET occmap_man)
   install(FILES ${CMAKE_BINARY_DIR}/occmap.1.gz DESTINATION ${CMAKE_INSTALL_MANDIR}/man1 COMPONENT bin)
 endif()

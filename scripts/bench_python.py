@@ -5,7 +5,7 @@ the Python module against the same work in a C++ loop: the cost of the binding p
     PYTHONPATH=build/release/python python3 scripts/bench_python.py [--data-root ../shared/datasets]
 
 Masks: 20 people (0.5 x 0.5 x 1.75 m boxes) at seeded random places, projected into each camera.
-Prints milliseconds per call both ways and their ratio (the README's Python section).
+Prints milliseconds per call both ways and their ratio (docs/python.md).
 """
 import argparse
 import pathlib

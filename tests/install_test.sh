@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The installed occmap: `cmake --install` into a scratch prefix (headers closed under #include and
 # free of test hooks, the CMake package, the Python module, the manual page), a consumer project built against it
-# with find_package(occmap) (README's "Use from C++"), and `cpack -G DEB` unpacked with dpkg -x
+# with find_package(occmap) (docs/cpp.md), and `cpack -G DEB` unpacked with dpkg -x
 # into a scratch root whose occmap runs the demo.
 # Usage: install_test.sh BUILD_DIR SOURCE_DIR DATASETS_DIR PYTHON
 set -euo pipefail
@@ -54,20 +54,20 @@ set +e
 set -e
 [ $code -eq 2 ] && grep -q "missing.yaml" "$tmp/err" || fail "consumer on a missing site: exit $code"
 
-# README's "Use from C++", its two blocks exactly as printed, under the compiler's default
+# docs/cpp.md's example, its two blocks exactly as printed, under the compiler's default
 # standard: occmap::occmap must bring C++20 itself.
 mkdir -p "$tmp/readme"
-awk '/^## Use from C\+\+/ {on = 1} on && /^```cmake$/ {f = "CMakeLists.txt"; next} on && /^```cpp$/ {f = "main.cc"; next}
-     on && /^```$/ {if (f == "main.cc") exit; f = ""; next} f != "" {print > (dir "/" f)}' dir="$tmp/readme" "$src/README.md"
-[ -s "$tmp/readme/CMakeLists.txt" ] && [ -s "$tmp/readme/main.cc" ] || fail "README's C++ example not found"
+awk '/^# Use from C\+\+/ {on = 1} on && /^```cmake$/ {f = "CMakeLists.txt"; next} on && /^```cpp$/ {f = "main.cc"; next}
+     on && /^```$/ {if (f == "main.cc") exit; f = ""; next} f != "" {print > (dir "/" f)}' dir="$tmp/readme" "$src/docs/cpp.md"
+[ -s "$tmp/readme/CMakeLists.txt" ] && [ -s "$tmp/readme/main.cc" ] || fail "docs/cpp.md's C++ example not found"
 cmake -S "$tmp/readme" -B "$tmp/readme/build" -G Ninja -DCMAKE_PREFIX_PATH="$tmp/prefix" -DCMAKE_BUILD_TYPE=Release \
-  >"$tmp/readme.log" 2>&1 || { cat "$tmp/readme.log"; fail "README's CMakeLists.txt does not configure"; }
+  >"$tmp/readme.log" 2>&1 || { cat "$tmp/readme.log"; fail "docs/cpp.md's CMakeLists.txt does not configure"; }
 nice -n 10 cmake --build "$tmp/readme/build" -j2 >>"$tmp/readme.log" 2>&1 \
-  || { tail -30 "$tmp/readme.log"; fail "README's example does not build"; }
+  || { tail -30 "$tmp/readme.log"; fail "docs/cpp.md's example does not build"; }
 set +e
 "$tmp/readme/build/count_people" "$tmp/missing.yaml" 2>"$tmp/err"; code=$?
 set -e
-[ $code -eq 2 ] && grep -q "missing.yaml" "$tmp/err" || fail "README's example on a missing site: exit $code"
+[ $code -eq 2 ] && grep -q "missing.yaml" "$tmp/err" || fail "docs/cpp.md's example on a missing site: exit $code"
 
 # The Python module from the installed tree.
 if [ -d "$tmp/prefix/lib/python3/dist-packages/occmap" ]; then

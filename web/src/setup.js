@@ -267,7 +267,7 @@ function CameraSetup({ camera, draft, update }) {
           ? html`<p class="hint" data-testid="homography-hint">A floor homography cannot follow lens distortion, which
               bends the floor's straight lines near the picture's edges. Choose <b>lens and pose</b> with 8 or more
               points spread over the picture (near its edges too), or give this camera its intrinsics first
-              (<code>occmap calibrate</code> with a printed board, README "Calibrate your cameras").</p>` : null}
+              (<code>occmap calibrate</code> with a printed board, docs/own-cameras.md "Calibrate your cameras").</p>` : null}
         ${error ? html`<span class="error" data-testid="calibration-error">${error}</span>` : null}
       </div>` : null}
     </div>`;
