@@ -494,6 +494,8 @@ struct BenchCommand {
   double changed_fraction = 0.10;
   int rendered_frames = 4;
   int wildtrack_end_to_end_frames = 30;
+  std::vector<std::string> datasets;
+  int adaptive_frames = 20;
 };
 
 Status RunBenchCommand(const CommonOptions& common, const BenchCommand& cmd) {
@@ -505,6 +507,8 @@ Status RunBenchCommand(const CommonOptions& common, const BenchCommand& cmd) {
   o.changed_fraction = cmd.changed_fraction;
   o.rendered_frames = cmd.rendered_frames;
   o.wildtrack_end_to_end_frames = cmd.wildtrack_end_to_end_frames;
+  for (const std::string& d : cmd.datasets) o.adaptive.datasets.emplace_back(d);
+  o.adaptive.frames = cmd.adaptive_frames;
   if (!common.data_root.empty()) o.data_root = common.data_root;
   OCCMAP_RETURN_IF_ERROR(o.Validate());
   Context ctx(common.threads);
@@ -669,7 +673,15 @@ int main(int argc, char** argv) {
 
   BenchCommand bench_opts;
   CLI::App* bench_cmd = app.add_subcommand("bench", "measure change detection + fusion: paper loop, OpenCV, fast path");
-  bench_cmd->add_option("--workload", bench_opts.workload, "paper, wildtrack or all")->capture_default_str();
+  bench_cmd->add_option("--workload", bench_opts.workload,
+                        "paper, wildtrack, adaptive (the real-scene path on --dataset's frames) or all")
+      ->capture_default_str();
+  bench_cmd->add_option("--dataset", bench_opts.datasets,
+                        "adaptive workload: a dataset folder written by `occmap synth` (or a site file); repeatable");
+  bench_cmd->add_option("--adaptive-frames", bench_opts.adaptive_frames,
+                        "adaptive workload: frame sets read, learned from and cycled through")
+      ->capture_default_str()
+      ->check(CLI::Range(2, 255));
   bench_cmd->add_option("--frames", bench_opts.frames, "distinct random frames per repetition")->capture_default_str();
   bench_cmd->add_option("--site", bench_opts.site, "the WILDTRACK site file")->capture_default_str();
   bench_cmd->add_option("--end-to-end-frames", bench_opts.end_to_end_frames,

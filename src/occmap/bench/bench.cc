@@ -594,8 +594,12 @@ Result<RenderedFrames> RenderWildtrackFrames(const std::filesystem::path& datase
 }
 
 Status BenchOptions::Validate() const {
-  if (workload != "paper" && workload != "wildtrack" && workload != "all" && workload != "tiny") {
-    return InvalidInput(fmt::format("--workload: expected paper, wildtrack or all, found '{}'", workload));
+  if (workload != "paper" && workload != "wildtrack" && workload != "adaptive" && workload != "all" &&
+      workload != "tiny") {
+    return InvalidInput(fmt::format("--workload: expected paper, wildtrack, adaptive or all, found '{}'", workload));
+  }
+  if (workload == "adaptive" || (workload == "all" && !adaptive.datasets.empty())) {
+    OCCMAP_RETURN_IF_ERROR(adaptive.Validate());
   }
   if (frames < 1 || frames > 1000) return InvalidInput(fmt::format("--frames: expected 1..1000, found {}", frames));
   if (repetitions < 1) return InvalidInput("repetitions: expected at least 1");
@@ -701,9 +705,10 @@ std::string MachineName() {
 Result<BenchResults> RunBench(const BenchOptions& options, Context& ctx) {
   OCCMAP_RETURN_IF_ERROR(options.Validate());
   std::vector<std::string> names;
+  const bool adaptive = options.workload == "adaptive" || (options.workload == "all" && !options.adaptive.datasets.empty());
   if (options.workload == "all") {
     names = {"paper", "wildtrack"};
-  } else {
+  } else if (options.workload != "adaptive") {
     names = {options.workload};
   }
   std::vector<WorkloadResult> results;
@@ -725,7 +730,14 @@ Result<BenchResults> RunBench(const BenchOptions& options, Context& ctx) {
   }
   BenchResults all;
   all.workloads = std::move(results);
-  if (options.end_to_end_frames > 0) {
+  if (adaptive) {
+    AdaptiveBenchOptions a = options.adaptive;
+    if (a.data_root.empty()) a.data_root = options.data_root;
+    OCCMAP_ASSIGN_OR_RETURN(all.adaptive, RunAdaptiveBench(a, ctx));
+  }
+  if (options.workload == "adaptive") {
+    all.end_to_end.note = "not measured (the adaptive workload alone)";
+  } else if (options.end_to_end_frames > 0) {
     OCCMAP_ASSIGN_OR_RETURN(all.end_to_end, MeasureEndToEnd(options.end_to_end_frames, ctx));
   } else {
     all.end_to_end.note = "not measured (--end-to-end-frames 0)";
@@ -865,6 +877,7 @@ std::string BenchTable(const BenchResults& all) {
       s += fmt::format("\nend to end ({}): {}\n", e->scene, e->note);
     }
   }
+  s += AdaptiveTable(all.adaptive);
   return s;
 }
 
@@ -1054,6 +1067,7 @@ nlohmann::json BenchJson(const BenchResults& all) {
     list.push_back(j);
   }
   out["workloads"] = list;
+  out["adaptive"] = AdaptiveJson(all.adaptive);
   return out;
 }
 

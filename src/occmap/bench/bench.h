@@ -51,6 +51,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include "occmap/bench/adaptive_bench.h"
 #include "occmap/fusion/people_options.h"
 #include "occmap/geometry/camera_model.h"
 #include "occmap/lut/column_lut.h"
@@ -62,7 +63,7 @@
 namespace occmap::bench {
 
 struct BenchOptions {
-  std::string workload = "all";  // paper, wildtrack, all, tiny
+  std::string workload = "all";  // paper, wildtrack, adaptive, all, tiny
   int frames = 4;                // distinct frames cycled through per repetition
   int repetitions = 5;           // the median over these is reported
   double changed_fraction = 0.10;
@@ -79,6 +80,9 @@ struct BenchOptions {
   // and trajectories) rendered to this many frames of 1920x1080 H.264 per camera, measured as
   // the lab above (0 = not measured; at least 2 * 10 + 2 for a steady state after the warm-up).
   int wildtrack_end_to_end_frames = 0;
+  // The adaptive workload (adaptive_bench.h): its datasets and frames; run by "adaptive", and by
+  // "all" when datasets are given.
+  AdaptiveBenchOptions adaptive;
   Status Validate() const;
 };
 
@@ -209,9 +213,11 @@ struct BenchResults {
   std::vector<WorkloadResult> workloads;
   EndToEndResult end_to_end;            // the lab scene (4 x 640x480): the paper workload's
   EndToEndResult wildtrack_end_to_end;  // the WILDTRACK scene (7 x 1920x1080): the wildtrack workload's
+  std::vector<AdaptiveResult> adaptive;  // the adaptive workload, one per dataset
 };
 
-// Runs the workloads named by options.workload (all = paper and wildtrack), then the end-to-end
+// Runs the workloads named by options.workload (all = paper and wildtrack, and adaptive when it
+// has datasets), then the end-to-end
 // measurement when asked.
 Result<BenchResults> RunBench(const BenchOptions& options, Context& ctx);
 // The lab scene, or with wildtrack_dir (the dataset folder) the WILDTRACK scene.

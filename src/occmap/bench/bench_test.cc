@@ -12,6 +12,9 @@
 #include "occmap/fusion/people_options.h"
 #include "occmap/lut/column_lut.h"
 #include "occmap/lut/test_scene.h"
+#include "occmap/sim/builtin_scenes.h"
+#include "occmap/sim/dataset_writer.h"
+#include "occmap/sim/scene.h"
 #include "occmap/site/site.h"
 #include "occmap/util/testing.h"
 
@@ -465,6 +468,76 @@ TEST(Bench, EndToEndJsonCarriesThePeopleAndFloorRuns) {
   EXPECT_NE(BenchTable(all).find("floor AND (people detector off"), std::string::npos);
 }
 
+
+
+// The adaptive workload on a small rendered lab (quarter size, a few frames): the real-scene
+// path, OpenCV's MOG2 and the paper's fused test are each measured on 1 and 2 threads, and the
+// table and the JSON carry them. No timing is asserted.
+TEST(Bench, AdaptiveWorkloadMeasuresTheRealScenePathMog2AndThePaperTest) {
+  testing::TempDir dir;
+  Context ctx(2);
+  sim::BuiltinSceneOptions o;
+  o.num_frames = 6;
+  o.image_scale = 0.25;
+  auto spec = sim::MakeBuiltinSceneSpec("lab", o);
+  ASSERT_TRUE(spec.ok()) << spec.status().ToString();
+  auto scene = sim::Scene::Create(std::move(*spec));
+  ASSERT_TRUE(scene.ok()) << scene.status().ToString();
+  sim::DatasetOptions d;
+  d.out_dir = dir.path() / "lab";
+  d.change_masks = false;
+  d.gt_rasters = false;
+  auto written = sim::WriteDataset(*scene, d, ctx);
+  ASSERT_TRUE(written.ok()) << written.status().ToString();
+
+  BenchOptions b;
+  b.workload = "adaptive";
+  b.repetitions = 1;
+  b.adaptive.datasets = {d.out_dir};
+  b.adaptive.frames = 4;
+  b.adaptive.repetitions = 1;
+  auto results = RunBench(b, ctx);
+  ASSERT_TRUE(results.ok()) << results.status().ToString();
+  EXPECT_TRUE(results->workloads.empty());
+  EXPECT_FALSE(results->end_to_end.measured);
+  ASSERT_EQ(results->adaptive.size(), 1u);
+  const AdaptiveResult& r = results->adaptive[0];
+  EXPECT_EQ(r.name, "lab");
+  EXPECT_EQ(r.cameras, 4);
+  EXPECT_EQ(r.frames, 4);
+  EXPECT_EQ(r.threads, 2);
+  EXPECT_TRUE(r.chroma);
+  for (double pps : {r.adaptive_1_pps, r.adaptive_all_pps, r.change_1_pps, r.update_1_pps, r.mog2_1_pps,
+                     r.mog2_all_pps, r.paper_1_pps, r.paper_all_pps}) {
+    EXPECT_GT(pps, 0.0);
+  }
+  const std::string table = BenchTable(*results);
+  for (const char* row : {"adaptive: change test + upkeep, 1 thread", "adaptive: change test + upkeep, 2 threads",
+                          "OpenCV MOG2 apply(), 1 thread", "OpenCV MOG2 apply(), 2 threads",
+                          "paper's test fused (FastFusion), 1 thread", "paper's test fused (FastFusion), 2 threads"}) {
+    EXPECT_NE(table.find(row), std::string::npos) << row << "\n" << table;
+  }
+  const nlohmann::json j = BenchJson(*results);
+  ASSERT_EQ(j["adaptive"].size(), 1u);
+  EXPECT_DOUBLE_EQ(j["adaptive"][0]["mog2_all_threads_pixels_per_second"].get<double>(), r.mog2_all_pps);
+  EXPECT_DOUBLE_EQ(j["adaptive"][0]["paper_fused_1_thread_pixels_per_second"].get<double>(), r.paper_1_pps);
+  EXPECT_DOUBLE_EQ(j["adaptive"][0]["adaptive_all_threads_pixels_per_second"].get<double>(), r.adaptive_all_pps);
+}
+
+TEST(Bench, AdaptiveWorkloadNeedsADatasetOfFrames) {
+  BenchOptions b;
+  b.workload = "adaptive";
+  const Status none = b.Validate();
+  EXPECT_FALSE(none.ok());
+  EXPECT_NE(none.message().find("--dataset"), std::string::npos) << none.message();
+  b.adaptive.datasets = {"/nonexistent/dataset"};
+  Context ctx(1);
+  auto results = RunBench(b, ctx);
+  EXPECT_FALSE(results.ok());
+  EXPECT_NE(results.status().message().find("/nonexistent/dataset"), std::string::npos) << results.status().message();
+  b.adaptive.frames = 1;
+  EXPECT_FALSE(b.Validate().ok());
+}
+
 }  // namespace
 }  // namespace occmap::bench
-
