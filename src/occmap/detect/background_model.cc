@@ -1042,6 +1042,23 @@ std::array<int, 2> BackgroundModel::ExpectedChroma(int block_y, int bu, int bv) 
 void BackgroundModel::ExpectChroma() {
   expected_u_.resize(static_cast<size_t>(cw_) * ch_);
   expected_v_.resize(static_cast<size_t>(cw_) * ch_);
+  if (!colour_.fitted) {
+    // The luma's gain alone: each plane's expected chroma depends on its own level only, one
+    // table of ExpectedChroma's values (the same doubles, rounded once per level, not per block).
+    std::array<uint8_t, 256> table{};
+    for (int level = 0; level < 256; ++level) table[static_cast<size_t>(level)] = static_cast<uint8_t>(ExpectedChroma(0, level, level)[0]);
+    for (int cy = 0; cy < ch_; ++cy) {
+      const uint8_t* bu = bgu8_.row(cy);
+      const uint8_t* bv = bgv8_.row(cy);
+      uint8_t* eu = expected_u_.data() + static_cast<size_t>(cy) * cw_;
+      uint8_t* ev = expected_v_.data() + static_cast<size_t>(cy) * cw_;
+      for (int cx = 0; cx < cw_; ++cx) {
+        eu[cx] = table[bu[cx]];
+        ev[cx] = table[bv[cx]];
+      }
+    }
+    return;
+  }
   for (int cy = 0; cy < ch_; ++cy) {
     const uint8_t* b8 = bg8_.row(2 * cy);
     const uint8_t* bu = bgu8_.row(cy);
