@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/background_segm.hpp>
 
+#include "occmap/detect/adaptive_change_kernels.h"
 #include "occmap/util/simd.h"
 
 namespace occmap {
@@ -1346,6 +1347,10 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
   const int32_t f = static_cast<int32_t>(frame_index);
   if (first_frame_ < 0) first_frame_ = frame_index;
   int64_t absorbed = 0;
+  // The free background pixels (most of them) in the row kernel (adaptive_change_kernels.h),
+  // the others in the loop below.
+  update_rest_.assign(static_cast<size_t>(width_), 1);
+  const bool row_kernel = alpha <= 32767;
   for (int y = 0; y < height_; ++y) {
     const uint8_t* fy = frame.y.row(y);
     const uint8_t* prot = protection.row(y);
@@ -1353,7 +1358,27 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
     const uint8_t* fu = chroma_row ? frame.u.row(y / 2) : nullptr;
     const uint8_t* fv = chroma_row ? frame.v.row(y / 2) : nullptr;
     const size_t row = static_cast<size_t>(y) * width_;
+    const uint8_t* rest = update_rest_.data();
+    if (row_kernel) {
+      const size_t crow = chroma_row ? static_cast<size_t>(y / 2) * cw_ : 0;
+      pixels_updated_ += UpdateFreeBackgroundRow(
+          {.width = width_, .frame_y = fy, .protection = prot, .classes = class_.data() + row,
+           .background_y = by_.data() + row, .previous_y = prev_y_.data() + row,
+           .steady_frames = steady_frames_.data() + row, .set_frame = set_frame_.data() + row, .inv_y = inv_y.data(),
+           .alpha = alpha, .frame = f, .frame_u = fu, .frame_v = fv,
+           .background_u = chroma_row ? bu_.data() + crow : nullptr, .background_v = chroma_row ? bv_.data() + crow : nullptr,
+           .inv_c = colour_.fitted ? nullptr : inv_c.data(), .rest = update_rest_.data()});
+    }
     for (int x = 0; x < width_; ++x) {
+      if (x + 8 <= width_) {  // past the kernel's pixels eight at a time
+        uint64_t word;
+        std::memcpy(&word, rest + x, 8);
+        if (word == 0) {
+          x += 7;
+          continue;
+        }
+      }
+      if (rest[x] == 0) continue;
       const size_t i = row + x;
       const uint8_t cls = class_[i];
       const int level = fy[x];

@@ -431,6 +431,7 @@ class BackgroundModel {
     return e;
   }
   std::vector<uint8_t> chroma_changed_;  // per pixel of the current chroma row
+  std::vector<uint8_t> update_rest_;     // Update: the pixels of the row its kernel left to it
   Image<uint8_t> grow_seeds_, grow_band_;  // GrowChanges: the changes that grow, dilated by a pixel
   Image<int32_t> grow_labels_;             // and their connected components
   std::vector<uint8_t> grow_seed_of_;      // per component: whether it grows
