@@ -243,6 +243,9 @@ struct RunCommand {
 };
 
 Status RunRun(const CommonOptions& common, RunCommand cmd) {
+  if (cmd.options.loop && cmd.options.max_frames < 0) {
+    return InvalidInput("--loop: give --frames N too (a looped file never ends, and the run's files would grow for ever)");
+  }
   SiteLoadOptions load;
   if (!common.data_root.empty()) load.data_root = fs::path(common.data_root);
   OCCMAP_ASSIGN_OR_RETURN(Site site, LoadSite(cmd.site_path, load));
@@ -566,6 +569,8 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--start", run.options.start_frame, "first frame of every source")
       ->capture_default_str()
       ->check(CLI::Range(int64_t{0}, int64_t{1'000'000'000'000}));
+  run_cmd->add_flag("--loop", run.options.loop,
+                    "read video files and image sequences again from their start when they end (with --frames)");
   run_cmd->add_option("--cache-dir", run.cache_dir, "folder of cached tables and backgrounds (default: ~/.cache/occmap)");
   run_cmd->add_flag("--no-cache", run.no_cache, "never read or write cached tables or backgrounds");
   run_cmd->add_option("--sync", run.sync, "synchronise cameras by frame index or timestamp")

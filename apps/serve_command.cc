@@ -32,6 +32,7 @@ CLI::App* AddServeCommand(CLI::App& app, ServeCommand& cmd) {
   c->add_option("--start", cmd.start_frame, "first frame of every source")
       ->capture_default_str()
       ->check(CLI::Range(int64_t{0}, int64_t{1'000'000'000'000}));
+  c->add_flag("--loop", cmd.loop, "read video files and image sequences again from their start when they end");
   c->add_option("--cache-dir", cmd.cache_dir, "folder of cached tables and backgrounds (default: ~/.cache/occmap)");
   c->add_flag("--no-cache", cmd.no_cache, "never read or write cached tables or backgrounds");
   c->add_option("--sync", cmd.sync, "synchronise cameras by frame index or timestamp")
@@ -118,6 +119,7 @@ Status RunServe(const ServeCommand& cmd, int threads, const std::string& data_ro
   o.out_dir = cmd.out_dir;
   o.max_frames = cmd.max_frames;
   o.start_frame = cmd.start_frame;
+  o.loop = cmd.loop;
   o.cache_dir = cmd.no_cache ? fs::path() : cmd.cache_dir.empty() ? DefaultCacheDir() : fs::path(cmd.cache_dir);
   o.sync = cmd.sync == "timestamp" ? FrameSync::kTimestamp : FrameSync::kIndex;
   o.on_camera_failure = cmd.continue_without_camera ? OnCameraFailure::kContinue : OnCameraFailure::kStop;

@@ -24,6 +24,7 @@ struct ServeCommand {
   // The run's input and output options (as `occmap run`'s).
   int64_t max_frames = -1;
   int64_t start_frame = 0;
+  bool loop = false;
   std::string cache_dir;
   bool no_cache = false;
   std::string sync = "index";

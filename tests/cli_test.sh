@@ -223,6 +223,13 @@ check calibrate_board_video 2 "board views: 0 of 3 usable, at least 3 needed" --
 check calibrate_board_video_names 2 "cam1.mp4 frame 30: no 9x6 checkerboard found" -- \
   "$occmap" calibrate --board-video "$work/labv/frames/cam1.mp4" --frame-step 15 --square-m 0.03 --out "$work/cal"
 
+# --loop: the 31-frame videos read again from their start; without --frames a run never ends.
+check run_loop 0 "wrote .*summary.json" -- "$occmap" run "$work/labv/site.yaml" --loop --frames 70 --no-cache \
+  --out "$work/labv-loop"
+check run_loop_frames 0 "^70$" -- python3 -c "import json; print(json.load(open('$work/labv-loop/summary.json'))['frames'])"
+check run_loop_needs_frames 2 "--loop: give --frames N too" -- "$occmap" run "$work/labv/site.yaml" --loop --no-cache \
+  --out "$work/labv-loop"
+
 # A rendered lab camera: 8 floor points projected through its calibration with 0.5 px noise;
 # the camera from them (pinhole with the intrinsics, homography without), written into the
 # site, which must still load.

@@ -2,6 +2,9 @@
 
 #include <fmt/core.h>
 
+#include <cmath>
+#include <utility>
+
 namespace occmap {
 
 const char* ToString(FrameSourceSpec::Kind kind) {
@@ -61,6 +64,72 @@ Status FrameSource::SkipTo(int64_t index) {
     }
   }
   return Status::Ok();
+}
+
+namespace {
+
+class LoopingSource final : public FrameSource {
+ public:
+  LoopingSource(FrameSourceSpec spec, FrameSourceOptions options, std::unique_ptr<FrameSource> first)
+      : spec_(std::move(spec)), options_(std::move(options)), inner_(std::move(first)) {}
+
+  std::string Describe() const override { return inner_->Describe() + ", looped"; }
+  ImageSize size() const override { return inner_->size(); }
+  std::optional<double> fps() const override { return inner_->fps(); }
+  std::optional<int64_t> next_index() const override {
+    const auto next = inner_->next_index();
+    if (!next) return std::nullopt;
+    return *next + index_offset_;
+  }
+
+  Result<bool> Read(Frame& frame) override {
+    OCCMAP_ASSIGN_OR_RETURN(bool got, inner_->Read(frame));
+    if (!got) {
+      if (pass_frames_ == 0) return false;  // an empty pass would loop for ever
+      OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<FrameSource> again, OpenFrameSource(spec_, options_));
+      if (again->size() != inner_->size()) {
+        return InvalidInput(fmt::format("{}: read again for --loop, it is {}x{}, was {}x{}", Describe(),
+                                        again->size().width, again->size().height, inner_->size().width,
+                                        inner_->size().height));
+      }
+      inner_ = std::move(again);
+      pass_frames_ = 0;
+      OCCMAP_ASSIGN_OR_RETURN(got, inner_->Read(frame));
+      if (!got) return false;
+      // This pass follows the last frame out: the next index, a frame interval later.
+      index_offset_ = last_index_ + 1 - frame.index;
+      const double interval = fps() && *fps() > 0 ? 1.0 / *fps() : 0.0;
+      time_shift_s_ = std::isfinite(last_s_) && std::isfinite(frame.timestamp_s)
+                          ? last_s_ + interval - frame.timestamp_s : 0.0;
+    }
+    ++pass_frames_;
+    frame.index += index_offset_;
+    if (std::isfinite(frame.timestamp_s)) frame.timestamp_s += time_shift_s_;
+    last_index_ = frame.index;
+    last_s_ = frame.timestamp_s;
+    return true;
+  }
+
+ private:
+  FrameSourceSpec spec_;
+  FrameSourceOptions options_;
+  std::unique_ptr<FrameSource> inner_;
+  int64_t pass_frames_ = 0;   // frames of this pass so far
+  int64_t index_offset_ = 0;  // added to this pass's indices
+  double time_shift_s_ = 0;   // added to this pass's timestamps
+  int64_t last_index_ = -1;
+  double last_s_ = std::nan("");
+};
+
+}  // namespace
+
+Result<std::unique_ptr<FrameSource>> LoopFrameSource(const FrameSourceSpec& spec, const FrameSourceOptions& options,
+                                                     std::unique_ptr<FrameSource> first) {
+  if (spec.kind != FrameSourceSpec::Kind::kVideo && spec.kind != FrameSourceSpec::Kind::kImages) {
+    return InvalidInput(fmt::format("{} source '{}': --loop is for video files and image sequences",
+                                    ToString(spec.kind), RedactUrl(spec.location)));
+  }
+  return std::unique_ptr<FrameSource>(std::make_unique<LoopingSource>(spec, options, std::move(first)));
 }
 
 Result<std::unique_ptr<FrameSource>> OpenFrameSource(const FrameSourceSpec& spec, const FrameSourceOptions& options) {

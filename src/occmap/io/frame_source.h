@@ -124,6 +124,14 @@ class FrameSource {
 
 Result<std::unique_ptr<FrameSource>> OpenFrameSource(const FrameSourceSpec& spec, const FrameSourceOptions& options);
 
+// `first` (opened from spec and options) read again from its start each time it ends, for ever:
+// a video file or image sequence as an endless camera (`--loop`). Indices go on counting and
+// timestamps go on increasing (each pass shifted by the previous passes' length: their last
+// timestamp plus a frame interval); a source that ends without a frame ends the loop too.
+// Streams and masks are refused.
+Result<std::unique_ptr<FrameSource>> LoopFrameSource(const FrameSourceSpec& spec, const FrameSourceOptions& options,
+                                                     std::unique_ptr<FrameSource> first);
+
 // A source location for messages: a URL's password replaced ("rtsp://user:secret@cam/1" ->
 // "rtsp://user:***@cam/1"); anything else as it is.
 std::string RedactUrl(const std::string& url);

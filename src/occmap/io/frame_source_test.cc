@@ -174,6 +174,42 @@ TEST(ImageSequence, SingleFileIsAOneFrameSequence) {
   EXPECT_FALSE(*(*source)->Read(frame));
 }
 
+// --loop: three pictures at 10 fps read as an endless camera, indices and times running on.
+TEST(LoopFrameSource, ReadsTheSourceAgainWithIndicesAndTimesGoingOn) {
+  testing::TempDir dir;
+  for (int i = 0; i < 3; ++i) WritePicture(dir / fmt::format("f_{}.png", i), static_cast<uint8_t>(10 * (i + 1)));
+  FrameSourceSpec spec{Kind::kImages, (dir / "f_%d.png").string()};
+  spec.fps = 10;
+  auto first = OpenFrameSource(spec, {});
+  ASSERT_TRUE(first.ok()) << first.status().message();
+  auto looped = LoopFrameSource(spec, {}, std::move(first).value());
+  ASSERT_TRUE(looped.ok()) << looped.status().message();
+  FrameSource& source = **looped;
+  EXPECT_EQ(source.frame_count(), std::nullopt);
+  EXPECT_NE(source.Describe().find(", looped"), std::string::npos) << source.Describe();
+  Frame frame;
+  for (int k = 0; k < 8; ++k) {
+    ASSERT_EQ(source.next_index(), k);
+    auto got = source.Read(frame);
+    ASSERT_TRUE(got.ok()) << got.status().message();
+    ASSERT_TRUE(*got) << "frame " << k;
+    EXPECT_EQ(frame.index, k);
+    EXPECT_NEAR(frame.timestamp_s, 0.1 * k, 1e-9) << "frame " << k;
+    EXPECT_EQ(frame.gray(16, 12), 10 * (k % 3 + 1)) << "frame " << k;
+  }
+  // Skipping goes through the passes too.
+  ASSERT_TRUE(source.SkipTo(20).ok());
+  ASSERT_TRUE(*source.Read(frame));
+  EXPECT_EQ(frame.index, 20);
+  EXPECT_EQ(frame.gray(16, 12), 10 * (20 % 3 + 1));
+}
+
+TEST(LoopFrameSource, StreamsAndMasksAreRefused) {
+  auto looped = LoopFrameSource({Kind::kStream, "udp://127.0.0.1:9"}, {}, nullptr);
+  ASSERT_FALSE(looped.ok());
+  EXPECT_EQ(looped.status().message(), "stream source 'udp://127.0.0.1:9': --loop is for video files and image sequences");
+}
+
 TEST(ImageSequence, FrameOfAnotherSizeIsAnErrorNamingTheFileAndBothSizes) {
   testing::TempDir dir;
   WritePicture(dir / "f_0.png", 1);

@@ -544,6 +544,10 @@ Result<std::vector<CameraState>> OpenCameras(const Site& site, const RunOptions&
       return src.status().WithContext(fmt::format("{}: camera {}", SiteCameraLocation(site, n, "source"), c.cam->id));
     }
     c.source = std::move(src).value();
+    // --loop: a file read again from its start whenever it ends (streams go on by themselves).
+    if (options.loop && FromFile(c.cam->source)) {
+      OCCMAP_ASSIGN_OR_RETURN(c.source, LoopFrameSource(c.cam->source, src_opts, std::move(c.source)));
+    }
     c.info.source = c.source->Describe();
   }
   // Backgrounds: a live stream's are read from the stream as it goes (learn_s of it when

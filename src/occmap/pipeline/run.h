@@ -75,6 +75,9 @@ struct RunOptions {
   std::filesystem::path cache_dir;  // lookup tables and estimated backgrounds; empty: none
   int64_t start_frame = 0;          // first frame (of every source) to process
   int64_t max_frames = -1;          // -1: until a source ends
+  // Video files and image sequences are read again from their start when they end (io's
+  // LoopFrameSource): the run goes on until max_frames or a stop.
+  bool loop = false;
   FrameSync sync = FrameSync::kIndex;
   double sync_tolerance_s = 0.020;  // timestamp sync: largest accepted offset from camera 0
   // Live streams (`stream:` sources, pipeline/frame_reader.h): the frames of one frame set
