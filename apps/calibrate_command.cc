@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -204,6 +205,12 @@ CLI::App* AddCalibrateCommand(CLI::App& app, CalibrateCommand& cmd) {
   c->add_option("--image-size", cmd.image_size, "the camera's image size WxH, without --image");
   c->add_option("--update-site", cmd.update_site, "replace --camera's calibration in this site file (backup SITE.bak)");
   c->add_option("--overlay", cmd.overlay, "draw the floor grid and the points on --image into this PNG");
+  c->add_option("--max-rms-px", cmd.max_rms_px,
+                "refuse a fit whose reprojection RMS is over this (no files written, the site left as it is)")
+      ->capture_default_str();
+  c->add_flag("--force", cmd.force,
+              "write the calibration (and --update-site) even with points named as outliers or an RMS over "
+              "--max-rms-px");
   c->add_flag("--json", cmd.json_to_stdout, "print the report as JSON");
   return c;
 }
@@ -298,9 +305,15 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
   if (!calibrated.ok()) return calibrated.status().WithContext(cmd.points_file);
   const FloorCalibration& cal = *calibrated;
   OCCMAP_ASSIGN_OR_RETURN(std::unique_ptr<CameraModel> model, cal.Model());
+  if (!(cmd.max_rms_px > 0)) return InvalidInput(fmt::format("--max-rms-px: expected > 0, found {}", cmd.max_rms_px));
+  // A wrong point or a poor fit writes nothing a site reads: the files of --out may be the ones
+  // the site names, and --update-site would replace a good calibration.
+  const std::vector<std::string> concerns = CalibrationConcerns(cal, pts, cmd.max_rms_px);
+  const bool refused = !concerns.empty() && !cmd.force;
 
   // The files the site reads.
-  if (cal.pinhole) {
+  if (refused) {
+  } else if (cal.pinhole) {
     OCCMAP_RETURN_IF_ERROR(WriteOpenCvCalibration(*cal.pinhole, 1.0, intr_path, extr_path));
     files["intrinsic"] = intr_path.string();
     files["extrinsic"] = extr_path.string();
@@ -322,6 +335,15 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
   report["rms_floor_m"] = Finite(cal.rms_floor_m);
   report["max_floor_m"] = Finite(cal.max_floor_m);
   report["warnings"] = cal.warnings;
+  report["outliers_checked"] = cal.outliers_checked;
+  if (!cal.outlier_note.empty()) report["outlier_note"] = cal.outlier_note;
+  json jo = json::array();
+  for (size_t i : cal.outliers) jo.push_back(i);
+  report["outliers"] = jo;
+  report["rms_without_outliers_px"] = Finite(cal.rms_without_outliers_px);
+  report["rms_floor_without_outliers_m"] = Finite(cal.rms_floor_without_outliers_m);
+  report["concerns"] = concerns;
+  report["refused"] = refused;
   json jp = json::array();
   for (size_t i = 0; i < pts.size(); ++i) {
     const FloorPointError& e = cal.errors[i];
@@ -329,7 +351,9 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
                   {"floor_m", Vec(pts[i].floor_m)}, {"reprojected_px", Vec(e.reprojected_px)},
                   {"reprojection_px", Finite(e.reprojection_px)},
                   {"floor_from_pixel_m", e.floor_from_pixel_m ? Vec(*e.floor_from_pixel_m) : json(nullptr)},
-                  {"floor_error_m", Finite(e.floor_m)}});
+                  {"floor_error_m", Finite(e.floor_m)},
+                  {"predicted_error_px", i < cal.predicted_error_px.size() ? Finite(cal.predicted_error_px[i]) : json(nullptr)},
+                  {"outlier", std::find(cal.outliers.begin(), cal.outliers.end(), i) != cal.outliers.end()}});
   }
   report["points"] = jp;
   if (cal.pinhole) {
@@ -350,7 +374,7 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
   }
 
   std::optional<Site> site;
-  if (!cmd.update_site.empty()) {
+  if (!cmd.update_site.empty() && !refused) {
     SiteLoadOptions so;
     if (!data_root.empty()) so.data_root = data_root;
     const std::string flow = CalibrationFlowYaml(cal, cmd.update_site, intr_path, extr_path);
@@ -377,19 +401,31 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
   report["files"] = files;
   OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(report_path, report.dump(2) + "\n"));
 
+  std::string refusal;
+  if (refused) {
+    refusal = fmt::format("{}: not used{}: ", cmd.points_file, cmd.update_site.empty() ? "" : fmt::format(
+                                                                   " ({} left as it is)", cmd.update_site));
+    for (size_t i = 0; i < concerns.size(); ++i) refusal += (i ? "; " : "") + concerns[i];
+    refusal += ". Correct or remove the points named, or give --force to use the fit anyway";
+  }
   if (cmd.json_to_stdout) {
     fmt::print("{}\n", report.dump(2));
-    return Status::Ok();
+    return refused ? InvalidInput(refusal) : Status::Ok();
   }
   fmt::print("camera {}: {} from {} floor points ({}x{})\n", cmd.camera_id, cal.kind(), pts.size(),
              cal.image_size.width, cal.image_size.height);
-  fmt::print("  #  {:<24} {:>18} {:>18} {:>10} {:>10}\n", "point", "pixel", "floor (m)", "error px", "floor m");
+  // "others px": the point's error under the fit of all the others (leave-one-out).
+  fmt::print("  #  {:<24} {:>18} {:>18} {:>10} {:>10} {:>10}\n", "point", "pixel", "floor (m)", "error px", "floor m",
+             "others px");
   for (size_t i = 0; i < pts.size(); ++i) {
     const FloorPointError& e = cal.errors[i];
-    fmt::print("{:3d}  {:<24} {:>18} {:>18} {:>10.2f} {:>10.3f}\n", i + 1,
+    const double loo = i < cal.predicted_error_px.size() ? cal.predicted_error_px[i] : std::nan("");
+    const bool outlier = std::find(cal.outliers.begin(), cal.outliers.end(), i) != cal.outliers.end();
+    fmt::print("{:3d}  {:<24} {:>18} {:>18} {:>10.2f} {:>10.3f} {:>10}{}\n", i + 1,
                pts[i].label.empty() ? pts[i].where : pts[i].where + " " + pts[i].label,
                fmt::format("({:.1f}, {:.1f})", pts[i].pixel.x(), pts[i].pixel.y()),
-               fmt::format("({:.3f}, {:.3f})", pts[i].floor_m.x(), pts[i].floor_m.y()), e.reprojection_px, e.floor_m);
+               fmt::format("({:.3f}, {:.3f})", pts[i].floor_m.x(), pts[i].floor_m.y()), e.reprojection_px, e.floor_m,
+               std::isfinite(loo) ? fmt::format("{:.2f}", loo) : "-", outlier ? "  OUTLIER" : "");
   }
   fmt::print("reprojection RMS {:.2f} px (max {:.2f}); floor RMS {:.3f} m (max {:.3f})\n", cal.rms_reprojection_px,
              cal.max_reprojection_px, cal.rms_floor_m, cal.max_floor_m);
@@ -401,8 +437,17 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
                  cal.pinhole->distortion[0], cal.pinhole->distortion[1]);
     }
   }
+  if (!cal.outliers.empty()) {
+    fmt::print("without the {} outlier{}: reprojection RMS {:.2f} px, floor RMS {:.3f} m\n", cal.outliers.size(),
+               cal.outliers.size() == 1 ? "" : "s", cal.rms_without_outliers_px, cal.rms_floor_without_outliers_m);
+  }
+  if (!cal.outlier_note.empty()) fmt::print("note: {}\n", cal.outlier_note);
   for (const auto& w : cal.warnings) fmt::print("warning: {}\n", w);
+  if (!refused) {
+    for (const auto& c : concerns) fmt::print("warning (--force): {}\n", c);
+  }
   for (const auto& [k, v] : files.items()) fmt::print("wrote {}: {}\n", k, v.get<std::string>());
+  if (refused) return InvalidInput(refusal);
   if (report.contains("site")) {
     fmt::print("{}: camera {}'s calibration replaced (previous file: {})\n", cmd.update_site, cmd.camera_id,
                report["site"]["backup"].get<std::string>());

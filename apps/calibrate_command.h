@@ -37,6 +37,9 @@ struct CalibrateCommand {
   std::string image_size;
   std::string update_site;
   std::string overlay;
+  // A fit with outliers or an RMS over max_rms_px writes no calibration and updates no site.
+  double max_rms_px = 4.0;  // calib's kMaxUpdateRmsPx
+  bool force = false;
   bool json_to_stdout = false;
 };
 

@@ -257,6 +257,20 @@ check calibrate_lab_fit_lens 0 "^lens fitted to the points: focal length [0-9.]+
 check calibrate_fit_lens_with_intrinsics 2 "--fit-lens: needs --points, and neither board views nor --intrinsics" -- \
   "$occmap" calibrate --camera cam1 --fit-lens --intrinsics "$work/lab/calib/intr_cam1.xml" \
   --points "$work/lab/cam1.csv" --out "$work/lab/lenscalib"
+# One point's x and y swapped (p6 at (5, 4) instead of (4, 5)): named as the outlier, exit 2, the
+# site and its files left as they are; --force writes it.
+sed 's/^\([^,]*,[^,]*\),4\.0,5\.0,p6$/\1,5.0,4.0,p6/' "$work/lab/cam1.csv" >"$work/lab/cam1_swapped.csv"
+cp "$work/lab/site.yaml" "$work/lab/site.before"
+check calibrate_outlier_named 2 "cam1_swapped.csv: not used \(.*site.yaml left as it is\): .*cam1_swapped.csv:7 \(p6\): pixel \([0-9.]+, [0-9.]+\) for floor \(5.000, 4.000\) m is [0-9.]+ px from where the other points put it" -- \
+  "$occmap" calibrate --camera cam1 --points "$work/lab/cam1_swapped.csv" --image-size 320x240 \
+  --out "$work/lab/outliercalib" --update-site "$work/lab/site.yaml"
+check calibrate_outlier_table 2 "cam1_swapped.csv:7 p6 .*  OUTLIER$" -- \
+  "$occmap" calibrate --camera cam1 --points "$work/lab/cam1_swapped.csv" --image-size 320x240 --out "$work/lab/outliercalib"
+check calibrate_outlier_site_kept 0 "^same$" -- bash -c "cmp '$work/lab/site.yaml' '$work/lab/site.before' && echo same"
+check calibrate_outlier_no_files 0 "^none$" -- bash -c "ls '$work/lab/outliercalib' | grep -v calibration_cam1.json || echo none"
+check calibrate_outlier_forced 0 "cam1's calibration replaced" -- \
+  "$occmap" calibrate --camera cam1 --points "$work/lab/cam1_swapped.csv" --image-size 320x240 \
+  --out "$work/lab/outliercalib" --update-site "$work/lab/site.yaml" --force
 check calibrate_unknown_camera 2 "no camera 'cam9' \(the site's cameras: cam1, cam2, cam3, cam4\)" -- \
   "$occmap" calibrate --camera cam9 --points "$work/lab/cam1.csv" --image-size 320x240 --out "$work/lab/newcalib" \
   --update-site "$work/lab/site.yaml"

@@ -186,6 +186,140 @@ Result<LensFit> FitLensAndPose(const std::vector<cv::Point3d>& world, const std:
   return *best;
 }
 
+// The model alone (no errors, no checks): the pose with intrinsics, the lens and pose, or a
+// floor homography, as the options say.
+Result<FloorCalibration> FitModel(std::span<const FloorPoint> points, const FloorCalibrationOptions& options) {
+  const ImageSize size = options.image_size;
+  std::vector<cv::Point2d> image_pts;
+  std::vector<cv::Point3d> world_pts;
+  std::vector<cv::Point2d> floor_pts;
+  for (const FloorPoint& p : points) {
+    image_pts.emplace_back(p.pixel.x(), p.pixel.y());
+    world_pts.emplace_back(p.floor_m.x(), p.floor_m.y(), 0.0);
+    floor_pts.emplace_back(p.floor_m.x(), p.floor_m.y());
+  }
+  FloorCalibration cal;
+  cal.image_size = size;
+  try {
+    if (options.intrinsics) {
+      const CameraIntrinsics intr = options.intrinsics->image_size == size ? *options.intrinsics
+                                                                           : options.intrinsics->Resized(size);
+      cv::Mat k = (cv::Mat_<double>(3, 3) << intr.fx_px, intr.skew_px, intr.cx_px, 0, intr.fy_px, intr.cy_px, 0, 0, 1);
+      cv::Mat dist(1, 5, CV_64F);
+      for (int i = 0; i < 5; ++i) dist.at<double>(i) = intr.distortion[i];
+      cv::Mat rvec, tvec;
+      // IPPE: the pose of a plane, exact for 4 points; LM then minimises the pixel error.
+      if (!cv::solvePnP(world_pts, image_pts, k, dist, rvec, tvec, false, cv::SOLVEPNP_IPPE)) {
+        return InvalidInput("floor points: no camera pose fits them (solvePnP failed)");
+      }
+      cv::solvePnPRefineLM(world_pts, image_pts, k, dist, rvec, tvec);
+      OCCMAP_ASSIGN_OR_RETURN(PinholeParameters p, WithPose(intr, size, rvec, tvec));
+      cal.pinhole = p;
+    } else if (options.fit_lens) {
+      if (points.size() < kLensMinPoints) {
+        return InvalidInput(fmt::format("floor points: fitting the lens (focal length, distortion) with the pose "
+                                        "needs at least {} points, found {}", kLensMinPoints, points.size()));
+      }
+      OCCMAP_ASSIGN_OR_RETURN(LensFit fit, FitLensAndPose(world_pts, image_pts, size));
+      OCCMAP_ASSIGN_OR_RETURN(PinholeParameters p, WithPose(fit.intrinsics, size, fit.rvec, fit.tvec));
+      cal.pinhole = p;
+      cal.lens_fitted = true;
+      if (!fit.holds_over_image) {
+        cal.warnings.push_back(
+            "the fitted lens distortion folds back before the picture's corners, whose pixels get no floor "
+            "position: add floor points nearer the picture's edges and corners, or give the camera intrinsics "
+            "from a board");
+      }
+    } else {
+      cv::Mat h = cv::findHomography(image_pts, floor_pts, 0);
+      if (h.empty()) return InvalidInput("floor points: no homography fits them (findHomography failed)");
+      Eigen::Matrix3d hm;
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) hm(r, c) = h.at<double>(r, c);
+      }
+      if (!hm.allFinite()) return InvalidInput("floor points: the homography found is not finite");
+      cal.floor_from_image = hm;
+    }
+  } catch (const cv::Exception& e) {
+    return InvalidInput(fmt::format("floor points: OpenCV failed: {}", e.err));
+  }
+  return cal;
+}
+
+// The fewest points whose fit still has one to spare: a point left out must be predicted by a
+// fit that could disagree with the others (4 points fit a homography exactly).
+size_t RedundantPoints(const FloorCalibrationOptions& o) {
+  if (o.intrinsics) return 4;   // 8 equations, 6 unknowns
+  if (o.fit_lens) return kLensMinPoints;  // 12 equations, 9 unknowns
+  return 5;                     // 10 equations, 8 unknowns
+}
+
+// The RMS of `points[subset]` and the error of `points[left_out]` under the fit of the subset;
+// nullopt when the subset cannot be fitted (three on a line, a failed fit).
+struct LeftOut {
+  double error_px = 0, rms_px = 0, rms_floor_m = 0;
+};
+std::optional<LeftOut> FitWithout(std::span<const FloorPoint> points, const std::vector<size_t>& subset,
+                                  size_t left_out, const FloorCalibrationOptions& options) {
+  std::vector<FloorPoint> sub;
+  for (size_t i : subset) sub.push_back(points[i]);
+  if (!ValidateFloorPoints(sub, "").ok()) return std::nullopt;
+  auto fit = FitModel(sub, options);
+  if (!fit.ok()) return std::nullopt;
+  auto model = fit->Model();
+  if (!model.ok()) return std::nullopt;
+  MeasureFloorErrors(**model, sub, *fit);
+  LeftOut out;
+  out.rms_px = fit->rms_reprojection_px;
+  out.rms_floor_m = fit->rms_floor_m;
+  FloorCalibration one;
+  MeasureFloorErrors(**model, points.subspan(left_out, 1), one);
+  out.error_px = one.errors[0].reprojection_px;
+  if (!std::isfinite(out.rms_px)) return std::nullopt;
+  return out;
+}
+
+// Backward elimination by leave-one-out: each round, every remaining point is left out in turn;
+// the one whose absence leaves the best fit is an outlier when that fit puts it beyond the
+// threshold. One wrong point spoils every fit it is part of, so only the fit without it is clean.
+void CheckOutliers(std::span<const FloorPoint> points, const FloorCalibrationOptions& options,
+                   FloorCalibration& cal) {
+  const size_t need = RedundantPoints(options);
+  cal.predicted_error_px.assign(points.size(), std::nan(""));
+  cal.rms_without_outliers_px = cal.rms_reprojection_px;
+  cal.rms_floor_without_outliers_m = cal.rms_floor_m;
+  if (points.size() < need + 1) {
+    cal.outlier_note = fmt::format("with {} points a wrong one cannot be told apart ({} or more tell it)",
+                                   points.size(), need + 1);
+    return;
+  }
+  cal.outliers_checked = true;
+  std::vector<size_t> active(points.size());
+  for (size_t i = 0; i < active.size(); ++i) active[i] = i;
+  // At most a third of the points are called wrong: beyond that the rest are no majority.
+  while (active.size() >= need + 1 && 3 * (cal.outliers.size() + 1) <= points.size()) {
+    std::optional<std::pair<size_t, LeftOut>> best;  // position in active, its fit
+    for (size_t k = 0; k < active.size(); ++k) {
+      std::vector<size_t> subset = active;
+      subset.erase(subset.begin() + static_cast<ptrdiff_t>(k));
+      const auto r = FitWithout(points, subset, active[k], options);
+      if (!r) continue;
+      cal.predicted_error_px[active[k]] = r->error_px;  // the last round's, free of the outliers found
+      if (!best || r->rms_px < best->second.rms_px) best = {k, *r};
+    }
+    if (!best) break;
+    const LeftOut& r = best->second;
+    const double threshold = std::max(options.outlier_min_px, options.outlier_ratio * r.rms_px);
+    if (!(r.error_px > threshold)) break;
+    const size_t index = active[best->first];
+    cal.predicted_error_px[index] = r.error_px;
+    cal.outliers.push_back(index);
+    cal.rms_without_outliers_px = r.rms_px;
+    cal.rms_floor_without_outliers_m = r.rms_floor_m;
+    active.erase(active.begin() + static_cast<ptrdiff_t>(best->first));
+  }
+}
+
 }  // namespace
 
 Status CameraIntrinsics::Validate() const { return AsPinhole().Validate().WithContext("intrinsics"); }
@@ -349,59 +483,7 @@ Result<FloorCalibration> CalibrateFromFloorPoints(std::span<const FloorPoint> po
                                       px.y(), size.width, size.height));
     }
   }
-  std::vector<cv::Point2d> image_pts;
-  std::vector<cv::Point3d> world_pts;
-  std::vector<cv::Point2d> floor_pts;
-  for (const FloorPoint& p : points) {
-    image_pts.emplace_back(p.pixel.x(), p.pixel.y());
-    world_pts.emplace_back(p.floor_m.x(), p.floor_m.y(), 0.0);
-    floor_pts.emplace_back(p.floor_m.x(), p.floor_m.y());
-  }
-  FloorCalibration cal;
-  cal.image_size = size;
-  try {
-    if (options.intrinsics) {
-      const CameraIntrinsics intr = options.intrinsics->image_size == size ? *options.intrinsics
-                                                                           : options.intrinsics->Resized(size);
-      cv::Mat k = (cv::Mat_<double>(3, 3) << intr.fx_px, intr.skew_px, intr.cx_px, 0, intr.fy_px, intr.cy_px, 0, 0, 1);
-      cv::Mat dist(1, 5, CV_64F);
-      for (int i = 0; i < 5; ++i) dist.at<double>(i) = intr.distortion[i];
-      cv::Mat rvec, tvec;
-      // IPPE: the pose of a plane, exact for 4 points; LM then minimises the pixel error.
-      if (!cv::solvePnP(world_pts, image_pts, k, dist, rvec, tvec, false, cv::SOLVEPNP_IPPE)) {
-        return InvalidInput("floor points: no camera pose fits them (solvePnP failed)");
-      }
-      cv::solvePnPRefineLM(world_pts, image_pts, k, dist, rvec, tvec);
-      OCCMAP_ASSIGN_OR_RETURN(PinholeParameters p, WithPose(intr, size, rvec, tvec));
-      cal.pinhole = p;
-    } else if (options.fit_lens) {
-      if (points.size() < kLensMinPoints) {
-        return InvalidInput(fmt::format("floor points: fitting the lens (focal length, distortion) with the pose "
-                                        "needs at least {} points, found {}", kLensMinPoints, points.size()));
-      }
-      OCCMAP_ASSIGN_OR_RETURN(LensFit fit, FitLensAndPose(world_pts, image_pts, size));
-      OCCMAP_ASSIGN_OR_RETURN(PinholeParameters p, WithPose(fit.intrinsics, size, fit.rvec, fit.tvec));
-      cal.pinhole = p;
-      cal.lens_fitted = true;
-      if (!fit.holds_over_image) {
-        cal.warnings.push_back(
-            "the fitted lens distortion folds back before the picture's corners, whose pixels get no floor "
-            "position: add floor points nearer the picture's edges and corners, or give the camera intrinsics "
-            "from a board");
-      }
-    } else {
-      cv::Mat h = cv::findHomography(image_pts, floor_pts, 0);
-      if (h.empty()) return InvalidInput("floor points: no homography fits them (findHomography failed)");
-      Eigen::Matrix3d hm;
-      for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c) hm(r, c) = h.at<double>(r, c);
-      }
-      if (!hm.allFinite()) return InvalidInput("floor points: the homography found is not finite");
-      cal.floor_from_image = hm;
-    }
-  } catch (const cv::Exception& e) {
-    return InvalidInput(fmt::format("floor points: OpenCV failed: {}", e.err));
-  }
+  OCCMAP_ASSIGN_OR_RETURN(FloorCalibration cal, FitModel(points, options));
   if (cal.pinhole) {
     const PinholeParameters& p = *cal.pinhole;
     const Eigen::Vector3d centre = -p.cam_from_world_rotation.transpose() * p.cam_from_world_translation_m;
@@ -420,7 +502,32 @@ Result<FloorCalibration> CalibrateFromFloorPoints(std::span<const FloorPoint> po
       cal.warnings.push_back(fmt::format("{}: the new model does not see this point on the floor", Where(points[i], i)));
     }
   }
+  if (options.check_outliers) CheckOutliers(points, options, cal);
   return cal;
+}
+
+std::vector<std::string> CalibrationConcerns(const FloorCalibration& cal, std::span<const FloorPoint> points,
+                                             double max_rms_px) {
+  std::vector<std::string> out;
+  for (size_t i : cal.outliers) {
+    if (i >= points.size()) continue;
+    const FloorPoint& p = points[i];
+    out.push_back(fmt::format(
+        "{}{}: pixel ({:.1f}, {:.1f}) for floor ({:.3f}, {:.3f}) m is {:.1f} px from where the other points put it "
+        "(a mistyped position, x and y swapped, or another mark clicked?)",
+        Where(p, i), p.label.empty() ? "" : " (" + p.label + ")", p.pixel.x(), p.pixel.y(), p.floor_m.x(),
+        p.floor_m.y(), cal.predicted_error_px[i]));
+  }
+  if (!(cal.rms_reprojection_px <= max_rms_px)) {
+    std::string without;
+    if (!cal.outliers.empty()) {
+      without = fmt::format("; without the {} named: {:.2f} px", cal.outliers.size() == 1 ? "point" : "points",
+                            cal.rms_without_outliers_px);
+    }
+    out.push_back(fmt::format("reprojection RMS {:.2f} px is over {:.2f} px{}", cal.rms_reprojection_px, max_rms_px,
+                              without));
+  }
+  return out;
 }
 
 std::string HomographyCalibrationYaml(const Eigen::Matrix3d& h, ImageSize size) {

@@ -70,6 +70,13 @@ struct FloorCalibrationOptions {
   bool fit_lens = false;
   // Pixels may lie this far outside the image (points clicked on its border).
   double max_outside_px = 2.0;
+  // Leave-one-out check (FloorCalibration::outliers): a point is an outlier when the others,
+  // fitted without it, put it more than max(outlier_min_px, outlier_ratio x their own RMS) away.
+  bool check_outliers = true;
+  // Clean points (0.5 px noise, 8 of them) are predicted within 4.5 px at the view's edges,
+  // mistyped ones 80 to 400 px off (floor_calibration_test.cc).
+  double outlier_min_px = 8.0;
+  double outlier_ratio = 10.0;
 
   Status Validate() const;
 };
@@ -97,12 +104,30 @@ struct FloorCalibration {
   // Things a person should know that do not make the result wrong (e.g. a camera below z = 0).
   std::vector<std::string> warnings;
 
+  // The leave-one-out check (robust to a mistyped point: x and y swapped, a wrong mark clicked):
+  // points removed one at a time, each time the one whose removal leaves the others fitting
+  // best, while the others put it beyond the options' threshold. The fit above still uses every
+  // point (the file is the user's); these say which to correct.
+  bool outliers_checked = false;          // false: too few points to tell (outlier_note says why)
+  std::string outlier_note;
+  std::vector<size_t> outliers;           // indices into the points, in the order found
+  std::vector<double> predicted_error_px; // per point: its error under the fit of the others but
+                                          // the outliers (NaN when not computed)
+  double rms_without_outliers_px = 0;     // the fit without the outliers: the others' RMS
+  double rms_floor_without_outliers_m = 0;
+
   std::string_view kind() const { return pinhole ? "pinhole" : "homography"; }
   Result<std::unique_ptr<CameraModel>> Model() const;
 };
 
 Result<FloorCalibration> CalibrateFromFloorPoints(std::span<const FloorPoint> points,
                                                   const FloorCalibrationOptions& options);
+
+// Why `cal` should not replace a site's calibration: the outliers named ("c1.csv:5 (p6): 215.3 px
+// from where the other points put it"), or its RMS over max_rms_px. Empty when neither.
+std::vector<std::string> CalibrationConcerns(const FloorCalibration& cal, std::span<const FloorPoint> points,
+                                             double max_rms_px);
+inline constexpr double kMaxUpdateRmsPx = 4.0;  // `occmap calibrate --update-site`, the page's Save
 
 // Per-point and summary errors of any camera model against the points (the figures above).
 void MeasureFloorErrors(const CameraModel& camera, std::span<const FloorPoint> points, FloorCalibration& out);
