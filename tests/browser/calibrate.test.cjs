@@ -53,3 +53,49 @@ test('setup: four clicked floor points calibrate a camera, saved to the site fil
       { timeout: 60000, polling: 1000 });
   });
 });
+
+// One point's x and y swapped (the issue's case): the page names it as an outlier, with the RMS
+// the others give without it; Save warns and writes nothing until "Save anyway"; the server
+// refuses the same save without "force".
+test('setup: a mistyped floor point is named, and Save asks before using it', { timeout: 240000 }, async (t) => {
+  const s = await h.start(t, 'calibrate-outlier');
+  const page = await s.open('/#setup');
+  await s.check(async () => {
+    await h.picturesLoaded(page, '[data-testid=camera-map] img.leaflet-image-layer', 30000);
+    const points = h.spreadFloorPoints('cam1', 6);
+    const bad = points.findIndex((p) => Math.abs(p.x_m - p.y_m) > 1);
+    assert.ok(bad >= 0, 'a point whose swap moves it');
+    points[bad] = { ...points[bad], x_m: points[bad].y_m, y_m: points[bad].x_m };
+    await h.clickFloorPoints(page, points);
+    await page.click('[data-testid=calibrate]');
+    await page.waitForSelector('[data-testid=calibration-concerns]', { timeout: 30000 });
+    const flags = await page.$$eval('[data-testid=points] tr[data-outlier]', (trs) => trs.map((tr) => tr.dataset.outlier));
+    assert.deepStrictEqual(flags, points.map((_, i) => String(i === bad)), 'only the swapped point is an outlier');
+    const concerns = await page.textContent('[data-testid=calibration-concerns]');
+    assert.match(concerns, new RegExp(`points\\[${bad}\\]: pixel .* px from where the other points put it`));
+    const rms = Number(await page.textContent('[data-testid=rms-px]'));
+    assert.ok(rms > 4, `RMS ${rms} px with the swapped point`);
+    await h.screenshot(page, 'serve-calibrate-outlier.png');
+
+    // The API refuses it without force.
+    const refused = await page.evaluate(() => fetch('/api/site', {
+      method: 'PUT', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify({ calibrations: { cam1: 'pending' } }),
+    }).then(async (r) => [r.status, (await r.json()).error]));
+    assert.strictEqual(refused[0], 400);
+    assert.match(refused[1], /^calibrations\.cam1: not saved: points\[\d\]: .*save with "force": true$/);
+
+    // Save warns; keeping the current calibration writes nothing.
+    await page.click('[data-testid=save]');
+    await page.waitForSelector('[data-testid=save-confirm]');
+    assert.match(await page.textContent('[data-testid=save-confirm]'), /cam1: points\[\d\]: pixel/);
+    await h.screenshot(page, 'serve-calibrate-confirm.png');
+    await page.click('[data-testid=save-cancel]');
+    assert.strictEqual(await page.locator('[data-testid=save-confirm]').count(), 0);
+    assert.strictEqual(fs.readFileSync(s.site, 'utf8'), s.original, 'nothing written without the confirmation');
+    // Confirmed: saved.
+    await page.click('[data-testid=save]');
+    await page.click('[data-testid=save-anyway]');
+    await page.waitForSelector('[data-testid=save-message].ok', { timeout: 60000 });
+    assert.match(fs.readFileSync(s.site, 'utf8'), /serve_extr_cam1\.xml/);
+  });
+});

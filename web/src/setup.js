@@ -235,15 +235,18 @@ function CameraSetup({ camera, draft, update }) {
         ? 'Click a floor mark you measured (tile corner, tape), then type where it is in metres. 4 points at least, better 8, spread over the floor; drag a number to move it.'
         : 'Draw the polygons of floor this camera should map (the tools on the left); pixels outside every polygon are ignored. No polygon: the whole image.'}</p>
       ${mode === 'points' ? html`<table class="points" data-testid="points">
-        <tr><th>#</th><th>u px</th><th>v px</th><th>x m</th><th>y m</th><th>error px</th><th>floor cm</th><th></th></tr>
+        <tr><th>#</th><th>u px</th><th>v px</th><th>x m</th><th>y m</th><th>error px</th><th>floor cm</th>
+          <th title="the point's error under the fit of all the other points (leave-one-out)">others px</th><th></th></tr>
         ${points.map((p, i) => {
           const r = result && result.points && result.points[i];
-          return html`<tr>
+          return html`<tr class=${r && r.outlier ? 'outlier' : ''} data-outlier=${r && r.outlier ? 'true' : 'false'}>
             <td>${i + 1}</td><td class="num">${fmt(p.u_px, 1)}</td><td class="num">${fmt(p.v_px, 1)}</td>
             <td><input class="coord" data-testid=${`x-${i}`} inputmode="decimal" value=${p.x_m} onInput=${(e) => setField(i, 'x_m', e.target.value)} /></td>
             <td><input class="coord" data-testid=${`y-${i}`} inputmode="decimal" value=${p.y_m} onInput=${(e) => setField(i, 'y_m', e.target.value)} /></td>
             <td class=${'num error-px ' + (r ? (r.error_px <= 1 ? 'good' : 'bad') : '')}>${r ? fmt(r.error_px, 2) : ''}</td>
             <td class="num">${r ? fmt(r.floor_error_m * 100, 1) : ''}</td>
+            <td class="num" title=${r && r.outlier ? 'an outlier: the other points put it this far away' : ''}>${r ? fmt(r.predicted_error_px, 1) : ''}${
+              r && r.outlier ? html` <span class="badge down">outlier</span>` : null}</td>
             <td><button class="small" onClick=${() => remove(i)} title="Remove this point">×</button></td></tr>`;
         })}
       </table>
@@ -261,6 +264,12 @@ function CameraSetup({ camera, draft, update }) {
             ${result.intrinsics_from === 'board' ? html`<span class="hint" data-testid="intrinsics-from-board">with the lens from the board</span>` : null}</span>` : null}
         ${result && result.lens_fitted && result.intrinsics ? html`<span class="hint" data-testid="lens-fitted">lens fitted:
             focal length ${fmt(result.intrinsics.fx_px, 1)} px, k1 ${fmt(result.intrinsics.distortion[0], 3)}, k2 ${fmt(result.intrinsics.distortion[1], 3)}</span>` : null}
+        ${result && result.concerns && result.concerns.length ? html`<div class="concerns" data-testid="calibration-concerns">
+            <b>Not fit to save as it is:</b><ul>${result.concerns.map((c) => html`<li>${c}</li>`)}</ul>
+            ${result.outliers && result.outliers.length ? html`<span class="hint">Correct or remove point${result.outliers.length > 1 ? 's' : ''}
+              ${result.outliers.map((i) => i + 1).join(', ')} and calibrate again (without ${result.outliers.length > 1 ? 'them' : 'it'}:
+              RMS ${fmt(result.rms_without_outliers_px, 2)} px).</span>` : null}</div>` : null}
+        ${result && result.outlier_note && result.rms_px > result.max_rms_px ? html`<p class="hint">${result.outlier_note}</p>` : null}
         ${result && result.warnings && result.warnings.length
           ? html`<ul class="warnings">${result.warnings.map((w) => html`<li>${w}</li>`)}</ul>` : null}
         ${result && result.method === 'homography' && result.rms_px > 1
@@ -446,6 +455,7 @@ export function SetupView({ site, onSaved }) {
   const [zonesDirty, setZonesDirty] = useState(false);
   const [saving, setSaving] = useState(false);
   const [message, setMessage] = useState(null);
+  const [confirming, setConfirming] = useState(null);  // the concerns Save warns of
 
   const updateDraft = (id) => (change) => setDrafts((all) => {
     const d = all[id];
@@ -460,10 +470,19 @@ export function SetupView({ site, onSaved }) {
   // A lens from the board is saved with the camera's pose: until then it only waits.
   const lensCams = Object.entries(drafts).filter(([, d]) => d.board && d.board.lensNew && !d.calibrationPending).map(([id]) => id);
 
-  async function save() {
+  // Calibrations with outliers or a high RMS are saved only once confirmed (the server refuses
+  // them without "force").
+  const concerns = pendingCams.flatMap((id) => ((drafts[id].result && drafts[id].result.concerns) || []).map((c) => `${id}: ${c}`));
+  function askSave() {
+    if (concerns.length) { setConfirming(concerns); return; }
+    save(false);
+  }
+
+  async function save(force) {
+    setConfirming(null);
     setSaving(true);
     setMessage(null);
-    const body = {};
+    const body = force ? { force: true } : {};
     if (pendingCams.length) body.calibrations = Object.fromEntries(pendingCams.map((id) => [id, 'pending']));
     if (maskCams.length) body.mask_polygons_px = Object.fromEntries(maskCams.map((id) => [id, drafts[id].masks]));
     if (zonesDirty) { body.zones = zones; body.lines = lines; }
@@ -496,9 +515,15 @@ export function SetupView({ site, onSaved }) {
           zonesDirty ? 'zones and lines' : null].filter(Boolean).join('; ')}` : 'No unsaved changes.'}</span>
         ${lensCams.length ? html`<span class="hint" data-testid="lens-waiting">the lens of ${lensCams.join(', ')} is saved
           with the camera's pose: calibrate its floor points</span>` : null}
-        <button class="primary" disabled=${!dirty || saving} onClick=${save} data-testid="save">Save to the site file</button>
+        <button class="primary" disabled=${!dirty || saving} onClick=${askSave} data-testid="save">Save to the site file</button>
         ${message ? html`<span class=${message.ok ? 'ok' : 'error'} data-testid="save-message">${message.text}</span>` : null}
       </div>
+      ${confirming ? html`<div class="banner confirm" data-testid="save-confirm">
+        <b>A calibration to save looks wrong:</b>
+        <ul>${confirming.map((c) => html`<li>${c}</li>`)}</ul>
+        <span>Saving replaces the camera's current calibration with it.</span>
+        <button onClick=${() => setConfirming(null)} data-testid="save-cancel">Keep the current calibration</button>
+        <button class="danger" onClick=${() => save(true)} data-testid="save-anyway">Save anyway</button></div>` : null}
       <div class="setup-cols">
         <section class="panel">
           <h2>Camera</h2>

@@ -2,6 +2,7 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -346,8 +347,13 @@ Result<json> ServeSession::Calibrate(const json& body) {
     jp.push_back({{"u_px", points[i].pixel.x()}, {"v_px", points[i].pixel.y()}, {"x_m", points[i].floor_m.x()},
                   {"y_m", points[i].floor_m.y()}, {"error_px", Finite(e.reprojection_px)},
                   {"floor_error_m", Finite(e.floor_m)},
-                  {"reprojected_px", {Finite(e.reprojected_px.x()), Finite(e.reprojected_px.y())}}});
+                  {"reprojected_px", {Finite(e.reprojected_px.x()), Finite(e.reprojected_px.y())}},
+                  {"predicted_error_px", i < cal.predicted_error_px.size() ? Finite(cal.predicted_error_px[i]) : json(nullptr)},
+                  {"outlier", std::find(cal.outliers.begin(), cal.outliers.end(), i) != cal.outliers.end()}});
   }
+  json outliers = json::array();
+  for (size_t i : cal.outliers) outliers.push_back(i);
+  const std::vector<std::string> concerns = CalibrationConcerns(cal, points, kMaxUpdateRmsPx);
   json out = {{"camera", id},
               {"method", method},
               {"kind", cal.kind()},
@@ -357,6 +363,14 @@ Result<json> ServeSession::Calibrate(const json& body) {
               {"floor_max_m", Finite(cal.max_floor_m)},
               {"points", jp},
               {"warnings", cal.warnings},
+              {"outliers", outliers},
+              {"outliers_checked", cal.outliers_checked},
+              {"outlier_note", cal.outlier_note},
+              {"rms_without_outliers_px", Finite(cal.rms_without_outliers_px)},
+              {"floor_rms_without_outliers_m", Finite(cal.rms_floor_without_outliers_m)},
+              // What Save warns of (PUT /api/site refuses it without "force": true).
+              {"concerns", concerns},
+              {"max_rms_px", kMaxUpdateRmsPx},
               {"lens_fitted", cal.lens_fitted},
               {"intrinsics_from", intrinsics_from.empty() ? json(nullptr) : json(intrinsics_from)},
               {"overlay_url", fmt::format("/api/cameras/{}/frame.jpg?overlay=grid&calibration=pending", id)}};
@@ -596,10 +610,15 @@ Result<json> ServeSession::UpdateSite(const json& body) {
   if (!body.is_object()) return InvalidInput("expected a JSON object with calibrations, mask_polygons_px, zones, lines");
   for (const auto& [key, value] : body.items()) {
     (void)value;
-    if (key != "calibrations" && key != "mask_polygons_px" && key != "zones" && key != "lines") {
-      return InvalidInput(fmt::format("{}: unknown key (expected calibrations, mask_polygons_px, zones, lines)", Excerpt(key)));
+    if (key != "calibrations" && key != "mask_polygons_px" && key != "zones" && key != "lines" && key != "force") {
+      return InvalidInput(fmt::format("{}: unknown key (expected calibrations, mask_polygons_px, zones, lines, force)",
+                                      Excerpt(key)));
     }
   }
+  if (body.contains("force") && !body["force"].is_boolean()) {
+    return InvalidInput(fmt::format("force: expected true or false, found {}", Excerpt(body["force"].dump())));
+  }
+  const bool force = body.value("force", false);
   std::lock_guard run_lock(run_mu_);  // one edit at a time, and the restart with it
   const fs::path& path = options_.site_path;
   OCCMAP_ASSIGN_OR_RETURN(std::string old_text, ReadFileToString(path));
@@ -617,6 +636,14 @@ Result<json> ServeSession::UpdateSite(const json& body) {
         if (auto it = pending_.find(id); it != pending_.end()) p = it->second;
       }
       if (!p) return InvalidInput(fmt::format("calibrations.{}: no pending calibration (POST /api/calibrate first)", Excerpt(id)));
+      // A fit with a wrong point would replace the camera's calibration with a worse one.
+      if (const auto concerns = CalibrationConcerns(p->calibration, p->points, kMaxUpdateRmsPx);
+          !concerns.empty() && !force) {
+        std::string list;
+        for (size_t i = 0; i < concerns.size(); ++i) list += (i ? "; " : "") + concerns[i];
+        return InvalidInput(fmt::format("calibrations.{}: not saved: {}. Correct the points, or save with \"force\": true",
+                                        id, list));
+      }
       std::string flow;
       if (p->calibration.pinhole) {
         // Beside the site file, in calib/, as serve_*.xml: the files the previous site (SITE.bak)
