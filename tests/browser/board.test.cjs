@@ -78,6 +78,27 @@ test('setup: the lens from board pictures, then the pose from floor points', { t
     r = await call(s.base, 'DELETE', '/api/board/views?camera=cam2');
     assert.deepStrictEqual([r.status, r.body.views.length], [200, 0]);
 
+    // Sizes: a view of another shape (1280x720 for the 640x480 camera) is refused and keeps
+    // nothing, so the correct views after it are taken; one of the same shape but twice the size
+    // is scaled to the camera's.
+    const gray = b.renderBoard(truth, board, b.poses[0], 1);
+    const twice = { width: 1280, height: 960, gray: new Uint8Array(1280 * 960) };
+    for (let y = 0; y < 960; y += 1) for (let x = 0; x < 1280; x += 1) twice.gray[y * 1280 + x] = gray.gray[(y >> 1) * 640 + (x >> 1)];
+    const wide = { width: 1280, height: 720, gray: twice.gray.slice(120 * 1280, 840 * 1280) };
+    r = await call(s.base, 'POST', '/api/board/views', { camera: 'cam2', board: boardJson, image: b.png(wide).toString('base64'), name: 'wide.png' });
+    assert.strictEqual(r.status, 400, JSON.stringify(r.body));
+    assert.match(r.body.error, /^wide\.png: 1280x720, camera 'cam2' gives 640x480 pictures \(another aspect ratio\)/);
+    r = await call(s.base, 'GET', '/api/board/views?camera=cam2');
+    assert.strictEqual(r.body.views.length, 0, 'the refused view is not kept');
+    r = await call(s.base, 'POST', '/api/board/views', { camera: 'cam2', board: boardJson, image, name: 'right.png' });
+    assert.strictEqual(r.status, 200, `a correct view after the refused one: ${JSON.stringify(r.body)}`);
+    r = await call(s.base, 'POST', '/api/board/views', { camera: 'cam2', board: boardJson, image: b.png(twice).toString('base64'), name: 'big.png' });
+    assert.strictEqual(r.status, 200, JSON.stringify(r.body));
+    assert.deepStrictEqual([r.body.view.width_px, r.body.view.height_px, r.body.view.scaled_from_px, r.body.view.accepted],
+      [640, 480, [1280, 960], true]);
+    r = await call(s.base, 'DELETE', '/api/board/views?camera=cam2');
+    assert.deepStrictEqual([r.status, r.body.views.length], [200, 0]);
+
     // The page: the pictures uploaded, the live frame captured.
     await h.picturesLoaded(page, '[data-testid=camera-map] img.leaflet-image-layer', 60000);
     await page.click('[data-testid=mode-lens]');

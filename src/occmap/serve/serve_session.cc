@@ -393,7 +393,12 @@ const SiteCamera* ServeSession::FindCamera(const Site& site, const std::string& 
 
 json ServeSession::BoardJsonLocked(const std::string& camera_id, const BoardSet& b) const {
   json views = json::array();
-  for (size_t i = 0; i < b.images.size(); ++i) views.push_back(BoardViewJson(b.inspected[i], *b.images[i], b.used[i]));
+  for (size_t i = 0; i < b.images.size(); ++i) {
+    json v = BoardViewJson(b.inspected[i], *b.images[i], b.used[i]);
+    const std::optional<ImageSize>& from = b.scaled_from[i];
+    v["scaled_from_px"] = from ? json::array({from->width, from->height}) : json(nullptr);
+    views.push_back(std::move(v));
+  }
   json out = {{"camera", camera_id}, {"views", views}, {"max_views", kMaxBoardViews}, {"calibration", nullptr}};
   if (b.calibration) {
     out["calibration"] = {{"rms_px", Finite(b.calibration->rms_px)}, {"views_used", b.calibration->views_used},
@@ -416,7 +421,9 @@ Result<json> ServeSession::AddBoardView(const json& body) {
   if (!body.contains("camera") || !body["camera"].is_string()) return InvalidInput("camera: expected a camera id");
   const std::string id = body["camera"].get<std::string>();
   const std::shared_ptr<const Site> site = this->site();
-  if (FindCamera(*site, id) == nullptr) return InvalidInput(fmt::format("camera: no camera '{}' in the site", Excerpt(id)));
+  const SiteCamera* cam = FindCamera(*site, id);
+  if (cam == nullptr) return InvalidInput(fmt::format("camera: no camera '{}' in the site", Excerpt(id)));
+  const ImageSize camera_size = cam->camera->image_size();
   if (!body.contains("board")) return InvalidInput("board: missing");
   OCCMAP_ASSIGN_OR_RETURN(IntrinsicsOptions options, BoardOptionsFromJson(body["board"]));
   if (body.contains("capture") && !body["capture"].is_boolean()) {
@@ -457,6 +464,17 @@ Result<json> ServeSession::AddBoardView(const json& body) {
     for (int y = 0; y < decoded.rows; ++y) std::copy_n(decoded.ptr<uint8_t>(y), decoded.cols, gray->row(y));
     if (body.contains("name") && body["name"].is_string()) name = body["name"].get<std::string>().substr(0, 120);
   }
+  // A view of another shape can never calibrate this camera: refused before it is kept, or it
+  // would set the size every later view must have (one 1280x720 upload for a 640x480 camera
+  // refused every correct view after it).
+  const double aspect_view = static_cast<double>(gray->width()) / gray->height();
+  const double aspect_camera = static_cast<double>(camera_size.width) / camera_size.height;
+  if (std::abs(aspect_view / aspect_camera - 1) > 0.01) {
+    return InvalidInput(fmt::format("{}: {}x{}, camera '{}' gives {}x{} pictures (another aspect ratio): a view of "
+                                    "this camera's board is needed",
+                                    name.empty() ? "image" : Excerpt(name), gray->width(), gray->height(), id,
+                                    camera_size.width, camera_size.height));
+  }
   // Inspected outside mu_ (corner detection on a large picture takes a while); board_mu_ keeps
   // the board requests one at a time.
   std::lock_guard run_lock(board_mu_);
@@ -471,11 +489,6 @@ Result<json> ServeSession::AddBoardView(const json& body) {
       return InvalidInput(fmt::format("camera '{}' holds {} board views already (the most kept): remove some first",
                                       id, kMaxBoardViews));
     }
-    if (!b.images.empty() && (b.images[0]->width() != gray->width() || b.images[0]->height() != gray->height())) {
-      return InvalidInput(fmt::format("{}: {}x{}, the camera's other board views are {}x{}",
-                                      name.empty() ? "image" : name, gray->width(), gray->height(),
-                                      b.images[0]->width(), b.images[0]->height()));
-    }
     number = b.next_number++;
     const BoardOptions &was = b.options.board, &now = options.board;
     same_board = was.kind == now.kind && was.cols == now.cols && was.rows == now.rows &&
@@ -485,6 +498,22 @@ Result<json> ServeSession::AddBoardView(const json& body) {
     images = b.images;
   }
   if (name.empty()) name = fmt::format("view {}", number);
+  // One size per set (cv::calibrateCamera's): a view of the same shape but another size (a
+  // full-resolution photo beside captured frames) is scaled to the set's first view, or to the
+  // camera's size when it is the first.
+  const ImageSize set_size = images.empty() ? camera_size : ImageSize{images[0]->width(), images[0]->height()};
+  std::optional<ImageSize> scaled_from;
+  if (gray->width() != set_size.width || gray->height() != set_size.height) {
+    scaled_from = ImageSize{gray->width(), gray->height()};
+    const cv::Mat src(gray->height(), gray->width(), CV_8UC1, gray->view().data(),
+                      static_cast<size_t>(gray->stride_elems()));
+    cv::Mat dst;
+    cv::resize(src, dst, cv::Size(set_size.width, set_size.height), 0, 0,
+               set_size.width < gray->width() ? cv::INTER_AREA : cv::INTER_LINEAR);
+    auto scaled = std::make_shared<Image<uint8_t>>(dst.cols, dst.rows);
+    for (int y = 0; y < dst.rows; ++y) std::copy_n(dst.ptr<uint8_t>(y), dst.cols, scaled->row(y));
+    gray = std::move(scaled);
+  }
   const BoardView view = InspectBoardView({name, gray->view()}, options);
   // Another board: every view is inspected again with it.
   std::vector<BoardView> again;
@@ -500,10 +529,14 @@ Result<json> ServeSession::AddBoardView(const json& body) {
     b.calibration.reset();
     b.options = options;
   }
+  if (!b.images.empty() && (b.images[0]->width() != gray->width() || b.images[0]->height() != gray->height())) {
+    return InvalidInput("board views changed meanwhile: add the view again");
+  }
   b.names.push_back(name);
   b.images.push_back(std::move(gray));
   b.inspected.push_back(view);
   b.used.push_back(false);
+  b.scaled_from.push_back(scaled_from);
   json out = BoardJsonLocked(id, b);
   out["view"] = out["views"].back();
   out["index"] = b.images.size() - 1;
@@ -526,6 +559,7 @@ Result<json> ServeSession::RemoveBoardViews(const std::string& camera_id, int in
     b.images.erase(b.images.begin() + at);
     b.inspected.erase(b.inspected.begin() + at);
     b.used.erase(b.used.begin() + at);
+    b.scaled_from.erase(b.scaled_from.begin() + at);
   }
   return BoardJsonLocked(camera_id, b);
 }

@@ -131,6 +131,7 @@ class ServeSession : public ServeBackend {
     std::vector<std::shared_ptr<const Image<uint8_t>>> images;
     std::vector<BoardView> inspected;
     std::vector<bool> used;  // by the latest calibration
+    std::vector<std::optional<ImageSize>> scaled_from;  // the size uploaded, when scaled to the set's
     IntrinsicsOptions options;
     std::optional<IntrinsicsCalibration> calibration;
     int next_number = 1;
