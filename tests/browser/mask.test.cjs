@@ -1,4 +1,5 @@
-// A floor mask in a real browser: on camera cam2's frame, draw a polygon with the mask tool,
+// A floor mask in a real browser: camera cam2's mask picture is shown over its frame; replacing
+// it chosen, draw a polygon with the mask tool,
 // (a click where geoman's Finish / Cancel pop-up would be reaches the picture), save: the site
 // file has it as the camera's mask polygon (`occmap check` loads it); reloaded,
 // the page shows the polygon again and /api/site lists it.
@@ -21,6 +22,18 @@ test('setup: a floor mask polygon drawn, saved and reloaded', { timeout: 240000 
     await page.click('.cam-tabs button[data-camera=cam2]');
     await h.picturesLoaded(page, '[data-testid=camera-map] img.leaflet-image-layer', 30000);
     await page.check('[data-testid=mode-mask]');
+
+    // The site's mask picture (masks/cam2.png) is shown over the frame, and the drawing tools
+    // wait until replacing it is chosen.
+    assert.match(await page.textContent('[data-testid=mask-file]'), /mask is the picture masks\/cam2\.png/);
+    await page.waitForFunction(() => {
+      const img = document.querySelector('[data-testid=camera-map] img.mask-file-image');
+      return img && img.complete && img.naturalWidth === 640 && img.naturalHeight === 480;
+    }, null, { timeout: 30000 });
+    assert.strictEqual(await page.locator('[data-testid=camera-map] .leaflet-pm-icon-polygon').count(), 0, 'no drawing over the picture yet');
+    await h.screenshot(page, 'serve-mask-file.png');
+    await page.click('[data-testid=mask-replace]');
+    assert.match(await page.textContent('[data-testid=mask-file]'), /Replacing masks\/cam2\.png/);
     await page.click('[data-testid=camera-map] .leaflet-pm-icon-polygon');
 
     // Geoman's Finish / Cancel pop-up would open beside the tool, over the picture: it is hidden
@@ -56,7 +69,7 @@ test('setup: a floor mask polygon drawn, saved and reloaded', { timeout: 240000 
     await clickPixel(page, ...corners[0]);
     await page.waitForFunction(() => document.querySelectorAll('[data-testid=camera-map] path.leaflet-interactive').length === 1);
     assert.strictEqual(await page.locator('[data-testid=draw-actions]').count(), 0, 'the drawing buttons go with the drawing');
-    assert.match(await page.textContent('.savebar'), /masks of cam2/);
+    assert.match(await page.textContent('.savebar'), /masks of cam2 \(replacing masks\/cam2\.png\)/);
 
     await page.click('[data-testid=save]');
     await page.waitForSelector('[data-testid=save-message].ok', { timeout: 60000 });
@@ -80,5 +93,7 @@ test('setup: a floor mask polygon drawn, saved and reloaded', { timeout: 240000 
       assert.ok(Math.abs(u - corners[i][0]) <= 3 && Math.abs(v - corners[i][1]) <= 3, `corner ${i}: (${u}, ${v}) for ${corners[i]}`);
     });
     assert.ok(cam2.has_mask);
+    assert.strictEqual(cam2.mask_file, null, 'the picture replaced by the polygon');
+    assert.strictEqual(await page.locator('[data-testid=mask-file]').count(), 0);
   });
 });

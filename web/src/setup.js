@@ -94,6 +94,9 @@ function CameraSetup({ camera, draft, update }) {
   const [boardView, setBoardView] = useState(null);  // the URL of the board view shown
   const points = draft.points || [];
   const result = draft.result;
+  // A mask from a picture file is shown, and drawing polygons (which replace it) waits for a click.
+  const maskFile = camera.mask_file || null;
+  const maskLocked = !!maskFile && !draft.replaceMaskFile;
   const boardLens = draft.board && draft.board.state && draft.board.state.calibration;
 
   // The map and its layers, once per camera.
@@ -137,7 +140,7 @@ function CameraSetup({ camera, draft, update }) {
     const c = ctx.current;
     if (!c) return;
     const map = c.im.map;
-    if (mode !== 'mask') {
+    if (mode !== 'mask' || maskLocked) {
       map.pm.disableDraw();
       map.pm.disableGlobalEditMode();
       map.pm.disableGlobalDragMode();
@@ -154,7 +157,17 @@ function CameraSetup({ camera, draft, update }) {
     };
     map.on('click', onClick);
     return () => map.off('click', onClick);
-  }, [mode, camera.id]);
+  }, [mode, camera.id, maskLocked]);
+
+  // The site's mask picture over the frame in mask mode: what is not floor, shaded.
+  useEffect(() => {
+    const c = ctx.current;
+    if (!c || !maskFile || mode !== 'mask') return undefined;
+    const overlay = L.imageOverlay(url(`/api/cameras/${encodeURIComponent(camera.id)}/mask.png`, { f: maskFile }), c.im.bounds, {
+      className: 'mask-file-image', interactive: false, pmIgnore: true, opacity: draft.replaceMaskFile ? 0.5 : 1,
+    }).addTo(c.im.map);
+    return () => overlay.remove();
+  }, [mode, camera.id, maskFile, draft.replaceMaskFile]);
 
   // The points' markers follow the list; dragging one moves its pixel.
   useEffect(() => {
@@ -222,7 +235,7 @@ function CameraSetup({ camera, draft, update }) {
           onChange=${() => setMode('mask')} data-testid="mode-mask" />Floor mask</label>
         <label class=${mode === 'lens' ? 'on' : ''} title="The camera's intrinsics from a printed checkerboard or ChArUco board">
           <input type="radio" name="mode" checked=${mode === 'lens'} onChange=${() => setMode('lens')} data-testid="mode-lens" />Lens (board)</label>
-        ${mode === 'mask' ? html`<${DrawActions} map=${leafletMap} />` : null}
+        ${mode === 'mask' && !maskLocked ? html`<${DrawActions} map=${leafletMap} />` : null}
         <span class="grow"></span>
         ${result ? html`<label><input type="checkbox" checked=${showGrid} onChange=${(e) => setShowGrid(e.target.checked)} />grid</label>` : null}
         <button onClick=${() => { setBoardView(null); setSnapshot(Date.now()); }} title="Take the camera's current frame">New frame</button>
@@ -231,6 +244,14 @@ function CameraSetup({ camera, draft, update }) {
       ${mode === 'lens' ? html`<${BoardPanel} camera=${camera} board=${draft.board || {}}
         update=${(patch) => update((d) => ({ board: { ...(d.board || {}), ...patch }, result: null }))}
         onNewFrame=${() => { setBoardView(null); setSnapshot(Date.now()); }} shown=${boardView} onShow=${setBoardView} />` : null}
+      ${mode === 'mask' && maskFile ? html`<div class=${'mask-file ' + (maskLocked ? '' : 'replacing')} data-testid="mask-file">
+        ${maskLocked
+          ? html`This camera's mask is the picture <code>${maskFile}</code>, shaded where it is not floor.
+            Polygons drawn here replace it when saved.
+            <button onClick=${() => update({ replaceMaskFile: true })} data-testid="mask-replace">Replace it with polygons</button>`
+          : html`Replacing <code>${maskFile}</code> (shown faded) with the polygons drawn here, once saved.
+            <button onClick=${() => { if (ctx.current) ctx.current.masks.clearLayers(); update({ replaceMaskFile: false, masksDirty: false, masks: [] }); }} data-testid="mask-keep">Keep the picture</button>`}
+      </div>` : null}
       <p class="hint">${mode === 'lens' ? '' : mode === 'points'
         ? 'Click a floor mark you measured (tile corner, tape), then type where it is in metres. 4 points at least, better 8, spread over the floor; drag a number to move it.'
         : 'Draw the polygons of floor this camera should map (the tools on the left); pixels outside every polygon are ignored. No polygon: the whole image.'}</p>
@@ -511,7 +532,10 @@ export function SetupView({ site, onSaved }) {
       <div class="savebar">
         <span>${dirty ? html`Unsaved: ${[
           pendingCams.length ? `calibration of ${pendingCams.join(', ')}` : null,
-          maskCams.length ? `masks of ${maskCams.join(', ')}` : null,
+          maskCams.length ? `masks of ${maskCams.map((id) => {
+            const f = (site.cameras.find((c) => c.id === id) || {}).mask_file;
+            return f ? `${id} (replacing ${f})` : id;
+          }).join(', ')}` : null,
           zonesDirty ? 'zones and lines' : null].filter(Boolean).join('; ')}` : 'No unsaved changes.'}</span>
         ${lensCams.length ? html`<span class="hint" data-testid="lens-waiting">the lens of ${lensCams.join(', ')} is saved
           with the camera's pose: calibrate its floor points</span>` : null}

@@ -742,6 +742,16 @@ Result<json> ServeSession::UpdateSite(const json& body) {
   return json{{"ok", true}, {"backup", u.backup.string()}, {"site", SiteJson()}};
 }
 
+Result<std::string> ServeSession::MaskPng(const std::string& camera_id) {
+  const std::shared_ptr<const Site> site = this->site();
+  const SiteCamera* cam = FindCamera(*site, camera_id);
+  if (cam == nullptr) return NotFound(fmt::format("no camera '{}'", Excerpt(camera_id)));
+  if (cam->mask.empty()) return NotFound(fmt::format("camera '{}' has no mask", camera_id));
+  std::string png = MaskOverlayPng(cam->mask);
+  if (png.empty()) return Internal("PNG encoding failed");
+  return png;
+}
+
 Result<std::string> ServeSession::GridJpeg(const std::string& camera_id, bool pending) {
   const std::shared_ptr<const Site> site = this->site();
   size_t n = site->cameras.size();

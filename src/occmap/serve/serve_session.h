@@ -49,6 +49,11 @@ class ServeBackend {
   // Camera `camera_id`'s latest frame with the floor grid of its calibration (the pending
   // result of Calibrate when `pending`) as JPEG; NotFound for an unknown camera.
   virtual Result<std::string> GridJpeg(const std::string& camera_id, bool pending) = 0;
+  // The camera's mask as the site loaded it (a picture or polygons), web_api.h's
+  // MaskOverlayPng; NotFound for an unknown camera or one without a mask.
+  virtual Result<std::string> MaskPng(const std::string& camera_id) {
+    return NotFound(fmt::format("camera '{}' has no mask", camera_id));
+  }
   // The board route to a camera's intrinsics (docs/formats.md, "Web API"): views captured from
   // its live frame or uploaded, each inspected as it comes, then cv::calibrateCamera on them;
   // the intrinsics are kept for the camera's next POST /api/calibrate.
@@ -106,6 +111,7 @@ class ServeSession : public ServeBackend {
   Result<nlohmann::json> Calibrate(const nlohmann::json& body) override;
   Result<nlohmann::json> UpdateSite(const nlohmann::json& body) override;
   Result<std::string> GridJpeg(const std::string& camera_id, bool pending) override;
+  Result<std::string> MaskPng(const std::string& camera_id) override;
   Result<nlohmann::json> BoardViews(const std::string& camera_id) override;
   Result<nlohmann::json> AddBoardView(const nlohmann::json& body) override;
   Result<nlohmann::json> RemoveBoardViews(const std::string& camera_id, int index) override;

@@ -417,16 +417,36 @@ std::vector<std::vector<std::vector<std::array<double, 2>>>> MaskPolygonsFromTex
   return out;
 }
 
+// Per camera, the mask picture's file as the site names it ("" when none or polygons).
+std::vector<std::string> MaskFilesFromText(const Site& site, std::string_view text) {
+  std::vector<std::string> out(site.cameras.size());
+  try {
+    const YAML::Node root = YAML::Load(std::string(text));
+    if (!root.IsMap() || !root["cameras"] || !root["cameras"].IsSequence()) return out;
+    for (const YAML::Node& cam : root["cameras"]) {
+      if (!cam.IsMap() || !cam["id"] || !cam["mask"] || !cam["mask"].IsScalar()) continue;
+      const std::string id = cam["id"].as<std::string>();
+      for (size_t n = 0; n < site.cameras.size(); ++n) {
+        if (site.cameras[n].id == id) out[n] = cam["mask"].as<std::string>();
+      }
+    }
+  } catch (const YAML::Exception&) {
+  }
+  return out;
+}
+
 json SiteJson(const Site& site, std::string_view text) {
   const FloorGrid& g = site.grid;
   const auto polygons = MaskPolygonsFromText(site, text);
+  const auto mask_files = MaskFilesFromText(site, text);
   json cams = json::array();
   for (size_t n = 0; n < site.cameras.size(); ++n) {
     const SiteCamera& c = site.cameras[n];
     const ImageSize size = c.camera->image_size();
     cams.push_back({{"id", c.id}, {"width_px", size.width}, {"height_px", size.height},
                     {"has_calibration", c.camera != nullptr}, {"calibration_format", c.calibration_format},
-                    {"has_mask", !c.mask.empty()}, {"mask_polygons_px", polygons[n]}});
+                    {"has_mask", !c.mask.empty()}, {"mask_polygons_px", polygons[n]},
+                    {"mask_file", mask_files[n].empty() ? json(nullptr) : json(mask_files[n])}});
   }
   json zones = json::array();
   for (const ZoneOptions& z : site.tracking.zones) {
@@ -585,6 +605,24 @@ std::string MetricsText(const LiveSnapshot& s, bool running) {
     o += fmt::format("occmap_line_crossings_total{{line=\"{}\",direction=\"out\"}} {}\n", Label(s.line_names[i]), c.out);
   }
   return o + ProcessMetricsText();
+}
+
+std::string MaskOverlayPng(const Image<uint8_t>& mask) {
+  if (mask.empty()) return {};
+  cv::Mat bgra(mask.height(), mask.width(), CV_8UC4);
+  for (int y = 0; y < mask.height(); ++y) {
+    const uint8_t* m = mask.row(y);
+    uint8_t* row = bgra.ptr<uint8_t>(y);
+    for (int x = 0; x < mask.width(); ++x) {
+      // Excluded: dark red, 55 % opaque; floor: clear.
+      const bool floor = m[x] != 0;
+      row[4 * x] = 20;
+      row[4 * x + 1] = 20;
+      row[4 * x + 2] = 120;
+      row[4 * x + 3] = floor ? 0 : 140;
+    }
+  }
+  return Encode(bgra, ".png", {});
 }
 
 std::string MapPng(const OccupancyMap& map) {

@@ -89,6 +89,9 @@ std::string MetricsText(const LiveSnapshot& s, bool running);
 // process_start_time_seconds, process_open_fds, process_max_fds.
 std::string ProcessMetricsText();
 
+// A camera's mask as an RGBA PNG of its size to lay over its picture: excluded pixels dark red
+// and 55 % opaque, floor pixels clear. Empty string for an empty mask.
+std::string MaskOverlayPng(const Image<uint8_t>& mask);
 // The map as an RGB PNG, one pixel per cell, row 0 = the largest y: free white, occupied
 // black, unseen (205, 205, 205). Empty string before the first map.
 std::string MapPng(const OccupancyMap& map);

@@ -327,6 +327,23 @@ TEST(WebApi, MapPngIsNorthUp) {
   EXPECT_TRUE(MapPng(OccupancyMap()).empty());
 }
 
+// The mask editor's overlay: excluded pixels shaded, floor clear, the mask's own size.
+TEST(WebApi, MaskOverlayPngShadesExcludedPixels) {
+  Image<uint8_t> mask(4, 3);
+  for (int y = 0; y < 3; ++y) {
+    for (int x = 0; x < 4; ++x) mask.row(y)[x] = x >= 2 ? 255 : 0;
+  }
+  const std::string png = MaskOverlayPng(mask);
+  ASSERT_FALSE(png.empty());
+  const cv::Mat img = cv::imdecode(std::vector<uint8_t>(png.begin(), png.end()), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(img.type(), CV_8UC4);
+  ASSERT_EQ(img.cols, 4);
+  ASSERT_EQ(img.rows, 3);
+  EXPECT_EQ(img.at<cv::Vec4b>(1, 0)[3], 140);  // excluded
+  EXPECT_EQ(img.at<cv::Vec4b>(1, 3)[3], 0);    // floor
+  EXPECT_TRUE(MaskOverlayPng(Image<uint8_t>()).empty());
+}
+
 // The coverage picture: visibility.png's colours, a pixel per cell, north up; its figures.
 TEST(WebApi, CoveragePngAndJson) {
   LiveCoverage c;

@@ -530,6 +530,12 @@ void WebServer::Routes() {
             res.set_header("Cache-Control", "no-store");
             res.set_content(*jpeg, "image/jpeg");
           });
+  svr.Get(R"(/api/cameras/([A-Za-z0-9_.-]+)/mask\.png)", [this](const httplib::Request& req, httplib::Response& res) {
+    auto png = backend_.MaskPng(req.matches[1]);
+    if (!png.ok()) return ErrorReply(res, HttpStatusFor(png.status()), png.status().message());
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(*png, "image/png");
+  });
   svr.Get(R"(/api/cameras/([A-Za-z0-9_.-]+)/mjpeg)", [this, camera_picture](const httplib::Request& req,
                                                                            httplib::Response& res) {
     const std::string id = req.matches[1];
