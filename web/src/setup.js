@@ -346,7 +346,12 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
     }));
     c.lineLayer.eachLayer((layer) => {
       const p = layer.getLatLngs();
-      ls.push({ name: layer.occmapName, a_m: [round(p[0].lng, 3), round(p[0].lat, 3)], b_m: [round(p[p.length - 1].lng, 3), round(p[p.length - 1].lat, 3)] });
+      ls.push({
+        name: layer.occmapName, a_m: [round(p[0].lng, 3), round(p[0].lat, 3)], b_m: [round(p[p.length - 1].lng, 3), round(p[p.length - 1].lat, 3)],
+        // The counting rules go back as they came (a new line: the loader's defaults).
+        ...(layer.occmapBand !== undefined ? { hysteresis_m: layer.occmapBand } : {}),
+        ...(layer.occmapOnce !== undefined ? { once_per_track: layer.occmapOnce } : {}),
+      });
     });
     setZonesLines(zs, ls);
   };
@@ -374,7 +379,7 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
     }
     for (const l of lines) {
       const p = L.polyline([[l.a_m[1], l.a_m[0]], [l.b_m[1], l.b_m[0]]], { color: '#7c3aed', weight: 3 }).addTo(lineLayer);
-      p.occmapName = l.name; watch(p);
+      p.occmapName = l.name; p.occmapBand = l.hysteresis_m; p.occmapOnce = l.once_per_track; watch(p);
     }
     geomanControls(floor.map, ['Polygon', 'Line']);
     twoPointLines(floor.map);
@@ -427,6 +432,14 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
     c.lineLayer.eachLayer((layer) => { const l = lines[i++]; if (l) { layer.occmapName = l.name; label(layer, l.name, 'right'); } });
   }, [zones, lines]);
 
+  // A line's counting rules, typed in the list: onto its layer, then read back with the rest.
+  const setRule = (i, key, value) => {
+    const layer = ctx.current && ctx.current.lineLayer.getLayers()[i];
+    if (!layer) return;
+    if (key === 'band') layer.occmapBand = value;
+    else layer.occmapOnce = value;
+    readAll();
+  };
   const rename = (kind, i, name) => {
     const zs = zones.map((z, j) => (kind === 'zone' && j === i ? { ...z, name } : z));
     const ls = lines.map((l, j) => (kind === 'line' && j === i ? { ...l, name } : l));
@@ -460,7 +473,12 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
           <td><button class="small" onClick=${() => removeItem('zone', i)}>×</button></td></tr>`)}
         ${lines.map((l, i) => html`<tr><td>line</td>
           <td><input value=${l.name} onInput=${(e) => rename('line', i, e.target.value)} /></td>
-          <td class="hint">(${l.a_m.join(', ')}) → (${l.b_m.join(', ')}) m</td>
+          <td class="hint">(${l.a_m.join(', ')}) → (${l.b_m.join(', ')}) m
+            <label title="a track is on a side only beyond this distance from the line">band
+              <input class="coord" data-testid=${`line-band-${i}`} inputmode="decimal" value=${l.hysteresis_m ?? 0.2}
+                onChange=${(e) => { const v = Number(e.target.value); if (e.target.value !== '' && Number.isFinite(v)) setRule(i, 'band', v); }} /> m</label>
+            <label title="a track counts at most once in each direction"><input type="checkbox" data-testid=${`line-once-${i}`}
+              checked=${l.once_per_track ?? true} onChange=${(e) => setRule(i, 'once', e.target.checked)} />once a track</label></td>
           <td><button class="small" onClick=${() => removeItem('line', i)}>×</button></td></tr>`)}
       </table>
     </div>`;

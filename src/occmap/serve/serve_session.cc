@@ -90,7 +90,20 @@ Result<std::string> LinesFlow(const json& lines) {
     OCCMAP_ASSIGN_OR_RETURN(std::string name, NameFlow(l["name"], where + ".name"));
     OCCMAP_ASSIGN_OR_RETURN(auto a, Pair(l["a_m"], where + ".a_m"));
     OCCMAP_ASSIGN_OR_RETURN(auto b, Pair(l["b_m"], where + ".b_m"));
-    out += fmt::format("{}{{name: {}, from: [{}, {}], to: [{}, {}]}}", i ? ", " : "", name, a[0], a[1], b[0], b[1]);
+    out += fmt::format("{}{{name: {}, from: [{}, {}], to: [{}, {}]", i ? ", " : "", name, a[0], a[1], b[0], b[1]);
+    // Absent: the loader's defaults (tracker_options.h), as a line written by hand.
+    if (l.contains("hysteresis_m") && !l["hysteresis_m"].is_null()) {
+      OCCMAP_ASSIGN_OR_RETURN(double band, Number(l["hysteresis_m"], where + ".hysteresis_m"));
+      out += fmt::format(", hysteresis_m: {}", band);
+    }
+    if (l.contains("once_per_track") && !l["once_per_track"].is_null()) {
+      if (!l["once_per_track"].is_boolean()) {
+        return InvalidInput(fmt::format("{}.once_per_track: expected true or false, found {}", where,
+                                        Excerpt(l["once_per_track"].dump())));
+      }
+      out += fmt::format(", once_per_track: {}", l["once_per_track"].get<bool>());
+    }
+    out += "}";
   }
   return out + "]";
 }

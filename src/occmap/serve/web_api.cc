@@ -458,7 +458,8 @@ json SiteJson(const Site& site, std::string_view text) {
   }
   json lines = json::array();
   for (const LineOptions& l : site.tracking.lines) {
-    lines.push_back({{"name", l.name}, {"a_m", {l.from_m.x(), l.from_m.y()}}, {"b_m", {l.to_m.x(), l.to_m.y()}}});
+    lines.push_back({{"name", l.name}, {"a_m", {l.from_m.x(), l.from_m.y()}}, {"b_m", {l.to_m.x(), l.to_m.y()}},
+                     {"hysteresis_m", l.hysteresis_m}, {"once_per_track", l.once_per_track}});
   }
   return {{"name", site.name},
           {"path", site.file.string()},
