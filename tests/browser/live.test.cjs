@@ -1,7 +1,7 @@
 // The live view in a real browser: the rendered lab's four cameras streamed in real time over
 // UDP, `occmap serve` on them; the page shows the map picture, the camera pictures refreshed
 // with their state (up, background age), the stage timings, and tracks whose positions on the
-// page change between two moments.
+// page change between two moments; the events of a zone and a line listed with their times.
 'use strict';
 const test = require('node:test');
 const assert = require('node:assert');
@@ -13,7 +13,12 @@ async function trackLabels(page) {
 }
 
 test('live view: map, cameras and moving tracks', { timeout: 240000 }, async (t) => {
-  const s = await h.start(t, 'live', { streams: true });
+  // A zone over the room and a line across it: their events are listed with their times.
+  const s = await h.start(t, 'live', {
+    streams: true,
+    editSite: (text) => `${text.replace(/\n*$/, '\n')}tracking:\n  zones:\n    - {name: room, polygon: [[0.5, 0.5], [8.5, 0.5], [8.5, 6.0], [0.5, 6.0]]}\n`
+      + '  lines:\n    - {name: middle, from: [4.5, 0.2], to: [4.5, 6.3]}\n',
+  });
   const page = await s.open('/');
   await s.check(async () => {
     // The map picture arrives and is refreshed: its URL carries the frame of the map.
@@ -68,6 +73,12 @@ test('live view: map, cameras and moving tracks', { timeout: 240000 }, async (t)
     const state = await page.evaluate(() => fetch('/api/state').then((r) => r.json()));
     assert.ok(state.cameras.every((c) => c.background_age_s > 0), `background_age_s: ${JSON.stringify(state.cameras)}`);
     assert.ok(state.stages_s.decode > 0 && state.stages_s.output > 0, `stages_s: ${JSON.stringify(state.stages_s)}`);
+    // The events list: zone entries (and crossings) with their times, newest first.
+    await page.waitForFunction(() => document.querySelectorAll('[data-testid=events] tr[data-event]').length > 0, null, { timeout: 90000 });
+    const rows = await page.$$eval('[data-testid=events] tr[data-event]', (trs) => trs.map((tr) => tr.textContent.replace(/\s+/g, ' ').trim()));
+    assert.ok(rows.some((r) => /^\d\d:\d\d:\d\d track \d+ (entered|left) room \(\d+ inside\)$/.test(r)), `events: ${JSON.stringify(rows)}`);
+    const api = await page.evaluate(() => fetch('/api/events').then((r) => r.json()));
+    assert.ok(api.events_total >= rows.length && api.events.length > 0, JSON.stringify(api).slice(0, 300));
     await h.screenshot(page, 'serve-live.png');
 
     // cam4's stream stops: its tile says so while the others stay up.

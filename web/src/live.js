@@ -4,7 +4,7 @@ import { h } from 'preact';
 import { useEffect, useRef, useState } from 'preact/hooks';
 import htm from 'htm';
 import L from 'leaflet';
-import { colorForId, fmt, url } from './api.js';
+import { colorForId, fmt, getJSON, url } from './api.js';
 import { clientPoint, createFloorMap } from './leafmaps.js';
 
 const html = htm.bind(h);
@@ -221,7 +221,56 @@ function Stats({ state, frame, site }) {
     </section>`;
 }
 
+const kEventsShown = 50;
+
+// The run's events (zone entries and exits, line crossings): GET /api/events once, then those
+// each frame event carries (its last 20, and events_total); a gap (frames skipped by the
+// server's pacing, a restart) asks /api/events again.
+function useEvents(frame) {
+  const [events, setEvents] = useState([]);
+  const seen = useRef(null);
+  const refetch = () => getJSON('/api/events').then((r) => {
+    seen.current = r.events_total;
+    setEvents(r.events.slice(-kEventsShown));
+  }).catch(() => {});
+  useEffect(() => { refetch(); }, []);
+  useEffect(() => {
+    if (!frame || frame.events_total === undefined || seen.current === null) return;
+    const fresh = frame.events_total - seen.current;
+    if (fresh === 0) return;
+    const got = frame.events || [];
+    if (fresh < 0 || fresh > got.length) { refetch(); return; }
+    seen.current = frame.events_total;
+    setEvents((old) => [...old, ...got.slice(got.length - fresh)].slice(-kEventsShown));
+  }, [frame]);
+  return events;
+}
+
+function eventTime(e) {
+  if (e.t_unix) return new Date(e.t_unix * 1000).toLocaleTimeString([], { hour12: false });
+  return `${fmt(e.time_s, 1)} s`;
+}
+
+function eventText(e) {
+  const who = e.track_id !== null && e.track_id !== undefined ? `track ${e.track_id}` : '';
+  if (e.line !== undefined) return html`${who} crossed <b>${e.line}</b> ${e.direction === 'in' ? 'in' : 'out'} (in ${e.in} · out ${e.out})`;
+  const verb = { enter: 'entered', leave: 'left', dwell: 'stays in', count: 'count of' }[e.event] || e.event;
+  return html`${who} ${verb} <b>${e.zone}</b>${e.event === 'count' || e.count !== undefined ? ` (${e.count} inside)` : ''}`;
+}
+
+function Events({ events }) {
+  return html`<section class="panel">
+    <h2>Events</h2>
+    ${events.length === 0 ? html`<p class="hint">No zone entries or line crossings yet.</p>` : null}
+    <table class="events" data-testid="events">
+      ${[...events].reverse().map((e) => html`<tr data-event=${e.event} data-frame=${e.frame}>
+        <td class="num">${eventTime(e)}</td><td>${eventText(e)}</td></tr>`)}
+    </table>
+  </section>`;
+}
+
 export function LiveView({ site, state, frame }) {
+  const events = useEvents(frame);
   const camStates = new Map(((state && state.cameras) || []).map((c) => [c.id, c]));
   // The newest frame set, for the tiles' own timers (no re-render per frame event needed).
   const latestFrame = useRef(null);
@@ -241,6 +290,6 @@ export function LiveView({ site, state, frame }) {
             camState=${camStates.get(c.id)} state=${state} />`)}
         </div>
       </div>
-      <aside class="side"><${Stats} state=${state} frame=${frame} site=${site} /></aside>
+      <aside class="side"><${Stats} state=${state} frame=${frame} site=${site} /><${Events} events=${events} /></aside>
     </div>`;
 }

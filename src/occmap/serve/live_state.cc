@@ -1,6 +1,10 @@
 #include "occmap/serve/live_state.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "occmap/lut/ground_lut.h"
+#include "occmap/site/site.h"
 
 namespace occmap {
 
@@ -92,8 +96,51 @@ std::shared_ptr<const MqttSink> LiveState::mqtt() const {
   return mqtt_;
 }
 
+std::vector<TrackBox> TrackBoxesInCamera(const CameraModel& camera, const std::vector<Track>& tracks) {
+  std::vector<TrackBox> out;
+  const ImageSize size = camera.image_size();
+  for (const Track& t : tracks) {
+    const double height_m = t.object_class == "person" ? 1.7 : 1.0;
+    const double half_m = 0.5 * std::clamp(t.area_m2 > 0 ? std::sqrt(t.area_m2) : 0.5, 0.3, 1.0);
+    double u0 = 1e30, v0 = 1e30, u1 = -1e30, v1 = -1e30;
+    bool seen = true;
+    for (int k = 0; k < 8 && seen; ++k) {
+      const Eigen::Vector3d corner(t.x_m + ((k & 1) ? half_m : -half_m), t.y_m + ((k & 2) ? half_m : -half_m),
+                                   (k & 4) ? height_m : 0.0);
+      const auto px = camera.Project(corner);
+      if (!px || !px->allFinite()) {
+        seen = false;
+        break;
+      }
+      u0 = std::min(u0, px->x());
+      v0 = std::min(v0, px->y());
+      u1 = std::max(u1, px->x());
+      v1 = std::max(v1, px->y());
+    }
+    if (!seen || u1 < 0 || v1 < 0 || u0 > size.width - 1 || v0 > size.height - 1) continue;
+    TrackBox b;
+    b.id = t.id;
+    b.object_class = t.object_class;
+    b.coasting = t.coasting;
+    b.x0 = static_cast<int>(std::lround(std::max(u0, 0.0)));
+    b.y0 = static_cast<int>(std::lround(std::max(v0, 0.0)));
+    b.x1 = static_cast<int>(std::lround(std::min(u1, size.width - 1.0)));
+    b.y1 = static_cast<int>(std::lround(std::min(v1, size.height - 1.0)));
+    out.push_back(std::move(b));
+  }
+  return out;
+}
+
 Status LiveStateSink::Open(const SinkStart& start) {
   camera_ids_ = start.camera_ids;
+  cameras_.assign(camera_ids_.size(), nullptr);
+  if (start.site != nullptr) {
+    for (size_t i = 0; i < camera_ids_.size(); ++i) {
+      for (const SiteCamera& c : start.site->cameras) {
+        if (c.id == camera_ids_[i]) cameras_[i] = c.camera.get();
+      }
+    }
+  }
   zone_names_.clear();
   line_names_.clear();
   if (start.site != nullptr) {
@@ -151,6 +198,17 @@ Status LiveStateSink::Consume(const FrameRecord& record, const RunStats& stats) 
       s->frames_rgb[i] = previous->frames_rgb[i];
       s->change_masks[i] = previous->change_masks[i];
     }
+  }
+  s->track_boxes.resize(n);
+  for (size_t i = 0; i < n && i < cameras_.size(); ++i) {
+    if (cameras_[i] != nullptr) s->track_boxes[i] = TrackBoxesInCamera(*cameras_[i], record.tracks);
+  }
+  s->recent_events = previous->recent_events;
+  s->events_total = previous->events_total + static_cast<int64_t>(record.event_lines.size());
+  s->recent_events.insert(s->recent_events.end(), record.event_lines.begin(), record.event_lines.end());
+  if (s->recent_events.size() > kRecentEvents) {
+    s->recent_events.erase(s->recent_events.begin(),
+                           s->recent_events.end() - static_cast<ptrdiff_t>(kRecentEvents));
   }
   s->version = state_->next_version();
   state_->Publish(std::move(s));

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "occmap/geometry/camera_model.h"
 #include "occmap/lut/floor_grid.h"
 #include "occmap/pipeline/frame_sink.h"
 #include "occmap/pipeline/mqtt_sink.h"
@@ -33,6 +34,21 @@ struct LiveCoverage {
   int num_cameras = 0;
   std::vector<uint8_t> view_count;  // per cell, row-major from the grid's origin
 };
+
+// A track as a camera sees it: the box around a column of its footprint's width and its class's
+// height (person 1.7 m, anything else 1.0 m), pixels clipped to the image; drawn on the camera's
+// tile with "id class".
+struct TrackBox {
+  int64_t id = 0;
+  std::string object_class;
+  bool coasting = false;
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // inclusive pixel bounds
+};
+// The boxes of the tracks the camera sees (every corner in front of it, some of the box in the
+// image).
+std::vector<TrackBox> TrackBoxesInCamera(const CameraModel& camera, const std::vector<Track>& tracks);
+
+inline constexpr size_t kRecentEvents = 100;  // events.jsonl lines a snapshot keeps for the page
 
 struct LiveSnapshot {
   int64_t version = 0;   // increases with every snapshot (also across restarts of the run)
@@ -51,6 +67,13 @@ struct LiveSnapshot {
   std::vector<Image<uint8_t>> frames_gray;
   std::vector<Image<Rgb8>> frames_rgb;  // empty unless the run reads colour
   std::vector<Image<uint8_t>> change_masks;
+  // Per camera: the tracks' boxes in its picture (cameras of the site the run has).
+  std::vector<std::vector<TrackBox>> track_boxes;
+  // The latest events (events.jsonl's lines: zone entries and exits, line crossings), oldest
+  // first, at most kRecentEvents; events_total counts every event of the session so far, so that
+  // a reader who missed snapshots knows it.
+  std::vector<std::string> recent_events;
+  int64_t events_total = 0;
   // The MQTT link's figures and state as of this frame set; none when the run has no MQTT.
   std::optional<MqttCounters> mqtt;
 };
@@ -111,6 +134,7 @@ class LiveStateSink : public FrameSink {
  private:
   std::shared_ptr<LiveState> state_;
   std::vector<std::string> camera_ids_, zone_names_, line_names_;
+  std::vector<const CameraModel*> cameras_;  // per camera id, null when the site has none
 };
 
 }  // namespace occmap

@@ -1,9 +1,13 @@
 #include "occmap/serve/live_state.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 
 #include <atomic>
 #include <thread>
+
+#include "occmap/geometry/pinhole_camera.h"
+#include "occmap/geometry/rotation.h"
 
 namespace occmap {
 namespace {
@@ -83,6 +87,59 @@ TEST(LiveState, SinkPublishesCopiesAndKeepsAMissingCamerasLastFrame) {
   EXPECT_FALSE(state->running());
   EXPECT_EQ(state->ended(), "end of streams");
   EXPECT_EQ(state->Latest()->frame, 6);  // the last state stays served
+}
+
+// A person 2 m in front of a camera 1 m up looking along +y: its box spans the column's
+// projection (1.7 m high, 0.5 m wide); a track behind the camera has none.
+TEST(LiveState, TrackBoxesAreTheColumnsProjection) {
+  PinholeParameters p;
+  p.image_size = {640, 480};
+  p.fx_px = p.fy_px = 400;
+  p.cx_px = 319.5;
+  p.cy_px = 239.5;
+  const Eigen::Vector3d position(0, 0, 1.0);
+  p.cam_from_world_rotation = LookAtRotation(position, {0, 10, 1.0});
+  p.cam_from_world_translation_m = -p.cam_from_world_rotation * position;
+  const PinholeCamera camera = PinholeCamera::Create(p).value();
+  std::vector<Track> tracks(2);
+  tracks[0].id = 4;
+  tracks[0].object_class = "person";
+  tracks[0].y_m = 2.0;
+  tracks[1].id = 5;
+  tracks[1].object_class = "person";
+  tracks[1].y_m = -2.0;
+  const std::vector<TrackBox> boxes = TrackBoxesInCamera(camera, tracks);
+  ASSERT_EQ(boxes.size(), 1u);
+  EXPECT_EQ(boxes[0].id, 4);
+  EXPECT_EQ(boxes[0].object_class, "person");
+  // Nearest face at y = 1.75 m: x +-0.25 m -> +-57 px; the floor 1 m down -> +229 px, the head
+  // 0.7 m up -> -160 px.
+  EXPECT_NEAR(boxes[0].x0, 319.5 - 400 * 0.25 / 1.75, 1);
+  EXPECT_NEAR(boxes[0].x1, 319.5 + 400 * 0.25 / 1.75, 1);
+  EXPECT_NEAR(boxes[0].y0, 239.5 - 400 * 0.7 / 1.75, 1);
+  EXPECT_NEAR(boxes[0].y1, 239.5 + 400 * 1.0 / 1.75, 1);
+}
+
+// The sink keeps the latest events for the page and counts them all.
+TEST(LiveState, SinkKeepsTheRecentEventsAndCountsThemAll) {
+  auto state = std::make_shared<LiveState>();
+  LiveStateSink sink(state);
+  const Site site = TwoCameraSite();
+  SinkStart start;
+  start.site = &site;
+  start.camera_ids = {"c1", "c2"};
+  ASSERT_TRUE(sink.Open(start).ok());
+  RunStats stats;
+  for (int64_t f = 0; f < 60; ++f) {
+    FrameRecord r = Record(f, true);
+    r.event_lines = {fmt::format(R"({{"frame":{},"event":"enter"}})", f), fmt::format(R"({{"frame":{},"event":"exit"}})", f)};
+    ASSERT_TRUE(sink.Consume(r, stats).ok());
+  }
+  const auto s = state->Latest();
+  EXPECT_EQ(s->events_total, 120);
+  ASSERT_EQ(s->recent_events.size(), kRecentEvents);
+  EXPECT_EQ(s->recent_events.back(), R"({"frame":59,"event":"exit"})");
+  EXPECT_EQ(s->recent_events.front(), R"({"frame":10,"event":"enter"})");
 }
 
 TEST(LiveState, SinkKeepsTheChangesOfACameraWithoutFrames) {

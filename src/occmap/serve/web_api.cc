@@ -336,7 +336,18 @@ json FrameEventJson(const LiveSnapshot& s) {
   }
   return {{"frame", s.frame}, {"time_s", Num(s.time_s)}, {"t_unix", Num(s.t_unix)},
           {"fps", Num(s.stats.frames_per_second)}, {"map_version", s.frame}, {"detections", dets},
-          {"tracks", tracks}, {"zones", zones}, {"lines", lines}};
+          {"tracks", tracks}, {"zones", zones}, {"lines", lines},
+          {"events_total", s.events_total}, {"events", EventsJson(s, kFrameEvents)}};
+}
+
+json EventsJson(const LiveSnapshot& s, size_t last) {
+  json out = json::array();
+  const size_t n = s.recent_events.size();
+  for (size_t i = n - std::min(n, last); i < n; ++i) {
+    json e = json::parse(s.recent_events[i], nullptr, false);
+    if (!e.is_discarded()) out.push_back(std::move(e));
+  }
+  return out;
 }
 
 // The MQTT link as /api/state gives it; null without MQTT.
@@ -698,6 +709,29 @@ std::string EncodeJpeg(const Image<Rgb8>& image, int quality) {
   return Encode(ToBgr(image), ".jpg", {cv::IMWRITE_JPEG_QUALITY, quality});
 }
 
+void DrawTrackBoxes(Image<Rgb8>& rgb, const std::vector<TrackBox>& boxes) {
+  static_assert(sizeof(Rgb8) == 3);
+  cv::Mat m(rgb.height(), rgb.width(), CV_8UC3, rgb.row(0), static_cast<size_t>(rgb.stride_elems()) * sizeof(Rgb8));
+  for (const TrackBox& b : boxes) {
+    // The page's colour for the id (api.js colorForId: hue id * 137.508), as RGB: the buffer is RGB.
+    cv::Mat hsv(1, 1, CV_8UC3, cv::Scalar(std::fmod(static_cast<double>(b.id) * 137.508, 360.0) / 2, 230, 200));
+    cv::Mat rgb_colour;
+    cv::cvtColor(hsv, rgb_colour, cv::COLOR_HSV2RGB);
+    const cv::Vec3b c = rgb_colour.at<cv::Vec3b>(0, 0);
+    const cv::Scalar colour(c[0], c[1], c[2]);
+    const int thick = std::max(1, rgb.width() / 400);
+    cv::rectangle(m, cv::Point(b.x0, b.y0), cv::Point(b.x1, b.y1), colour, thick, b.coasting ? cv::LINE_4 : cv::LINE_8);
+    const std::string label = fmt::format("{} {}", b.id, b.object_class);
+    const double scale = std::max(0.35, rgb.width() / 1600.0);
+    int base = 0;
+    const cv::Size ts = cv::getTextSize(label, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &base);
+    const int ty = b.y0 - ts.height - 4 >= 0 ? b.y0 - ts.height - 4 : b.y0;
+    cv::rectangle(m, cv::Point(b.x0, ty), cv::Point(b.x0 + ts.width + 4, ty + ts.height + 4), colour, cv::FILLED);
+    cv::putText(m, label, cv::Point(b.x0 + 2, ty + ts.height + 1), cv::FONT_HERSHEY_SIMPLEX, scale,
+                cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+  }
+}
+
 std::string CameraJpeg(const LiveSnapshot& s, size_t n, bool change_overlay, int quality) {
   Image<Rgb8> rgb = CameraRgb(s, n);
   if (rgb.empty()) return {};
@@ -715,6 +749,8 @@ std::string CameraJpeg(const LiveSnapshot& s, size_t n, bool change_overlay, int
       }
     }
   }
+  // The live view's tiles (overlay=change) show the tracks too.
+  if (change_overlay && n < s.track_boxes.size()) DrawTrackBoxes(rgb, s.track_boxes[n]);
   return EncodeJpeg(rgb, quality);
 }
 

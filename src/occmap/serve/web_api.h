@@ -71,7 +71,12 @@ Result<std::string> DecodeBase64(std::string_view text, std::string_view field);
 // One Server-Sent Event: "event: NAME\ndata: LINE\n...\n\n" (a data line per line of `data`).
 std::string SseEvent(std::string_view event, std::string_view data);
 
+// The frame event's JSON; it carries the last kFrameEvents events and events_total (the page
+// asks GET /api/events when it missed more).
 nlohmann::json FrameEventJson(const LiveSnapshot& s);
+inline constexpr size_t kFrameEvents = 20;
+// The snapshot's last `last` events as JSON objects (events.jsonl's lines), oldest first.
+nlohmann::json EventsJson(const LiveSnapshot& s, size_t last);
 // `running`, `uptime_s`, `starting`, `ended`: the run's life (LiveState); `ended` (why the run
 // stopped: an error's message) is the stop_reason of a run that is not running.
 nlohmann::json StateJson(const LiveSnapshot& s, bool running, double uptime_s, bool starting = false,
@@ -101,7 +106,8 @@ std::string MapPng(const OccupancyMap& map);
 // exactly k cameras, k = 0..N], "colors": ["#rrggbb" for k = 0..N]}.
 std::string CoveragePng(const LiveCoverage& coverage);
 nlohmann::json CoverageJson(const LiveCoverage& coverage);
-// Camera n's latest frame as JPEG, changed pixels tinted red when `change_overlay`; a camera
+// Camera n's latest frame as JPEG, changed pixels tinted red and the tracks' boxes drawn with
+// their id and class when `change_overlay`; a camera
 // with changes and no frame (occmap fuse's) as its changes; empty when it has neither yet.
 std::string CameraJpeg(const LiveSnapshot& s, size_t camera, bool change_overlay, int quality = 80);
 std::string EncodeJpeg(const Image<Rgb8>& image, int quality = 80);

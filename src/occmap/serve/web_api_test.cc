@@ -403,6 +403,39 @@ TEST(WebApi, CameraJpegTintsChanges) {
   EXPECT_NEAR(p.at<cv::Vec3b>(5, 30)[2], 100, 4);
 }
 
+// The live tiles: each track's box in its colour, with "id class" on a filled label.
+TEST(WebApi, CameraJpegDrawsTrackBoxes) {
+  LiveSnapshot s = TestSnapshot();
+  s.frames_gray.assign(1, Image<uint8_t>(160, 120, 100));
+  s.frames_rgb.assign(1, Image<Rgb8>());
+  s.change_masks.assign(1, Image<uint8_t>());
+  s.track_boxes.assign(1, {TrackBox{7, "person", false, 40, 50, 100, 110}});
+  auto decode = [](const std::string& jpeg) {
+    return cv::imdecode(std::vector<uint8_t>(jpeg.begin(), jpeg.end()), cv::IMREAD_COLOR);
+  };
+  const cv::Mat img = decode(CameraJpeg(s, 0, true, 95));
+  const cv::Mat plain = decode(CameraJpeg(s, 0, false, 95));
+  auto grey = [](const cv::Vec3b& c) { return std::abs(c[0] - 100) < 6 && std::abs(c[1] - 100) < 6 && std::abs(c[2] - 100) < 6; };
+  EXPECT_FALSE(grey(img.at<cv::Vec3b>(80, 40))) << "the box's left side";
+  EXPECT_FALSE(grey(img.at<cv::Vec3b>(110, 70))) << "its bottom";
+  EXPECT_TRUE(grey(img.at<cv::Vec3b>(80, 70))) << "inside: the picture";
+  EXPECT_FALSE(grey(img.at<cv::Vec3b>(45, 42))) << "the label above the box";
+  EXPECT_TRUE(grey(plain.at<cv::Vec3b>(80, 40))) << "overlay=none: no boxes";
+}
+
+TEST(WebApi, FrameEventCarriesTheLatestEvents) {
+  LiveSnapshot s = TestSnapshot();
+  for (int i = 0; i < 30; ++i) s.recent_events.push_back(fmt::format(R"({{"frame":{},"line":"gate","event":"cross"}})", i));
+  s.recent_events.push_back("not json");
+  s.events_total = 131;
+  const json f = FrameEventJson(s);
+  EXPECT_EQ(f["events_total"], 131);
+  ASSERT_EQ(f["events"].size(), kFrameEvents - 1);  // the unreadable line left out
+  EXPECT_EQ(f["events"].back()["frame"], 29);
+  EXPECT_EQ(f["events"].back()["line"], "gate");
+  EXPECT_EQ(EventsJson(s, kRecentEvents).size(), 30u);
+}
+
 TEST(WebApi, ACameraWithChangesAndNoFrameShowsItsChanges) {
   // occmap fuse's cameras: the changes their edges sent, no frames.
   LiveSnapshot s = TestSnapshot();

@@ -399,6 +399,10 @@ void WebServer::Routes() {
     const json f = FrameEventJson(*backend_.state().Latest());
     JsonReply(res, 200, json{{"frame", f["frame"]}, {"zones", f["zones"]}, {"lines", f["lines"]}});
   });
+  svr.Get("/api/events", [this](const httplib::Request&, httplib::Response& res) {
+    const auto snap = backend_.state().Latest();
+    JsonReply(res, 200, json{{"events_total", snap->events_total}, {"events", EventsJson(*snap, kRecentEvents)}});
+  });
   svr.Get("/api/stats", [this](const httplib::Request&, httplib::Response& res) {
     JsonReply(res, 200, backend_.StatsJson());
   });
