@@ -280,15 +280,15 @@ function CameraSetup({ camera, draft, update }) {
         <button class="primary" disabled=${busy} onClick=${calibrate} data-testid="calibrate">Calibrate</button>
         ${result ? html`<span class="result" data-testid="calibration-result">
             RMS <b data-testid="rms-px">${fmt(result.rms_px, 2)}</b> px · floor <b data-testid="floor-cm">${fmt(result.floor_rms_m * 100, 1)}</b> cm
-            ${result.rms_px <= 1 ? html`<span class="badge up">good</span>` : html`<span class="badge down">check the points</span>`}
+            ${result.rms_px !== null && result.rms_px <= 1 && !(result.concerns && result.concerns.length) ? html`<span class="badge up">good</span>` : html`<span class="badge down">check the points</span>`}
             <span class="hint">${draft.calibrationPending ? "(pending until saved)" : "(saved)"}</span>
             ${result.intrinsics_from === 'board' ? html`<span class="hint" data-testid="intrinsics-from-board">with the lens from the board</span>` : null}</span>` : null}
         ${result && result.lens_fitted && result.intrinsics ? html`<span class="hint" data-testid="lens-fitted">lens fitted:
             focal length ${fmt(result.intrinsics.fx_px, 1)} px, k1 ${fmt(result.intrinsics.distortion[0], 3)}, k2 ${fmt(result.intrinsics.distortion[1], 3)}</span>` : null}
         ${result && result.concerns && result.concerns.length ? html`<div class="concerns" data-testid="calibration-concerns">
             <b>Not fit to save as it is:</b><ul>${result.concerns.map((c) => html`<li>${c}</li>`)}</ul>
-            ${result.outliers && result.outliers.length ? html`<span class="hint">Correct or remove point${result.outliers.length > 1 ? 's' : ''}
-              ${result.outliers.map((i) => i + 1).join(', ')} and calibrate again (without ${result.outliers.length > 1 ? 'them' : 'it'}:
+            ${result.outliers && result.outliers.length ? html`<span class="hint">Correct or remove point${result.outliers.length > 1 ? 's' : ''} ${result.outliers.map((i) => i + 1).join(', ')}
+              and calibrate again (without ${result.outliers.length > 1 ? 'them' : 'it'}:
               RMS ${fmt(result.rms_without_outliers_px, 2)} px).</span>` : null}</div>` : null}
         ${result && result.outlier_note && result.rms_px > result.max_rms_px ? html`<p class="hint">${result.outlier_note}</p>` : null}
         ${result && result.warnings && result.warnings.length
