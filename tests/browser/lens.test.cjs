@@ -73,7 +73,8 @@ test('setup: wide lenses calibrated without intrinsics fit within 1 px and find 
       assert.strictEqual(r.status, 200, JSON.stringify(r.body));
       fits[c] = r.body;
     }
-    let r = await api(page, 'PUT', '/api/site', { calibrations: Object.fromEntries(cameras.map((c) => [c, 'pending'])) });
+    // The homographies of wide lenses miss by a few pixels: saved knowingly, to compare.
+    let r = await api(page, 'PUT', '/api/site', { calibrations: Object.fromEntries(cameras.map((c) => [c, 'pending'])), force: true });
     assert.strictEqual(r.status, 200, JSON.stringify(r.body));
     const homography = await evaluateRun(s);
 

@@ -294,6 +294,11 @@ void CheckOutliers(std::span<const FloorPoint> points, const FloorCalibrationOpt
     return;
   }
   cal.outliers_checked = true;
+  // A fit that all its points agree with (RMS within a quarter of the outlier threshold) has no
+  // wrong point to find: a point at the edge of the points' spread, left out, is only
+  // extrapolated to (14 px for a correct corner point of a 1 px fit).
+  const double consistent_px = options.outlier_min_px / 4;
+  if (cal.rms_reprojection_px <= consistent_px) return;
   std::vector<size_t> active(points.size());
   for (size_t i = 0; i < active.size(); ++i) active[i] = i;
   // At most a third of the points are called wrong: beyond that the rest are no majority.
@@ -317,6 +322,7 @@ void CheckOutliers(std::span<const FloorPoint> points, const FloorCalibrationOpt
     cal.rms_without_outliers_px = r.rms_px;
     cal.rms_floor_without_outliers_m = r.rms_floor_m;
     active.erase(active.begin() + static_cast<ptrdiff_t>(best->first));
+    if (r.rms_px <= consistent_px) break;
   }
 }
 
