@@ -10,6 +10,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/video/background_segm.hpp>
 
+#include "occmap/bench/pass_times.h"
 #include "occmap/detect/background_model.h"
 #include "occmap/fusion/fast_fusion.h"
 #include "occmap/io/frame_source.h"
@@ -22,20 +23,11 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// The fastest over repetitions of the time per frame set of fn(frame index), in seconds: on a
-// machine shared with other work a pass is only ever slowed down, by varying amounts.
+// The fastest pass's time per frame set of fn(frame index), in seconds.
 double FastestSecondsPerSet(int repetitions, int frames, const std::function<void(int)>& fn) {
-  fn(0);  // warm-up
-  std::vector<double> times;
-  for (int r = 0; r < repetitions; ++r) {
-    const auto start = Clock::now();
-    for (int f = 0; f < frames; ++f) fn(f);
-    times.push_back(std::chrono::duration<double>(Clock::now() - start).count() / frames);
-  }
+  const std::vector<double> times = SecondsPerFrameOfEachPass(repetitions, frames, fn);
   return *std::min_element(times.begin(), times.end());
 }
-
-double Ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
 
 // One camera's frames as read, and what each method keeps.
 struct CameraData {

@@ -15,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 #include <yaml-cpp/yaml.h>
 
+#include "occmap/bench/pass_times.h"
 #include "occmap/detect/background_model.h"
 #include "occmap/detect/change_detection.h"
 #include "occmap/geometry/rotation.h"
@@ -159,13 +160,7 @@ Image<uint8_t> Grey(const Image<Rgb8>& rgb) {
 
 // Median over repetitions of the time per frame of fn(frame index), in seconds.
 double MedianSecondsPerFrame(int repetitions, int frames, const std::function<void(int)>& fn) {
-  fn(0);  // warm-up
-  std::vector<double> times;
-  for (int r = 0; r < repetitions; ++r) {
-    const auto start = Clock::now();
-    for (int f = 0; f < frames; ++f) fn(f);
-    times.push_back(std::chrono::duration<double>(Clock::now() - start).count() / frames);
-  }
+  std::vector<double> times = SecondsPerFrameOfEachPass(repetitions, frames, fn);
   std::sort(times.begin(), times.end());
   return times[times.size() / 2];
 }
@@ -427,7 +422,6 @@ Result<WorkloadResult> RunWorkload(Workload& w, const BenchOptions& options, Con
   return result;
 }
 
-double Ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
 double Mega(int64_t n) { return static_cast<double>(n) / 1e6; }
 
 }  // namespace

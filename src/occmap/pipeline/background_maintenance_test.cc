@@ -653,6 +653,32 @@ TEST(ShadowTeachers, TheFloorEveryCameraSeesDarkTeachesClothingDoesNot) {
 namespace occmap {
 namespace {
 
+// Every camera's class image over the small room (160 x 120), each pixel classed by
+// class_of(camera, the floor point its ray meets), kBackground where it meets none; change
+// masks all zero; and their views, for ShadowCheck::Apply.
+struct FloorClasses {
+  std::vector<Image<uint8_t>> classes, changes;
+  std::vector<ImageView<const uint8_t>> class_views;
+  std::vector<ImageView<uint8_t>> change_views;
+};
+FloorClasses PaintFloorClasses(const testing::SmallRoom& room,
+                               const std::function<uint8_t(size_t, const Eigen::Vector2d&)>& class_of) {
+  FloorClasses out;
+  for (size_t n = 0; n < room.cameras.size(); ++n) {
+    Image<uint8_t>& c = out.classes.emplace_back(160, 120, BackgroundModel::kBackground);
+    out.changes.emplace_back(160, 120, uint8_t{0});
+    for (int y = 0; y < 120; ++y) {
+      for (int x = 0; x < 160; ++x) {
+        const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
+        if (p) c(x, y) = class_of(n, *p);
+      }
+    }
+  }
+  for (const auto& c : out.classes) out.class_views.push_back(c.view());
+  for (auto& c : out.changes) out.change_views.push_back(c.view());
+  return out;
+}
+
 // A cast shadow every camera sees dark stays a shadow; clothing that camera 0 alone takes for a
 // shadow, over floor the others see lit, is a change. Camera 0 sees the shadow one cell wider
 // than the others (a pixel wider than the cells): that rim, lit in the other views but beside
@@ -662,31 +688,21 @@ TEST(ShadowCheck, ShadowsOverFloorTheOthersSeeLitAreChanges) {
   auto lut = SmallRoomLut(room);
   ASSERT_TRUE(lut.ok()) << lut.status().message();
   auto in_clothing = [](const Eigen::Vector2d& p) { return p.x() >= 3.0 && p.x() < 3.4 && p.y() >= 2.0 && p.y() < 2.4; };
-  std::vector<Image<uint8_t>> classes, changes;
   int64_t shadow_pixels = 0, clothing_pixels = 0;
-  for (size_t n = 0; n < room.cameras.size(); ++n) {
-    Image<uint8_t>& c = classes.emplace_back(160, 120, BackgroundModel::kBackground);
-    changes.emplace_back(160, 120, uint8_t{0});
-    for (int y = 0; y < 120; ++y) {
-      for (int x = 0; x < 160; ++x) {
-        const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
-        if (!p) continue;
-        if (InCastShadow(*p) || (n == 0 && p->x() >= 2.0 && p->x() < 2.05 && p->y() >= 1.0 && p->y() < 1.6)) {
-          c(x, y) = n == 2 ? BackgroundModel::kChanged : BackgroundModel::kShadow;  // someone in front, in view 2
-          shadow_pixels += n == 0;
-        } else if (n == 0 && in_clothing(*p)) {
-          c(x, y) = BackgroundModel::kShadow;
-          ++clothing_pixels;
-        }
-      }
+  FloorClasses painted = PaintFloorClasses(room, [&](size_t n, const Eigen::Vector2d& p) -> uint8_t {
+    if (InCastShadow(p) || (n == 0 && p.x() >= 2.0 && p.x() < 2.05 && p.y() >= 1.0 && p.y() < 1.6)) {
+      shadow_pixels += n == 0;
+      return n == 2 ? BackgroundModel::kChanged : BackgroundModel::kShadow;  // someone in front, in view 2
     }
-  }
+    if (n == 0 && in_clothing(p)) {
+      ++clothing_pixels;
+      return BackgroundModel::kShadow;
+    }
+    return BackgroundModel::kBackground;
+  });
+  auto& [classes, changes, class_views, change_views] = painted;
   ASSERT_GT(shadow_pixels, 200);
   ASSERT_GT(clothing_pixels, 50);
-  std::vector<ImageView<const uint8_t>> class_views;
-  std::vector<ImageView<uint8_t>> change_views;
-  for (const auto& c : classes) class_views.push_back(c.view());
-  for (auto& c : changes) change_views.push_back(c.view());
   ShadowCheck check(*lut);
   const int64_t turned = check.Apply(class_views, change_views);
   int64_t turned_shadow = 0, turned_clothing = 0;
@@ -730,35 +746,26 @@ TEST(ShadowCheck, SoftShadowsStayOnlyWhereAnotherCameraSeesTheirFloorShadowed) {
   const auto in_contact = [](const Eigen::Vector2d& p) { return p.x() >= 1.0 && p.x() < 1.5 && p.y() >= 1.0 && p.y() < 1.5; };
   const auto in_lit = [](const Eigen::Vector2d& p) { return p.x() >= 3.0 && p.x() < 3.4 && p.y() >= 2.0 && p.y() < 2.4; };
   const auto in_hidden = [](const Eigen::Vector2d& p) { return p.x() >= 2.4 && p.x() < 2.8 && p.y() >= 0.4 && p.y() < 0.8; };
-  std::vector<Image<uint8_t>> classes, changes;
   int64_t contact = 0, lit = 0, hidden = 0;
-  for (size_t n = 0; n < room.cameras.size(); ++n) {
-    Image<uint8_t>& c = classes.emplace_back(160, 120, BackgroundModel::kBackground);
-    changes.emplace_back(160, 120, uint8_t{0});
-    for (int y = 0; y < 120; ++y) {
-      for (int x = 0; x < 160; ++x) {
-        const auto p = room.cameras[n].PixelToPlane(Eigen::Vector2d(x, y), 0.0);
-        if (!p) continue;
-        if (in_contact(*p)) {
-          c(x, y) = n == 2 ? BackgroundModel::kChanged : BackgroundModel::kSoftShadow;
-          contact += n == 0;
-        } else if (in_lit(*p) && n == 0) {
-          c(x, y) = BackgroundModel::kSoftShadow;
-          ++lit;
-        } else if (in_hidden(*p)) {
-          c(x, y) = n == 0 ? BackgroundModel::kSoftShadow : BackgroundModel::kChanged;
-          hidden += n == 0;
-        }
-      }
+  FloorClasses painted = PaintFloorClasses(room, [&](size_t n, const Eigen::Vector2d& p) -> uint8_t {
+    if (in_contact(p)) {
+      contact += n == 0;
+      return n == 2 ? BackgroundModel::kChanged : BackgroundModel::kSoftShadow;
     }
-  }
+    if (in_lit(p) && n == 0) {
+      ++lit;
+      return BackgroundModel::kSoftShadow;
+    }
+    if (in_hidden(p)) {
+      hidden += n == 0;
+      return n == 0 ? BackgroundModel::kSoftShadow : BackgroundModel::kChanged;
+    }
+    return BackgroundModel::kBackground;
+  });
+  auto& [classes, changes, class_views, change_views] = painted;
   ASSERT_GT(contact, 200);
   ASSERT_GT(lit, 50);
   ASSERT_GT(hidden, 50);
-  std::vector<ImageView<const uint8_t>> class_views;
-  std::vector<ImageView<uint8_t>> change_views;
-  for (const auto& c : classes) class_views.push_back(c.view());
-  for (auto& c : changes) change_views.push_back(c.view());
   ShadowCheck check(*lut);
   check.Apply(class_views, change_views);
   int64_t turned_contact = 0, turned_lit = 0, turned_hidden = 0;
