@@ -279,9 +279,33 @@ std::optional<LeftOut> FitWithout(std::span<const FloorPoint> points, const std:
   return out;
 }
 
+// The points of `subset` ordered by their error under the fit of the whole subset, largest
+// first; empty when the subset cannot be fitted.
+std::vector<size_t> ByErrorUnderFit(std::span<const FloorPoint> points, const std::vector<size_t>& subset,
+                                    const FloorCalibrationOptions& options) {
+  std::vector<FloorPoint> sub;
+  for (size_t i : subset) sub.push_back(points[i]);
+  auto fit = FitModel(sub, options);
+  if (!fit.ok()) return {};
+  auto model = fit->Model();
+  if (!model.ok()) return {};
+  MeasureFloorErrors(**model, sub, *fit);
+  std::vector<size_t> order(subset.size());
+  for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return fit->errors[a].reprojection_px > fit->errors[b].reprojection_px;
+  });
+  return order;
+}
+
 // Backward elimination by leave-one-out: each round, every remaining point is left out in turn;
 // the one whose absence leaves the best fit is an outlier when that fit puts it beyond the
 // threshold. One wrong point spoils every fit it is part of, so only the fit without it is clean.
+// Past kLeaveOneOutAll points a round leaves out only the kLeaveOneOutCandidates worst under
+// the fit of all: there one point barely moves the fit, so a wrong one stands out in it, and
+// leaving every point out (a fit each, a round per outlier) grows with the cube of the count.
+constexpr size_t kLeaveOneOutAll = 40;
+constexpr size_t kLeaveOneOutCandidates = 12;
 void CheckOutliers(std::span<const FloorPoint> points, const FloorCalibrationOptions& options,
                    FloorCalibration& cal) {
   const size_t need = RedundantPoints(options);
@@ -304,7 +328,14 @@ void CheckOutliers(std::span<const FloorPoint> points, const FloorCalibrationOpt
   // At most a third of the points are called wrong: beyond that the rest are no majority.
   while (active.size() >= need + 1 && 3 * (cal.outliers.size() + 1) <= points.size()) {
     std::optional<std::pair<size_t, LeftOut>> best;  // position in active, its fit
-    for (size_t k = 0; k < active.size(); ++k) {
+    std::vector<size_t> candidates;                  // positions in active
+    if (active.size() > kLeaveOneOutAll) {
+      candidates = ByErrorUnderFit(points, active, options);
+      if (candidates.size() > kLeaveOneOutCandidates) candidates.resize(kLeaveOneOutCandidates);
+    } else {
+      for (size_t k = 0; k < active.size(); ++k) candidates.push_back(k);
+    }
+    for (size_t k : candidates) {
       std::vector<size_t> subset = active;
       subset.erase(subset.begin() + static_cast<ptrdiff_t>(k));
       const auto r = FitWithout(points, subset, active[k], options);

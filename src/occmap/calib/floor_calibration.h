@@ -112,7 +112,7 @@ struct FloorCalibration {
   std::string outlier_note;
   std::vector<size_t> outliers;           // indices into the points, in the order found
   std::vector<double> predicted_error_px; // per point: its error under the fit of the others but
-                                          // the outliers (NaN when not computed)
+                                          // the outliers (NaN when not left out)
   double rms_without_outliers_px = 0;     // the fit without the outliers: the others' RMS
   double rms_floor_without_outliers_m = 0;
 
