@@ -24,7 +24,7 @@ test('live view: the cached backgrounds\' state per camera', { timeout: 240000 }
     editSite: (text) => text.replace(/^ *background: .*\n/gm, '').replace(/^backgrounds:.*\n( .*\n)*/m, '') +
       'backgrounds: {adaptive: true, learn_s: 2, learn_samples: 10, refresh_cache_s: 1}\n',
   });
-  const page = await s.open('/');
+  const page = await s.open('/system');  // the cameras' table is a developer's
   await s.check(async () => {
     // Two failed writes per camera at least: the count goes up while the run goes on.
     await page.waitForFunction(() => {

@@ -1,7 +1,8 @@
 // The live view in a real browser: the rendered lab's four cameras streamed in real time over
 // UDP, `occmap serve` on them; the page shows the map picture, the camera pictures refreshed
-// with their state (up, background age), the stage timings, and tracks whose positions on the
-// page change between two moments; the events of a zone and a line listed with their times.
+// with their state (up, background age), and tracks whose positions on the page change between
+// two moments; the events of a zone and a line listed with their times; the stage timings are on
+// the system page its link opens, not on the live page.
 'use strict';
 const test = require('node:test');
 const assert = require('node:assert');
@@ -60,13 +61,22 @@ test('live view: map, cameras and moving tracks', { timeout: 240000 }, async (t)
     const shown2 = await tileFrame();
     assert.ok(shown2 > shown1, `cam1's picture is refreshed (frame ${shown1}, then ${shown2})`);
 
-    // Stage timings and background ages, from /api/state: measured, and shown.
-    await page.waitForFunction(() => {
+    // Stage timings, from /api/state: measured, and shown on the system page (its link on the
+    // live page), which the live page leaves out.
+    assert.strictEqual(await page.locator('[data-testid=stages], .cams').count(), 0, 'no developer tables on the live page');
+    assert.strictEqual(await page.getAttribute('[data-testid=system-link]', 'href'), '/system');
+    const sys = await s.open('/system');
+    await sys.waitForFunction(() => {
       const row = document.querySelector('[data-testid=stages] tr[data-stage=decode] td.num');
       return row && parseFloat(row.textContent) > 0;
     }, null, { timeout: 30000 });
-    const stages = await page.$$eval('[data-testid=stages] tr', (rows) => rows.map((r) => r.dataset.stage));
+    const stages = await sys.$$eval('[data-testid=stages] tr', (rows) => rows.map((r) => r.dataset.stage));
     for (const k of ['tables', 'decode', 'detect', 'fuse', 'blobs', 'track', 'output']) assert.ok(stages.includes(k), `stage ${k} in ${stages}`);
+    await sys.waitForFunction(() => document.querySelectorAll('.cams tr[data-camera]').length === 4, null, { timeout: 10000 });
+    assert.strictEqual(await sys.getAttribute('header a[data-tab=system]', 'class'), 'active');
+    await sys.waitForFunction(() => /"frames"/.test(document.querySelector('[data-testid=summary]').textContent), null, { timeout: 30000 });
+    await h.screenshot(sys, 'serve-system.png');
+    await sys.close();
     // The lab's backgrounds are given and fixed: they age with the run.
     const ages = await page.$$eval('.tile [data-testid=tile-bg-age]', (els) => els.map((e) => e.textContent));
     assert.ok(ages.every((a) => /^bg \d+ s$/.test(a)), `background ages on the tiles: ${ages}`);

@@ -1,5 +1,6 @@
-// occmap serve's page: the live view (map, tracks, zones, cameras, timings) and the setup
-// (calibration from floor points, floor masks, zones and lines, saved to the site file).
+// occmap serve's page: the live view (map, tracks, zones, cameras, events), the setup
+// (calibration from floor points, floor masks, zones and lines, saved to the site file) and, at
+// /system, the developer's figures (stage times, latency, the cameras' counters, MQTT).
 import 'leaflet/dist/leaflet.css';
 import '@geoman-io/leaflet-geoman-free/dist/leaflet-geoman.css';
 import './style.css';
@@ -9,10 +10,12 @@ import htm from 'htm';
 import { getJSON, subscribe } from './api.js';
 import { LiveView } from './live.js';
 import { SetupView } from './setup.js';
+import { SystemView } from './system.js';
 
 const html = htm.bind(h);
 
 function initialTab() {
+  if (location.pathname === '/system') return 'system';
   return location.hash === '#setup' ? 'setup' : 'live';
 }
 
@@ -48,8 +51,9 @@ function App() {
       <span class="brand">occmap</span>
       <span class="site-name" title=${site.path}>${site.name}</span>
       <nav>
-        <a href="#live" class=${tab === 'live' ? 'active' : ''} data-tab="live">Live</a>
-        <a href="#setup" class=${tab === 'setup' ? 'active' : ''} data-tab="setup">Setup</a>
+        <a href="/#live" class=${tab === 'live' ? 'active' : ''} data-tab="live">Live</a>
+        <a href="/#setup" class=${tab === 'setup' ? 'active' : ''} data-tab="setup">Setup</a>
+        <a href="/system" class=${tab === 'system' ? 'active' : ''} data-tab="system">System</a>
       </nav>
       <span class="grow"></span>
       <span class="status">
@@ -67,8 +71,8 @@ function App() {
     ${failed ? html`<div class="banner" data-testid="pipeline-error"><b>The pipeline stopped:</b> ${failed}
       <span class="hint">Correct the site file (${site.path}) and start <code>occmap serve</code> again.</span></div>` : null}
     <main>
-      ${tab === 'live'
-        ? html`<${LiveView} site=${site} state=${state} frame=${frame} />`
+      ${tab === 'live' ? html`<${LiveView} site=${site} state=${state} frame=${frame} />`
+        : tab === 'system' ? html`<${SystemView} state=${state} frame=${frame} />`
         : html`<${SetupView} site=${site} frame=${frame} onSaved=${setSite} />`}
     </main>`;
 }

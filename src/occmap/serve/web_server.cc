@@ -641,9 +641,10 @@ void WebServer::Routes() {
   svr.Put(".*", no_such_write);
   svr.Delete(".*", no_such_write);
 
-  // The pages: "/" is index.html, "/<file>" a file of the bundle.
+  // The pages: "/" and "/system" are index.html, "/<file>" a file of the bundle.
   svr.Get(R"(/([A-Za-z0-9_.-]*))", [this](const httplib::Request& req, httplib::Response& res) {
-    const std::string name = StaticFileName(req.path);
+    // The system page is the same bundle: it picks its view by the path.
+    const std::string name = req.path == "/system" ? std::string("index.html") : StaticFileName(req.path);
     for (const WebAsset& a : assets_) {
       if (!name.empty() && a.name == name) {
         res.set_header("Cache-Control", name == "index.html" ? "no-cache" : "max-age=300");
