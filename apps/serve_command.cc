@@ -74,7 +74,10 @@ Result<WebServerOptions> WebServerOptionsFrom(const std::string& listen_text, co
     if (token.empty()) return InvalidInput(fmt::format("--token-file '{}': the first line is empty", token_file));
   }
   for (char ch : token) {
-    if (ch < 0x21 || ch > 0x7e) return InvalidInput("--token: expected printable ASCII without spaces");
+    // '%': cpp-httplib percent-decodes header values, so "Bearer a%41" would arrive as "aA".
+    if (ch < 0x21 || ch > 0x7e || ch == '%') {
+      return InvalidInput("--token: expected printable ASCII without spaces or '%'");
+    }
   }
   if (!IsLoopbackHost(listen.host) && token.empty()) {
     return InvalidInput(fmt::format("--listen {}: serving beyond this machine needs --token or --token-file",

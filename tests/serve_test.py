@@ -9,7 +9,8 @@ and MJPEG; POST /api/calibrate with true floor points of a camera (projected thr
 site's own calibration) gives a sub-pixel RMS; PUT /api/site adding a zone writes a valid site
 file with a .bak and the zone's count then appears in the frame events; a bad PUT is refused
 with the loader's message and writes nothing; with a token, requests without it are refused
-and with it (header or query) accepted; path traversal (400) and an oversized body (413) are
+(the pages sent to /login) and with it (header, query or the session cookie POST /api/login
+sets, HttpOnly and SameSite=Strict) accepted, and logout clears the cookie; path traversal (400) and an oversized body (413) are
 refused; a cache folder that cannot be written is said once, not an error; SIGTERM stops it
 (exit 0) with its outputs valid. Needs only python3.
 """
@@ -39,6 +40,21 @@ def request(port, path, method="GET", body=None, headers=None, timeout=30):
     req = urllib.request.Request(f"http://127.0.0.1:{port}{path}", data=data, method=method, headers=headers)
     try:
         with urllib.request.urlopen(req, timeout=timeout) as r:
+            return r.status, r.headers, r.read()
+    except urllib.error.HTTPError as e:
+        return e.code, e.headers, e.read()
+
+
+class _NoRedirect(urllib.request.HTTPRedirectHandler):
+    def redirect_request(self, *args, **kwargs):
+        return None
+
+
+def no_redirect(port, path, headers=None):
+    """GET without following a redirect: its status, headers and body."""
+    opener = urllib.request.build_opener(_NoRedirect)
+    try:
+        with opener.open(urllib.request.Request(f"http://127.0.0.1:{port}{path}", headers=headers or {}), timeout=30) as r:
             return r.status, r.headers, r.read()
     except urllib.error.HTTPError as e:
         return e.code, e.headers, e.read()
@@ -220,13 +236,31 @@ try:
     # A token: refused without, accepted with.
     p2, port2 = start([site, "--listen", "127.0.0.1:0", "--token", "t0ken", "--out", os.path.join(work, "out2"),
                        "--cache-dir", cache, "--no-video"], "serve-token")
-    for path in ["/", "/api/site", "/events", "/metrics", "/api/cameras/cam1/frame.jpg"]:
+    for path in ["/api/site", "/events", "/metrics", "/api/cameras/cam1/frame.jpg"]:
         status, _, _ = request(port2, path)
         check(status == 401, f"{path} without the token: 401 ({status})")
     check(request(port2, "/api/site?token=wrong")[0] == 401, "a wrong token: 401")
     check(request(port2, "/api/site?token=t0ken")[0] == 200, "?token=: 200")
     check(request(port2, "/api/site", headers={"Authorization": "Bearer t0ken"})[0] == 200, "Bearer: 200")
-    check(request(port2, "/?token=t0ken")[0] == 200, "the page with ?token=: 200")
+    # The pages send a browser to /login; signing in there sets the session cookie, which the API takes.
+    status, headers, _ = no_redirect(port2, "/system")
+    check(status == 303 and headers["Location"] == "/login?next=/system", f"/system without the token: 303 to /login ({status})")
+    status, _, body = request(port2, "/login")
+    check(status == 200 and b"/api/login" in body, f"the login page needs no token ({status})")
+    check(request(port2, "/api/login", method="POST", body={"token": "wrong"})[0] == 401, "login with a wrong token: 401")
+    status, headers, _ = request(port2, "/api/login", method="POST", body={"token": "t0ken"})
+    cookie = headers.get("Set-Cookie", "")
+    check(status == 200 and cookie == "occmap_token=74306b656e; Path=/; Max-Age=2592000; HttpOnly; SameSite=Strict",
+          f"login: 200 and an HttpOnly, SameSite=Strict cookie ({status}, {cookie})")
+    jar = {"Cookie": cookie.split(";")[0]}
+    check(request(port2, "/api/site", headers=jar)[0] == 200, "the session cookie: 200")
+    check(get_json(port2, "/api/session", headers=jar)[1] == {"token_required": True, "signed_in": True, "via": "cookie"},
+          "/api/session with the cookie")
+    status, headers, _ = no_redirect(port2, "/?token=t0ken")
+    check(status == 303 and headers["Location"] == "/" and "HttpOnly" in headers.get("Set-Cookie", ""),
+          f"the page with ?token=: the cookie set, sent to / ({status})")
+    status, headers, _ = request(port2, "/api/logout", method="POST", body={}, headers=jar)
+    check(status == 200 and "Max-Age=0" in headers.get("Set-Cookie", ""), f"logout clears the cookie ({status})")
     p2.send_signal(signal.SIGTERM)
     check(p2.wait(timeout=60) == 0, "the token server stops on SIGTERM")
 

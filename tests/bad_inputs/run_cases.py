@@ -820,6 +820,10 @@ add("cli_fuse_listen_beyond_loopback", ["{bin}", "fuse", "{w}/lab/site.yaml", "-
 # A one-character token is no gate beyond loopback.
 add("cli_serve_token_short", ["{bin}", "serve", "{w}/lab/site.yaml", "--listen", "0.0.0.0:0", "--token", "a", "--out", "{c}/o"],
     ["--token", "at least 16 characters, found 1"])
+# '%' would be decoded out of the Authorization header before the token is compared.
+add("cli_serve_token_percent", ["{bin}", "serve", "{w}/lab/site.yaml", "--listen", "127.0.0.1:0", "--token",
+                                "abcdefgh%41bcdefgh", "--out", "{c}/o"],
+    ["--token", "without spaces or '%'"])
 add("cli_fuse_token_short", ["{bin}", "fuse", "{w}/lab/site.yaml", "--listen", "0.0.0.0:0", "--token", "short", "--out", "{c}/o"],
     ["--token", "at least 16 characters, found 5"])
 add("cli_serve_allow_host", ["{bin}", "serve", "{w}/lab/site.yaml", "--allow-host", "a/b", "--out", "{c}/o"],

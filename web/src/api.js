@@ -1,23 +1,25 @@
-// The page's side of the serve contract (docs/formats.md, "Web API"): every URL it builds carries
-// the page's own ?token= (EventSource and <img> cannot set headers) and fetch() also sends the
-// Bearer header.
-export const token = new URLSearchParams(location.search).get('token') || '';
-
+// The page's side of the serve contract (docs/formats.md, "Web API"). With a token the browser
+// holds it in the session cookie /login sets (HttpOnly: no script here sees it), which every
+// request of this origin carries, fetch(), EventSource and <img> alike: no URL holds the token.
 export function url(path, params = {}) {
   const u = new URL(path, location.href);
   for (const [k, v] of Object.entries(params)) if (v !== undefined && v !== null) u.searchParams.set(k, v);
-  if (token) u.searchParams.set('token', token);
   return u.pathname + u.search;
+}
+
+// The cookie expired or the server was started with another token: sign in again.
+export function signIn() {
+  location.assign(`/login?next=${encodeURIComponent(location.pathname)}`);
 }
 
 async function request(method, path, body) {
   const headers = {};
-  if (token) headers.Authorization = `Bearer ${token}`;
   if (body !== undefined) headers['Content-Type'] = 'application/json';
   const res = await fetch(url(path), { method, headers, body: body === undefined ? undefined : JSON.stringify(body) });
   let data = null;
   const text = await res.text();
   try { data = text ? JSON.parse(text) : null; } catch { data = { error: text }; }
+  if (res.status === 401 && path !== '/api/login') signIn();
   if (!res.ok) {
     const message = (data && data.error) || `${method} ${path}: HTTP ${res.status}`;
     const err = new Error(message);
@@ -31,8 +33,8 @@ async function request(method, path, body) {
 export const getJSON = (path) => request('GET', path);
 export const postJSON = (path, body) => request('POST', path, body);
 export const putJSON = (path, body) => request('PUT', path, body);
+export const deleteJSON = (path) => request('DELETE', path);
 
-// The /events stream: handlers by event name; the browser reconnects by itself.
 export function subscribe(handlers, onStatus) {
   const es = new EventSource(url('/events'));
   for (const [name, fn] of Object.entries(handlers)) {

@@ -6,7 +6,7 @@
 import { h } from 'preact';
 import { useEffect, useState } from 'preact/hooks';
 import htm from 'htm';
-import { fmt, getJSON, postJSON, token, url } from './api.js';
+import { deleteJSON, fmt, getJSON, postJSON, url } from './api.js';
 
 const html = htm.bind(h);
 
@@ -29,14 +29,6 @@ async function pictureBase64(file) {
   canvas.getContext('2d').drawImage(bitmap, 0, 0);
   const blob = await new Promise((resolve) => canvas.toBlob(resolve, 'image/jpeg', 0.95));
   return toBase64(await blob.arrayBuffer());
-}
-
-async function deleteJSON(path) {
-  const headers = token ? { Authorization: `Bearer ${token}` } : {};
-  const res = await fetch(url(path), { method: 'DELETE', headers });
-  const data = await res.json().catch(() => null);
-  if (!res.ok) throw new Error((data && data.error) || `DELETE ${path}: HTTP ${res.status}`);
-  return data;
 }
 
 export const defaultBoard = { kind: 'checkerboard', size: '9x6', square_m: '0.03', marker_m: '', dictionary: '4x4_50' };

@@ -7,7 +7,7 @@ import './style.css';
 import { h, render } from 'preact';
 import { useEffect, useState } from 'preact/hooks';
 import htm from 'htm';
-import { getJSON, subscribe } from './api.js';
+import { getJSON, postJSON, subscribe } from './api.js';
 import { LiveView } from './live.js';
 import { SetupView } from './setup.js';
 import { SystemView } from './system.js';
@@ -19,6 +19,12 @@ function initialTab() {
   return location.hash === '#setup' ? 'setup' : 'live';
 }
 
+// Signing out: the server clears the session cookie; the page goes to the login page.
+async function signOut() {
+  await postJSON('/api/logout', {}).catch(() => {});
+  location.assign('/login');
+}
+
 function App() {
   const [site, setSite] = useState(null);
   const [state, setState] = useState(null);
@@ -26,10 +32,12 @@ function App() {
   const [connected, setConnected] = useState(false);
   const [error, setError] = useState(null);
   const [tab, setTab] = useState(initialTab());
+  const [session, setSession] = useState(null);
 
   useEffect(() => {
     getJSON('/api/site').then(setSite).catch((e) => setError(e.message));
     getJSON('/api/state').then(setState).catch(() => {});
+    getJSON('/api/session').then(setSession).catch(() => {});
     return subscribe({ frame: setFrame, state: setState, site: setSite }, setConnected);
   }, []);
   useEffect(() => {
@@ -67,6 +75,8 @@ function App() {
             : `cannot publish to ${state.mqtt.broker}: ${state.mqtt.error}; ${state.mqtt.dropped} messages dropped`}>${
           state.mqtt.connected ? 'MQTT' : 'MQTT down'}</span>` : null}
       </span>
+      ${session && session.token_required ? html`<button class="logout" data-testid="logout" onClick=${signOut}
+        title="forget the token in this browser">Sign out</button>` : null}
     </header>
     ${failed ? html`<div class="banner" data-testid="pipeline-error"><b>The pipeline stopped:</b> ${failed}
       <span class="hint">Correct the site file (${site.path}) and start <code>occmap serve</code> again.</span></div>` : null}

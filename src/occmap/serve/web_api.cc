@@ -208,6 +208,138 @@ std::string RequestToken(std::string_view authorization, std::string_view query_
   return std::string(query_token);
 }
 
+std::string SessionCookie(std::string_view token, int max_age_s) {
+  // Hex: a cookie value may not hold ';', ',', spaces or quotes, and cpp-httplib percent-decodes
+  // every header value before the server sees it, so a percent-encoded value would not survive.
+  std::string value;
+  for (const char ch : token) value += fmt::format("{:02x}", static_cast<unsigned char>(ch));
+  return fmt::format("{}={}; Path=/; Max-Age={}; HttpOnly; SameSite=Strict", kSessionCookie, value,
+                     token.empty() ? 0 : max_age_s);
+}
+
+std::vector<std::string> CookieTokens(std::string_view header) {
+  std::vector<std::string> out;
+  while (!header.empty()) {
+    const size_t end = std::min(header.find(';'), header.size());
+    std::string_view pair = header.substr(0, end);
+    header.remove_prefix(std::min(end + 1, header.size()));
+    while (!pair.empty() && pair.front() == ' ') pair.remove_prefix(1);
+    const size_t eq = pair.find('=');
+    if (eq == std::string_view::npos || pair.substr(0, eq) != kSessionCookie) continue;
+    std::string_view v = pair.substr(eq + 1);
+    while (!v.empty() && v.back() == ' ') v.remove_suffix(1);
+    if (v.empty() || v.size() % 2 != 0) continue;
+    std::string decoded;
+    for (size_t i = 0; i < v.size(); i += 2) {
+      unsigned byte = 0;
+      if (!std::isxdigit(static_cast<unsigned char>(v[i])) || !std::isxdigit(static_cast<unsigned char>(v[i + 1])) ||
+          std::from_chars(v.data() + i, v.data() + i + 2, byte, 16).ptr != v.data() + i + 2) {
+        decoded.clear();
+        break;
+      }
+      decoded += static_cast<char>(byte);
+    }
+    if (!decoded.empty()) out.push_back(std::move(decoded));
+  }
+  return out;
+}
+
+TokenSource CheckToken(std::string_view expected, std::string_view authorization, std::string_view cookie_header,
+                       std::string_view query_token) {
+  bool given = false;
+  const std::string bearer = RequestToken(authorization, "");
+  if (!bearer.empty()) {
+    if (TokenEquals(expected, bearer)) return TokenSource::kBearer;
+    given = true;
+  }
+  for (const std::string& c : CookieTokens(cookie_header)) {
+    if (TokenEquals(expected, c)) return TokenSource::kCookie;
+    given = true;
+  }
+  if (!query_token.empty()) {
+    if (TokenEquals(expected, query_token)) return TokenSource::kQuery;
+    given = true;
+  }
+  return given ? TokenSource::kWrong : TokenSource::kNone;
+}
+
+std::string_view TokenSourceName(TokenSource s) {
+  switch (s) {
+    case TokenSource::kBearer:
+      return "bearer";
+    case TokenSource::kCookie:
+      return "cookie";
+    case TokenSource::kQuery:
+      return "query";
+    default:
+      return "";
+  }
+}
+
+bool IsPagePath(std::string_view path) { return path == "/" || path == "/index.html" || path == "/system"; }
+
+bool IsOpenPath(std::string_view path) {
+  return path == "/login" || path == "/api/login" || path == "/api/logout" || path == "/api/session";
+}
+
+std::string LoginPageHtml() {
+  return R"html(<!doctype html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>occmap: sign in</title>
+<style>
+body { font: 15px/1.4 system-ui, sans-serif; background: #f1f5f9; color: #0f172a; margin: 0;
+       display: flex; min-height: 100vh; align-items: center; justify-content: center; }
+form { background: #fff; border: 1px solid #cbd5e1; border-radius: 8px; padding: 24px 28px; width: 320px; }
+h1 { font-size: 20px; margin: 0 0 4px; }
+p { color: #475569; margin: 0 0 16px; font-size: 13px; }
+label { display: block; font-size: 13px; margin-bottom: 4px; }
+input { width: 100%; box-sizing: border-box; padding: 7px 8px; font: inherit; border: 1px solid #94a3b8; border-radius: 4px; }
+button { margin-top: 14px; width: 100%; padding: 8px; font: inherit; font-weight: 600; color: #fff;
+         background: #2563eb; border: 0; border-radius: 4px; cursor: pointer; }
+.error { color: #b91c1c; min-height: 1.4em; margin: 10px 0 0; font-size: 13px; }
+</style>
+</head>
+<body>
+<form id="login" method="post" action="/api/login" autocomplete="on">
+  <h1>occmap</h1>
+  <p>This server needs its token (<code>--token</code> or <code>--token-file</code> of the command that started it).</p>
+  <label for="token">Token</label>
+  <input id="token" name="token" type="password" autocomplete="current-password" required autofocus data-testid="login-token">
+  <button type="submit" data-testid="login-submit">Sign in</button>
+  <p class="error" id="error" data-testid="login-error" role="alert"></p>
+</form>
+<script>
+(function () {
+  var next = new URLSearchParams(location.search).get('next') || '/';
+  if (['/', '/index.html', '/system'].indexOf(next) < 0) next = '/';
+  var go = function () { location.replace(next); };
+  // Signed in already (a link from another site does not send the SameSite=Strict cookie; this
+  // same-origin request does).
+  fetch('/api/session').then(function (r) { return r.json(); }).then(function (s) {
+    if (s.signed_in) go();
+  }).catch(function () {});
+  document.getElementById('login').addEventListener('submit', function (e) {
+    e.preventDefault();
+    var error = document.getElementById('error');
+    error.textContent = '';
+    fetch('/api/login', { method: 'POST', headers: { 'Content-Type': 'application/json' },
+      body: JSON.stringify({ token: document.getElementById('token').value }) })
+      .then(function (r) {
+        if (r.ok) return go();
+        return r.json().then(function (b) { error.textContent = b.error || ('HTTP ' + r.status); });
+      })
+      .catch(function (err) { error.textContent = 'cannot reach occmap: ' + err.message; });
+  });
+})();
+</script>
+</body>
+</html>
+)html";
+}
+
 bool IsTraversal(std::string_view raw) {
   const std::string t = Lower(raw);
   if (t.find('\0') != std::string::npos || t.find('\\') != std::string::npos) return true;

@@ -51,6 +51,30 @@ std::optional<Refusal> CrossSiteWriteRefusal(std::string_view method, std::strin
 bool TokenEquals(std::string_view expected, std::string_view given);
 // The token of a request: "Authorization: Bearer T", else the query's token= (already decoded).
 std::string RequestToken(std::string_view authorization_header, std::string_view query_token);
+// The session cookie the login page sets (POST /api/login): its value the token's bytes in hex
+// (a token may hold any character but NUL); HttpOnly (no script reads it), SameSite=Strict (no
+// other site's page or link sends it), Path=/.
+inline constexpr std::string_view kSessionCookie = "occmap_token";
+inline constexpr int kSessionCookieMaxAgeS = 30 * 24 * 3600;
+// The Set-Cookie value that keeps `token` for `max_age_s`; with an empty token, one that clears it.
+std::string SessionCookie(std::string_view token, int max_age_s = kSessionCookieMaxAgeS);
+// Every occmap_token value of a Cookie header, decoded (a browser may send several).
+std::vector<std::string> CookieTokens(std::string_view cookie_header);
+// How a request shows the token: none given, a wrong one, or the first of Bearer header, the
+// session cookie, ?token= that matches.
+enum class TokenSource { kNone, kWrong, kBearer, kCookie, kQuery };
+TokenSource CheckToken(std::string_view expected, std::string_view authorization_header,
+                       std::string_view cookie_header, std::string_view query_token);
+std::string_view TokenSourceName(TokenSource s);  // "bearer", "cookie", "query", else ""
+// The pages a browser opens (they send a visitor without the token to /login): "/", "/index.html",
+// "/system".
+bool IsPagePath(std::string_view path);
+// What a visitor without the token may ask: the login page, login, logout and the session check.
+bool IsOpenPath(std::string_view path);
+// The login page: one self-contained HTML page (its style and script inline: the bundle's files
+// need the token) whose form posts the token to /api/login and then opens ?next= when it is one
+// of IsPagePath's (no open redirect), else "/".
+std::string LoginPageHtml();
 // A request target (path and query as sent, before decoding) that names anything outside the
 // served files: "..", its percent-encodings, a backslash (or %5c), NUL (or %00).
 bool IsTraversal(std::string_view raw_target);

@@ -128,6 +128,39 @@ TEST(WebApi, TokensFromHeaderOrQuery) {
   EXPECT_EQ(RequestToken("Basic xyz", "q"), "q");
 }
 
+TEST(WebApi, SessionCookieCarriesAnyTokenAndIsFoundAmongOthers) {
+  EXPECT_EQ(SessionCookie("Ab9"), "occmap_token=416239; Path=/; Max-Age=2592000; HttpOnly; SameSite=Strict");
+  EXPECT_EQ(SessionCookie(""), "occmap_token=; Path=/; Max-Age=0; HttpOnly; SameSite=Strict");
+  // Characters a cookie cannot hold, and '%', which cpp-httplib would decode in a header.
+  const std::string odd = "a b;c,d=\"e\"%41\xc3\xa9";
+  const std::string set = SessionCookie(odd, 60);
+  const std::string value = set.substr(0, set.find(';'));
+  EXPECT_EQ(value, "occmap_token=6120623b632c643d226522253431c3a9");
+  EXPECT_EQ(CookieTokens("x=1; " + value + "; y=2"), std::vector<std::string>{odd});
+  EXPECT_EQ(CookieTokens("occmap_token=6f6c64;occmap_token=6E6577"), (std::vector<std::string>{"old", "new"}));
+  EXPECT_TRUE(CookieTokens("occmap_tokenx=61; xoccmap_token=61; occmap_token=; occmap_token=616").empty());
+  EXPECT_TRUE(CookieTokens("occmap_token=zz").empty());
+  EXPECT_TRUE(CookieTokens("occmap_token=+1").empty());
+}
+
+TEST(WebApi, TokenFromBearerCookieOrQuery) {
+  EXPECT_EQ(CheckToken("s3cret", "", "", ""), TokenSource::kNone);
+  EXPECT_EQ(CheckToken("s3cret", "Bearer s3cret", "", ""), TokenSource::kBearer);
+  EXPECT_EQ(CheckToken("s3cret", "", "occmap_token=733363726574", ""), TokenSource::kCookie);
+  EXPECT_EQ(CheckToken("s3cret", "", "", "s3cret"), TokenSource::kQuery);
+  // A stale cookie does not spoil a right token given otherwise.
+  EXPECT_EQ(CheckToken("s3cret", "", "occmap_token=6f6c64", "s3cret"), TokenSource::kQuery);
+  EXPECT_EQ(CheckToken("s3cret", "", "occmap_token=6f6c64; occmap_token=733363726574", ""), TokenSource::kCookie);
+  EXPECT_EQ(CheckToken("s3cret", "Bearer no", "occmap_token=6f6c64", "no"), TokenSource::kWrong);
+  EXPECT_EQ(CheckToken("s3cret", "", "occmap_token=s3cret", ""), TokenSource::kNone) << "not hex: no cookie";
+  EXPECT_EQ(TokenSourceName(TokenSource::kCookie), "cookie");
+  EXPECT_EQ(TokenSourceName(TokenSource::kWrong), "");
+  EXPECT_TRUE(IsOpenPath("/login"));
+  EXPECT_FALSE(IsOpenPath("/login.html"));
+  EXPECT_TRUE(IsPagePath("/system"));
+  EXPECT_FALSE(IsPagePath("/app.js"));
+}
+
 TEST(WebApi, RefusesTraversalInEveryEncoding) {
   for (const char* bad : {"/../etc/passwd", "/a/..", "/%2e%2e/x", "/%2E%2E/x", "/.%2e/x", "/%2e./x", "/a\\b",
                           "/a%5cb", "/a%00b", "/%252e%252e/x", "/api/cameras/..%2fc1/frame.jpg"}) {

@@ -249,6 +249,20 @@ std::optional<std::string> ReadBody(const httplib::Request& req, httplib::Respon
   return std::nullopt;
 }
 
+// A request's body as JSON (ReadBody, then ParseJsonBody); nothing, with the reply made (400,
+// 408, 413), when it cannot be read or is not JSON.
+std::optional<json> ReadJsonBody(const httplib::Request& req, httplib::Response& res,
+                                 const httplib::ContentReader& reader, size_t max_bytes) {
+  const auto text = ReadBody(req, res, reader, max_bytes);
+  if (!text) return std::nullopt;
+  auto body = ParseJsonBody(*text);
+  if (!body.ok()) {
+    ErrorReply(res, 400, body.status().message());
+    return std::nullopt;
+  }
+  return std::move(*body);
+}
+
 // A stream's slot in the server's count, released when the stream's provider is destroyed.
 struct StreamSlot {
   explicit StreamSlot(std::atomic<int>& n) : count(n) {}
@@ -339,6 +353,11 @@ void WebServer::Routes() {
       CloseAfter(res);
       return httplib::Server::HandlerResponse::Handled;
     };
+    auto redirect = [](httplib::Response& r, const std::string& to) {
+      r.set_redirect(to, 303);
+      r.set_header("Cache-Control", "no-store");
+      return httplib::Server::HandlerResponse::Handled;
+    };
     if (IsTraversal(req.target) || IsTraversal(req.path)) return refuse(400, "path not allowed");
     const std::string& method = req.method;
     if (method != "GET" && method != "HEAD" && method != "POST" && method != "PUT" && method != "DELETE" &&
@@ -352,12 +371,22 @@ void WebServer::Routes() {
                                      "with --allow-host {}",
                                      Excerpt(host, 80), Excerpt(HostName(host), 80)));
     }
-    if (!options_.token.empty()) {
-      const std::string given = RequestToken(req.get_header_value("Authorization"), req.get_param_value("token"));
-      if (!TokenEquals(options_.token, given)) {
+    if (!options_.token.empty() && !IsOpenPath(req.path)) {
+      const TokenSource given = CheckToken(options_.token, req.get_header_value("Authorization"),
+                                           req.get_header_value("Cookie"), req.get_param_value("token"));
+      const bool page = (method == "GET" || method == "HEAD") && IsPagePath(req.path);
+      if (given == TokenSource::kNone || given == TokenSource::kWrong) {
+        // A browser opening a page signs in first; scripts get 401.
+        if (page) return redirect(res, "/login?next=" + req.path);
         res.set_header("WWW-Authenticate", "Bearer");
-        return refuse(401, given.empty() ? "a token is needed: Authorization: Bearer TOKEN or ?token=TOKEN"
-                                         : "wrong token");
+        return refuse(401, given == TokenSource::kNone
+                               ? "a token is needed: sign in at /login, or Authorization: Bearer TOKEN or ?token=TOKEN"
+                               : "wrong token");
+      }
+      // An old link with ?token=: the token goes into the cookie and out of the address bar.
+      if (given == TokenSource::kQuery && page) {
+        res.set_header("Set-Cookie", SessionCookie(options_.token));
+        return redirect(res, req.path);
       }
     }
     if (auto r = CrossSiteWriteRefusal(method, host, req.get_header_value("Origin"),
@@ -374,6 +403,45 @@ void WebServer::Routes() {
                                   : res.status == 404 ? "not found"
                                                       : fmt::format("request refused (HTTP {})", res.status));
     }
+  });
+
+  // Signing in (docs/formats.md, "Web API"): open to every visitor, the gate above lets them by.
+  svr.Get("/login", [this](const httplib::Request&, httplib::Response& res) {
+    if (options_.token.empty()) return res.set_redirect("/", 303);
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(LoginPageHtml(), "text/html; charset=utf-8");
+  });
+  svr.Get("/api/session", [this](const httplib::Request& req, httplib::Response& res) {
+    const TokenSource given = options_.token.empty()
+                                  ? TokenSource::kNone
+                                  : CheckToken(options_.token, req.get_header_value("Authorization"),
+                                               req.get_header_value("Cookie"), req.get_param_value("token"));
+    const std::string_view via = TokenSourceName(given);
+    res.set_header("Cache-Control", "no-store");
+    JsonReply(res, 200, json{{"token_required", !options_.token.empty()},
+                             {"signed_in", options_.token.empty() || !via.empty()},
+                             {"via", via.empty() ? json(nullptr) : json(via)}});
+  });
+  const size_t max_body_bytes = options_.max_body_bytes;
+  svr.Post("/api/login", [this, max_body_bytes](const httplib::Request& req, httplib::Response& res,
+                                                  const httplib::ContentReader& reader) {
+    const auto body = ReadJsonBody(req, res, reader, max_body_bytes);
+    if (!body) return;
+    if (!body->is_object() || !body->contains("token") || !(*body)["token"].is_string()) {
+      return ErrorReply(res, 400, "token: expected a string, {\"token\": \"...\"}");
+    }
+    if (options_.token.empty()) return JsonReply(res, 200, json{{"signed_in", true}, {"token_required", false}});
+    if (!TokenEquals(options_.token, (*body)["token"].get<std::string>())) return ErrorReply(res, 401, "wrong token");
+    res.set_header("Set-Cookie", SessionCookie(options_.token));
+    res.set_header("Cache-Control", "no-store");
+    JsonReply(res, 200, json{{"signed_in", true}, {"token_required", true}});
+  });
+  svr.Post("/api/logout", [this, max_body_bytes](const httplib::Request& req, httplib::Response& res,
+                                                   const httplib::ContentReader& reader) {
+    if (!ReadBody(req, res, reader, max_body_bytes)) return;
+    res.set_header("Set-Cookie", SessionCookie(""));
+    res.set_header("Cache-Control", "no-store");
+    JsonReply(res, 200, json{{"signed_in", options_.token.empty()}, {"token_required", !options_.token.empty()}});
   });
 
   svr.Get("/api/site", [this](const httplib::Request&, httplib::Response& res) {
@@ -429,13 +497,10 @@ void WebServer::Routes() {
     LiveState& st = backend_.state();
     res.set_content(MetricsText(*st.Latest(), st.running()), "text/plain; version=0.0.4; charset=utf-8");
   });
-  const size_t max_body_bytes = options_.max_body_bytes;
   svr.Post("/api/calibrate", [this, max_body_bytes](const httplib::Request& req, httplib::Response& res,
                                                     const httplib::ContentReader& reader) {
-    const auto text = ReadBody(req, res, reader, max_body_bytes);
-    if (!text) return;
-    const auto body = ParseJsonBody(*text);
-    if (!body.ok()) return ErrorReply(res, 400, body.status().message());
+    const auto body = ReadJsonBody(req, res, reader, max_body_bytes);
+    if (!body) return;
     auto r = backend_.Calibrate(*body);
     if (!r.ok()) return ErrorReply(res, HttpStatusFor(r.status()) == 500 ? 500 : 400, r.status().message());
     JsonReply(res, 200, *r);
@@ -451,10 +516,8 @@ void WebServer::Routes() {
   });
   svr.Post("/api/board/views", [this, board_reply, max_body_bytes](const httplib::Request& req, httplib::Response& res,
                                                                    const httplib::ContentReader& reader) {
-    const auto text = ReadBody(req, res, reader, max_body_bytes);
-    if (!text) return;
-    const auto body = ParseJsonBody(*text);
-    if (!body.ok()) return ErrorReply(res, 400, body.status().message());
+    const auto body = ReadJsonBody(req, res, reader, max_body_bytes);
+    if (!body) return;
     board_reply(res, backend_.AddBoardView(*body));
   });
   svr.Delete("/api/board/views", [this, board_reply, max_body_bytes](const httplib::Request& req,
@@ -474,10 +537,8 @@ void WebServer::Routes() {
   svr.Post("/api/board/calibrate", [this, board_reply, max_body_bytes](const httplib::Request& req,
                                                                        httplib::Response& res,
                                                                        const httplib::ContentReader& reader) {
-    const auto text = ReadBody(req, res, reader, max_body_bytes);
-    if (!text) return;
-    const auto body = ParseJsonBody(*text);
-    if (!body.ok()) return ErrorReply(res, 400, body.status().message());
+    const auto body = ReadJsonBody(req, res, reader, max_body_bytes);
+    if (!body) return;
     board_reply(res, backend_.CalibrateBoard(*body));
   });
   svr.Get("/api/board/view.jpg", [this](const httplib::Request& req, httplib::Response& res) {
@@ -492,10 +553,8 @@ void WebServer::Routes() {
   });
   svr.Put("/api/site", [this, max_body_bytes](const httplib::Request& req, httplib::Response& res,
                                               const httplib::ContentReader& reader) {
-    const auto text = ReadBody(req, res, reader, max_body_bytes);
-    if (!text) return;
-    const auto body = ParseJsonBody(*text);
-    if (!body.ok()) return ErrorReply(res, 400, body.status().message());
+    const auto body = ReadJsonBody(req, res, reader, max_body_bytes);
+    if (!body) return;
     auto r = backend_.UpdateSite(*body);
     if (!r.ok()) return ErrorReply(res, HttpStatusFor(r.status()) == 500 ? 500 : 400, r.status().message());
     JsonReply(res, 200, *r);
@@ -641,7 +700,7 @@ void WebServer::Routes() {
   svr.Put(".*", no_such_write);
   svr.Delete(".*", no_such_write);
 
-  // The pages: "/" and "/system" are index.html, "/<file>" a file of the bundle.
+  // The pages: "/" is index.html, "/<file>" a file of the bundle.
   svr.Get(R"(/([A-Za-z0-9_.-]*))", [this](const httplib::Request& req, httplib::Response& res) {
     // The system page is the same bundle: it picks its view by the path.
     const std::string name = req.path == "/system" ? std::string("index.html") : StaticFileName(req.path);

@@ -5,8 +5,9 @@
 // Every request passes one gate before routing: a target naming anything outside the served
 // files ("..", its encodings, backslash, NUL) is refused with 400; a method other than GET,
 // HEAD, POST, PUT, DELETE with 405; a Host that is not this server's (DNS rebinding, web_api.h
-// HostAllowed) with 403; with a token every request needs it (Bearer header or ?token=) else
-// 401; a write from another site's page (Origin, Sec-Fetch-Site) with 403 and a write whose body
+// HostAllowed) with 403; with a token every request needs it (Bearer header, the session cookie
+// of /login, or ?token=) else 401, a page (/, /system) a redirect to /login, and a page opened
+// with ?token= sets the cookie and is sent to its address without it; a write from another site's page (Origin, Sec-Fetch-Site) with 403 and a write whose body
 // is not application/json with 415. A body over 1 MiB gets 413, however it is sent: with a
 // Content-Length read and dropped by cpp-httplib (or refused before it is sent to a client that
 // asks, Expect: 100-continue), chunked cut at the limit and the connection closed. A request

@@ -248,16 +248,96 @@ TEST_F(WebServerTest, ForeignHostsAndCrossSiteWritesAreRefused) {
 
 TEST_F(WebServerTest, TokenOnEveryRequest) {
   StartServer("s3cret");
-  for (const char* target : {"/", "/app.js", "/api/site", "/api/state", "/metrics", "/events", "/api/map.png",
-                             "/api/cameras/c1/mjpeg"}) {
+  for (const char* target : {"/app.js", "/api/site", "/api/state", "/metrics", "/events", "/api/map.png",
+                             "/api/cameras/c1/mjpeg", "/api/stats"}) {
     const std::string r = Get(port_, target);
     EXPECT_EQ(StatusOf(r), 401) << target;
     EXPECT_NE(r.find("\"error\""), std::string::npos) << target;
     EXPECT_EQ(StatusOf(Get(port_, std::string(target) + "?token=wrong")), 401) << target;
+    EXPECT_EQ(StatusOf(Get(port_, target, "Cookie: occmap_token=77726f6e67\r\n")), 401) << target;
   }
   EXPECT_EQ(StatusOf(Get(port_, "/api/site?token=s3cret")), 200);
   EXPECT_EQ(StatusOf(Get(port_, "/api/site", "Authorization: Bearer s3cret\r\n")), 200);
-  EXPECT_EQ(StatusOf(Get(port_, "/?token=s3cret")), 200);
+  EXPECT_EQ(StatusOf(Get(port_, "/api/site", "Cookie: a=b; occmap_token=733363726574\r\n")), 200);
+  // The pages send a browser without the token to sign in.
+  for (const char* page : {"/", "/system", "/index.html"}) {
+    const std::string r = Get(port_, page);
+    EXPECT_EQ(StatusOf(r), 303) << page;
+    EXPECT_NE(r.find("Location: /login?next=" + std::string(page) + "\r\n"), std::string::npos) << r;
+    EXPECT_EQ(r.find("Set-Cookie"), std::string::npos) << r;
+    EXPECT_EQ(StatusOf(Get(port_, std::string(page) + "?token=wrong")), 303) << page;
+  }
+  // An old link with ?token=: the cookie is set and the address loses the token.
+  const std::string linked = Get(port_, "/system?token=s3cret");
+  EXPECT_EQ(StatusOf(linked), 303);
+  EXPECT_NE(linked.find("Location: /system\r\n"), std::string::npos) << linked;
+  EXPECT_NE(linked.find("Set-Cookie: occmap_token=733363726574; Path=/; Max-Age=2592000; HttpOnly; SameSite=Strict\r\n"),
+            std::string::npos)
+      << linked;
+  EXPECT_EQ(StatusOf(Get(port_, "/", "Cookie: occmap_token=733363726574\r\n")), 200);
+  const std::string system = Get(port_, "/system", "Cookie: occmap_token=733363726574\r\n");
+  EXPECT_EQ(StatusOf(system), 200);
+  EXPECT_NE(system.find("<html>hi</html>"), std::string::npos) << "the system page is the bundle's index.html";
+}
+
+// POST /api/login puts the token in an HttpOnly, SameSite=Strict cookie; every route then takes
+// the cookie; /api/logout clears it. The login page and these routes need no token.
+TEST_F(WebServerTest, SignInKeepsTheTokenInACookie) {
+  StartServer("s3cret;=x,%41");  // characters a cookie value cannot hold, and '%', which headers decode
+  const std::string page = Get(port_, "/login?next=/system");
+  EXPECT_EQ(StatusOf(page), 200);
+  EXPECT_NE(page.find("Content-Type: text/html"), std::string::npos);
+  EXPECT_NE(page.find("/api/login"), std::string::npos);
+  EXPECT_EQ(page.find("s3cret"), std::string::npos);
+
+  auto post = [this](const std::string& target, const std::string& body, const std::string& headers =
+                                                                                 "Content-Type: application/json\r\n") {
+    return Exchange(port_, "POST " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n" + headers +
+                               "Content-Length: " + std::to_string(body.size()) + "\r\n\r\n" + body);
+  };
+  const std::string wrong = post("/api/login", R"({"token": "s3cret"})");
+  EXPECT_EQ(StatusOf(wrong), 401);
+  EXPECT_EQ(wrong.find("Set-Cookie"), std::string::npos);
+  EXPECT_EQ(StatusOf(post("/api/login", R"({"token": 5})")), 400);
+  EXPECT_EQ(StatusOf(post("/api/login", R"({"token": "s3cret;=x,%41"})", "Content-Type: text/plain\r\n")), 415);
+  EXPECT_EQ(StatusOf(post("/api/login", R"({"token": "s3cret;=x,%41"})",
+                          "Content-Type: application/json\r\nOrigin: http://evil.example\r\n")),
+            403);
+
+  const std::string ok = post("/api/login", R"({"token": "s3cret;=x,%41"})");
+  EXPECT_EQ(StatusOf(ok), 200) << ok;
+  const std::string cookie = "occmap_token=7333637265743b3d782c253431";
+  EXPECT_NE(ok.find("Set-Cookie: " + cookie + "; Path=/; Max-Age=2592000; HttpOnly; SameSite=Strict\r\n"),
+            std::string::npos)
+      << ok;
+  EXPECT_EQ(StatusOf(Get(port_, "/api/state", "Cookie: " + cookie + "\r\n")), 200);
+  EXPECT_EQ(StatusOf(Get(port_, "/app.js", "Cookie: " + cookie + "\r\n")), 200);
+  EXPECT_EQ(StatusOf(Get(port_, "/", "Cookie: " + cookie + "\r\n")), 200);
+  const int fd = OpenStream(port_, "/events?x=1");  // no cookie: refused
+  EXPECT_EQ(fd, -1);
+
+  auto session = [this](const std::string& headers) {
+    const std::string r = Get(port_, "/api/session", headers);
+    return json::parse(r.substr(r.find("\r\n\r\n") + 4));
+  };
+  EXPECT_EQ(session(""), (json{{"token_required", true}, {"signed_in", false}, {"via", nullptr}}));
+  EXPECT_EQ(session("Cookie: " + cookie + "\r\n"), (json{{"token_required", true}, {"signed_in", true}, {"via", "cookie"}}));
+  EXPECT_EQ(session("Cookie: occmap_token=6f6c64\r\n")["signed_in"], false);
+
+  const std::string out = post("/api/logout", "{}");
+  EXPECT_EQ(StatusOf(out), 200);
+  EXPECT_NE(out.find("Set-Cookie: occmap_token=; Path=/; Max-Age=0; HttpOnly; SameSite=Strict\r\n"), std::string::npos)
+      << out;
+}
+
+TEST_F(WebServerTest, WithoutATokenTheLoginPageSendsHome) {
+  StartServer("");
+  const std::string r = Get(port_, "/login");
+  EXPECT_EQ(StatusOf(r), 303);
+  EXPECT_NE(r.find("Location: /\r\n"), std::string::npos) << r;
+  EXPECT_EQ(StatusOf(Get(port_, "/system")), 200);
+  const std::string s = Get(port_, "/api/session");
+  EXPECT_NE(s.find(R"({"signed_in":true,"token_required":false,"via":null})"), std::string::npos) << s;
 }
 
 TEST_F(WebServerTest, NonLoopbackNeedsAToken) {
