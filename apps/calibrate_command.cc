@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <vector>
 
 #include "occmap/calib/board_calibration.h"
 #include "occmap/calib/calibration_overlay.h"
@@ -180,7 +181,10 @@ CLI::App* AddCalibrateCommand(CLI::App& app, CalibrateCommand& cmd) {
       "calibrate a camera: intrinsics from board views, the camera from known floor points, the site file updated");
   c->add_option("--camera", cmd.camera_id, "camera id: names the files, and the site's camera with --update-site")
       ->capture_default_str();
-  c->add_option("--out", cmd.out_dir, "folder for the calibration files and the report")->capture_default_str();
+  c->add_option("--out", cmd.out_dir,
+                "folder for the calibration files and the report (files already there are replaced only with "
+                "--update-site or --force)")
+      ->capture_default_str();
   c->add_option("--board-images", cmd.board_images, "pictures of the board (intrinsics)");
   c->add_option("--board-video", cmd.board_video, "a video of the board (intrinsics): every --frame-step-th frame");
   c->add_option("--frame-step", cmd.frame_step, "board video: use every N-th frame")->capture_default_str();
@@ -210,7 +214,7 @@ CLI::App* AddCalibrateCommand(CLI::App& app, CalibrateCommand& cmd) {
       ->capture_default_str();
   c->add_flag("--force", cmd.force,
               "write the calibration (and --update-site) even with points named as outliers or an RMS over "
-              "--max-rms-px");
+              "--max-rms-px, and replace calibration files already in --out");
   c->add_flag("--json", cmd.json_to_stdout, "print the report as JSON");
   return c;
 }
@@ -248,7 +252,29 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
   OCCMAP_RETURN_IF_ERROR(EnsureDirectory(out));
   const fs::path intr_path = out / fmt::format("intr_{}.xml", cmd.camera_id);
   const fs::path extr_path = out / fmt::format("extr_{}.xml", cmd.camera_id);
+  const fs::path h_path = out / fmt::format("homography_{}.yaml", cmd.camera_id);
   const fs::path report_path = out / fmt::format("calibration_{}.json", cmd.camera_id);
+  // The calibration files already in --out may be those a site names (--out its own calib/):
+  // replaced only with --update-site (which points the site at them) or --force. Checked
+  // before the board's views are read, so a refusal costs nothing and writes nothing.
+  if (!cmd.force && cmd.update_site.empty()) {
+    std::vector<fs::path> to_write;
+    if (board) to_write.push_back(intr_path);
+    if (points && (board || !cmd.intrinsics_file.empty() || cmd.fit_lens)) {
+      to_write.insert(to_write.end(), {intr_path, extr_path});
+    } else if (points) {
+      to_write.push_back(h_path);
+    }
+    for (const fs::path& f : to_write) {
+      std::error_code ec;
+      if (fs::exists(f, ec)) {
+        return InvalidInput(fmt::format(
+            "--out {}: '{}' exists and a site may name it: give --force to replace it, --update-site SITE to "
+            "replace it and point the site at it, or another --out",
+            cmd.out_dir, f.string()));
+      }
+    }
+  }
   json report = {{"camera", cmd.camera_id}};
   json files = json::object();
 
@@ -318,7 +344,6 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
     files["intrinsic"] = intr_path.string();
     files["extrinsic"] = extr_path.string();
   } else {
-    const fs::path h_path = out / fmt::format("homography_{}.yaml", cmd.camera_id);
     OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(
         h_path, fmt::format("# occmap calibrate: camera {} from {} ({} floor points); a site file's camera entry\n"
                             "calibration: {}\n",

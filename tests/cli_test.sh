@@ -250,7 +250,7 @@ check calibrate_lab_homography 0 "cam1's calibration replaced" -- \
   --update-site "$work/lab/site.yaml"
 check calibrate_lab_homography_loads 0 "cam1 +homography +320x240" -- "$occmap" check "$work/lab/site.yaml"
 check calibrate_lab_json 0 '"rms_reprojection_px"' -- \
-  "$occmap" calibrate --camera cam1 --points "$work/lab/cam1.csv" --image-size 320x240 --out "$work/lab/newcalib" --json
+  "$occmap" calibrate --camera cam1 --points "$work/lab/cam1.csv" --image-size 320x240 --out "$work/lab/jsoncalib" --json
 check calibrate_lab_fit_lens 0 "^lens fitted to the points: focal length [0-9.]+ px, k1 -0\.[0-9]+" -- \
   "$occmap" calibrate --camera cam1 --fit-lens --points "$work/lab/cam1.csv" --image-size 320x240 \
   --out "$work/lab/lenscalib"
@@ -274,6 +274,19 @@ check calibrate_outlier_forced 0 "cam1's calibration replaced" -- \
 check calibrate_unknown_camera 2 "no camera 'cam9' \(the site's cameras: cam1, cam2, cam3, cam4\)" -- \
   "$occmap" calibrate --camera cam9 --points "$work/lab/cam1.csv" --image-size 320x240 --out "$work/lab/newcalib" \
   --update-site "$work/lab/site.yaml"
+# --out the site's own calib/ folder without --update-site: the files the site names (here the
+# synthesised cam1's) are not replaced; --force replaces them.
+cp "$work/lab/calib/intr_cam1.xml" "$work/lab/calib/extr_cam1.xml" "$work"/
+check calibrate_out_existing_refused 2 "--out [^ ]*/lab/calib: '[^ ]*/lab/calib/intr_cam1\.xml' exists and a site may name it: give --force to replace it, --update-site SITE" -- \
+  "$occmap" calibrate --camera cam1 --intrinsics "$work/lab/calib/intr_cam1.xml" --points "$work/lab/cam1.csv" \
+  --image-size 320x240 --out "$work/lab/calib"
+check calibrate_out_existing_kept 0 "^same$" -- bash -c "cmp '$work/intr_cam1.xml' '$work/lab/calib/intr_cam1.xml' \
+  && cmp '$work/extr_cam1.xml' '$work/lab/calib/extr_cam1.xml' && ! ls '$work/lab/calib/calibration_cam1.json' 2>/dev/null && echo same"
+check calibrate_out_existing_homography 2 "'[^ ]*/lab/newcalib/homography_cam1\.yaml' exists" -- \
+  "$occmap" calibrate --camera cam1 --points "$work/lab/cam1.csv" --image-size 320x240 --out "$work/lab/newcalib"
+check calibrate_out_existing_forced 0 "^wrote extrinsic: [^ ]*/lab/calib/extr_cam1\.xml" -- \
+  "$occmap" calibrate --camera cam1 --intrinsics "$work/lab/calib/intr_cam1.xml" --points "$work/lab/cam1.csv" \
+  --image-size 320x240 --out "$work/lab/calib" --force
 
 echo "$passed passed, $failures failed"
 [ "$failures" -eq 0 ]

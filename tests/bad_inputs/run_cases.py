@@ -881,6 +881,20 @@ add("cli_lut_plane_nan", ["{bin}", "lut", "{w}/lab/site.yaml", "--plane-height-m
 add("cli_bench_fraction", ["{bin}", "bench", "--changed-fraction", "2"], ["--changed-fraction"])
 add("cli_calibrate_missing", ["{bin}", "calibrate"], ["calibrate"])
 
+
+def site_calib_copy(case_dir, work):
+    """The lab site's calib/ folder copied, as --out, and four floor points."""
+    shutil.copytree(os.path.join(work, "lab", "calib"), os.path.join(case_dir, "calib"))
+    with open(os.path.join(case_dir, "pts.csv"), "w") as f:
+        f.write("20,20,1,1\n140,20,7,1\n140,100,7,5\n20,100,1,5\n")
+
+
+# --out the site's own calib/ without --update-site or --force: its files are not replaced.
+add("cli_calibrate_out_site_calib",
+    ["{bin}", "calibrate", "--camera", "cam1", "--intrinsics", "{w}/lab/calib/intr_cam1.xml", "--points", "{c}/pts.csv",
+     "--image-size", "160x120", "--out", "{c}/calib"],
+    ["calib/intr_cam1.xml' exists", "--force", "--update-site"], setup=site_calib_copy)
+
 # ----------------------------------------------------------------------------------------------
 # Runner
 
