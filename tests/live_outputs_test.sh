@@ -121,6 +121,38 @@ cam = json.loads(retained["homeassistant/image/occmap_lab/map/config"])
 assert cam["image_topic"] == "occmap/lab/map" and cam["content_type"] == "image/png", cam
 PY
 
+# --- The zone and the line removed from the site (issue 38's bar): the next run, with no zones
+# at all, clears their retained configs and states, and Home Assistant still gets the floor's
+# person count, the run's state, the map and each camera.
+sed '/^tracking:/,$d' "$work/lab/site.yaml" >"$work/lab/nozones.yaml"
+if "$occmap" run "$work/lab/nozones.yaml" --out "$work/nozones" --no-cache --no-video --frames 10 --mqtt "$url" \
+    >"$work/nozones.log" 2>&1; then ok; else fail "run without zones: exit $?"; tail -5 "$work/nozones.log"; fi
+mosquitto_sub -h 127.0.0.1 -p "$port" -t 'occmap/lab/#' -t 'homeassistant/#' -T 'occmap/lab/map' --retained-only -W 2 \
+  -F '%r %t %p' >"$work/retained2.log" 2>/dev/null
+python3 - "$work" <<'PY' && ok || fail "no zones: discovery of the floor and the cameras, the removed zone cleared"
+import json, sys
+work = sys.argv[1]
+retained = {}
+for line in open(f"{work}/retained2.log"):
+    r, topic, payload = (line.rstrip("\n").split(" ", 2) + ["", ""])[:3]
+    retained[topic] = payload
+gone = [t for t in retained if "whole_room" in t or "/middle" in t or "line_middle" in t]
+assert not gone, f"still retained: {gone}"
+people = json.loads(retained["homeassistant/sensor/occmap_lab/people/config"])
+assert people["state_topic"] == "occmap/lab/people" and people["default_entity_id"] == "sensor.occmap_lab_people", people
+assert people["origin"]["name"] == "occmap" and "object_id" not in people, people
+assert int(retained["occmap/lab/people"]) >= 0
+run = json.loads(retained["homeassistant/sensor/occmap_lab/run_state/config"])
+assert run["state_topic"] == "occmap/lab/run" and retained["occmap/lab/run"] == "ended", (run, retained.get("occmap/lab/run"))
+assert json.loads(retained["homeassistant/image/occmap_lab/map/config"])["image_topic"] == "occmap/lab/map"
+for cam in ["cam1", "cam2", "cam3", "cam4"]:
+    fps = json.loads(retained[f"homeassistant/sensor/occmap_lab/camera_{cam}_fps/config"])
+    assert fps["state_topic"] == f"occmap/lab/cameras/{cam}/fps" and fps["unit_of_measurement"] == "fps", fps
+    assert f"homeassistant/sensor/occmap_lab/camera_{cam}_state/config" in retained
+    assert f"occmap/lab/cameras/{cam}/state" in retained
+print(f"no zones: {sum(t.startswith('homeassistant/') for t in retained)} discovery configs retained, the zone and the line cleared")
+PY
+
 # --- kill -9 during a run: the broker publishes the last will, "offline".
 mosquitto_sub -h 127.0.0.1 -p "$port" -t 'occmap/lab/available' -F '%r %p' >"$work/will.log" 2>&1 &
 sub_pid=$!
