@@ -87,6 +87,7 @@ test('live view: map, cameras and moving tracks', { timeout: 240000 }, async (t)
     await page.waitForFunction(() => document.querySelectorAll('[data-testid=events] tr[data-event]').length > 0, null, { timeout: 90000 });
     const rows = await page.$$eval('[data-testid=events] tr[data-event]', (trs) => trs.map((tr) => tr.textContent.replace(/\s+/g, ' ').trim()));
     assert.ok(rows.some((r) => /^\d\d:\d\d:\d\d ?track \d+ (entered|left) room \(\d+ inside\)$/.test(r)), `events: ${JSON.stringify(rows)}`);
+    assert.strictEqual(await page.locator('[data-testid=events] tr[data-event=count]').count(), 0, 'count events repeat the entries');
     const api = await page.evaluate(() => fetch('/api/events').then((r) => r.json()));
     assert.ok(api.events_total >= rows.length && api.events.length > 0, JSON.stringify(api).slice(0, 300));
     await h.screenshot(page, 'serve-live.png');

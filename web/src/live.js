@@ -205,12 +205,15 @@ function eventText(e) {
   return html`${who} ${verb} <b>${e.zone}</b>${e.event === 'count' || e.count !== undefined ? ` (${e.count} inside)` : ''}`;
 }
 
+// A zone's count events repeat what its entries and exits say ("(N inside)"): left out here
+// (they stay in events.jsonl, MQTT and /api/events).
 function Events({ events }) {
+  const shown = events.filter((e) => e.event !== 'count');
   return html`<section class="panel">
     <h2>Events</h2>
-    ${events.length === 0 ? html`<p class="hint">No zone entries or line crossings yet.</p>` : null}
+    ${shown.length === 0 ? html`<p class="hint">No zone entries or line crossings yet.</p>` : null}
     <table class="events" data-testid="events">
-      ${[...events].reverse().map((e) => html`<tr data-event=${e.event} data-frame=${e.frame}>
+      ${[...shown].reverse().map((e) => html`<tr data-event=${e.event} data-frame=${e.frame}>
         <td class="num">${eventTime(e)}</td><td>${eventText(e)}</td></tr>`)}
     </table>
   </section>`;
