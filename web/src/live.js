@@ -24,8 +24,10 @@ function drawZones(layer, site, frame) {
   const crossings = new Map(((frame && frame.lines) || []).map((l) => [l.name, l]));
   for (const l of site.lines || []) {
     const c = crossings.get(l.name);
-    const line = L.polyline([[l.a_m[1], l.a_m[0]], [l.b_m[1], l.b_m[0]]], { color: '#7c3aed', weight: 3, interactive: false }).addTo(layer);
-    line.bindTooltip(`${l.name}: in ${c ? c.in : '–'} · out ${c ? c.out : '–'}`, { permanent: true, direction: 'right', className: 'line-label' });
+    L.polyline([[l.a_m[1], l.a_m[0]], [l.b_m[1], l.b_m[0]]], { color: '#7c3aed', weight: 3, interactive: false }).addTo(layer);
+    // At the line's end, not its middle: a zone's label sits at its centre, often on the line's.
+    L.tooltip({ permanent: true, direction: 'right', className: 'line-label', interactive: false })
+      .setLatLng([l.b_m[1], l.b_m[0]]).setContent(`${l.name}: in ${c ? c.in : '–'} · out ${c ? c.out : '–'}`).addTo(layer);
   }
 }
 
