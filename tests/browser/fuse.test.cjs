@@ -2,7 +2,8 @@
 // streamed in real time over UDP, two `occmap edge` processes (two cameras each) and the fuse
 // joined by a mosquitto of the test's own (127.0.0.1, a free port). The page shows the fused map,
 // tracks that move, the frame number advancing, every camera up with the changes its edge sent as
-// its picture; the setup's edits are refused (the site file is the edges' too).
+// its picture; the setup's edits are refused (the site file is the edges' too). The fuse runs
+// with --token: the page signs in on the login page and runs on its cookie.
 'use strict';
 const test = require('node:test');
 const assert = require('node:assert');
@@ -13,6 +14,7 @@ const path = require('node:path');
 const h = require('./harness.cjs');
 
 const occmap = process.env.OCCMAP;
+const kToken = 'fuse-test-token-5d1e';
 
 function freeTcpPort() {
   return new Promise((resolve, reject) => {
@@ -81,7 +83,7 @@ test('fuse view: map, cameras and moving tracks from edges', { timeout: 240000 }
   const broker = `mqtt://127.0.0.1:${brokerPort}`;
 
   const fuse = spawn(occmap, ['fuse', site, '--broker', broker, '--out', path.join(dir, 'fuse'), '--no-video',
-    '--no-cache', '--listen', '127.0.0.1:0', '--latency-budget-s', '0.5', '--dead-after-s', '2'],
+    '--no-cache', '--listen', '127.0.0.1:0', '--token', kToken, '--latency-budget-s', '0.5', '--dead-after-s', '2'],
   { stdio: ['ignore', 'pipe', 'pipe'] });
   procs.push(fuse);
   let fuseLog = '';
@@ -96,6 +98,12 @@ test('fuse view: map, cameras and moving tracks from edges', { timeout: 240000 }
   browser = await h.launchBrowser();
   const page = await h.openPage(browser, url + '/');
   try {
+    // Signing in: the login page, then the live page on the cookie.
+    assert.strictEqual(new URL(page.url()).pathname, '/login');
+    await page.fill('[data-testid=login-token]', kToken);
+    await page.click('[data-testid=login-submit]');
+    await page.waitForURL((u) => u.pathname === '/', { timeout: 10000 });
+    assert.strictEqual((await page.context().cookies())[0].httpOnly, true);
     // The fused map's picture arrives, one pixel per cell.
     const grid = await page.evaluate(() => fetch('/api/site').then((r) => r.json()).then((s) => s.grid));
     await page.waitForFunction((g) => {
