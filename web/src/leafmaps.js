@@ -49,11 +49,12 @@ function addMetreAxes(map, bounds) {
   const decade = 10 ** Math.floor(Math.log10(raw));
   const step = [1, 2, 5, 10].map((k) => Number((k * decade).toPrecision(6))).find((s) => s >= raw);
   // Below the lower edge, centred; left of the left edge, right-aligned (Leaflet places a marker
-  // by its anchor: its own transform is Leaflet's).
+  // by its anchor: its own transform is Leaflet's). The axes' names past their ends, clear of
+  // a tick that falls on the end (a floor of whole metres).
+  const anchors = { 'axis-x': [22, -3], 'axis-y': [48, 7], 'axis-x axis-name': [-6, -3], 'axis-y axis-name': [48, 22] };
   const label = (text, latlng, cls) => L.marker(latlng, {
     interactive: false, keyboard: false,
-    icon: L.divIcon({ className: `axis-label ${cls}`, html: text, iconSize: [44, 14],
-                      iconAnchor: cls.includes('axis-x') ? [22, -3] : [48, 7] }),
+    icon: L.divIcon({ className: `axis-label ${cls}`, html: text, iconSize: [44, 14], iconAnchor: anchors[cls] }),
   }).addTo(map);
   const digits = step < 1 ? 1 : 0;
   // Integer multiples of the step, so that no sum of steps drifts.
