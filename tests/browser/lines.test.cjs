@@ -1,6 +1,6 @@
 // Counting lines' rules through the page: a line written by hand with its own hysteresis band
 // and counting every crossing keeps both when the page saves the zones and lines (they were
-// dropped before); a band typed in the list is saved.
+// dropped before); a band typed in the list, slowly while the page re-renders, is saved.
 'use strict';
 const test = require('node:test');
 const assert = require('node:assert');
@@ -36,9 +36,12 @@ test('setup: a counting line keeps its hysteresis band and once-per-track rule w
     let saved = fs.readFileSync(s.site, 'utf8');
     assert.match(saved, /name: "door", from: \[2, 1\], to: \[2, 5\], hysteresis_m: 0\.5, once_per_track: false/, saved);
 
-    // The band changed in the list, the rule switched on.
-    await page.fill('[data-testid=line-band-0]', '0.3');
-    await page.press('[data-testid=line-band-0]', 'Enter');
+    // The band changed in the list, typed as a person types (the page re-renders with every
+    // frame event meanwhile: the typed text must survive them), the rule switched on.
+    await page.click('[data-testid=line-band-0]', { clickCount: 3 });
+    await page.keyboard.type('0.3', { delay: 200 });
+    assert.strictEqual(await page.inputValue('[data-testid=line-band-0]'), '0.3', 'the text typed stays');
+    await page.keyboard.press('Enter');
     await page.check('[data-testid=line-once-0]');
     await page.click('[data-testid=save]');
     await page.waitForFunction(() => document.querySelector('[data-testid=save]').disabled, null, { timeout: 60000 });

@@ -336,6 +336,9 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
   const ctx = useRef(null);
   const [showCoverage, setShowCoverage] = useState(false);
   const [leafletMap, setLeafletMap] = useState(null);
+  // A band being typed, by line: the page re-renders with every frame event, which would put
+  // a controlled input's saved value back under the user's fingers before the change is done.
+  const [bandText, setBandText] = useState({});
   const coverage = useCoverage(showCoverage);
   const readAll = () => {
     const c = ctx.current;
@@ -446,6 +449,7 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
     setZonesLines(zs, ls);
   };
   const removeItem = (kind, i) => {
+    if (kind === 'line') setBandText({});
     const c = ctx.current;
     const layers = (kind === 'zone' ? c.zoneLayer : c.lineLayer).getLayers();
     if (layers[i]) (kind === 'zone' ? c.zoneLayer : c.lineLayer).removeLayer(layers[i]);
@@ -475,8 +479,13 @@ function ZoneEditor({ site, zones, lines, setZonesLines }) {
           <td><input value=${l.name} onInput=${(e) => rename('line', i, e.target.value)} /></td>
           <td class="hint">(${l.a_m.join(', ')}) → (${l.b_m.join(', ')}) m
             <label title="a track is on a side only beyond this distance from the line">band
-              <input class="coord" data-testid=${`line-band-${i}`} inputmode="decimal" value=${l.hysteresis_m ?? 0.2}
-                onChange=${(e) => { const v = Number(e.target.value); if (e.target.value !== '' && Number.isFinite(v)) setRule(i, 'band', v); }} /> m</label>
+              <input class="coord" data-testid=${`line-band-${i}`} inputmode="decimal" value=${bandText[i] ?? l.hysteresis_m ?? 0.2}
+                onInput=${(e) => setBandText({ ...bandText, [i]: e.target.value })}
+                onChange=${(e) => {
+                  const v = Number(e.target.value);
+                  if (e.target.value !== '' && Number.isFinite(v)) setRule(i, 'band', v);
+                  setBandText({ ...bandText, [i]: undefined });
+                }} /> m</label>
             <label title="a track counts at most once in each direction"><input type="checkbox" data-testid=${`line-once-${i}`}
               checked=${l.once_per_track ?? true} onChange=${(e) => setRule(i, 'once', e.target.checked)} />once a track</label></td>
           <td><button class="small" onClick=${() => removeItem('line', i)}>×</button></td></tr>`)}
