@@ -236,18 +236,19 @@ Status BackgroundOptions::Validate() const {
 namespace {
 
 // Pairs of background and frame levels, per background bin a histogram of the frame's levels.
+// sum_b: per bin and frame level, the sum of the background levels of those pairs.
 struct LevelPairs {
   std::vector<uint32_t> hist = std::vector<uint32_t>(static_cast<size_t>(kBins) * 256, 0);
+  std::vector<uint32_t> sum_b = std::vector<uint32_t>(static_cast<size_t>(kBins) * 256, 0);
   std::array<uint32_t, kBins> counts{};
-  std::array<double, kBins> sum_b{};
   int total = 0;
   // Background levels under 8 or over 247 say nothing of the slope (clipped).
   void Add(int background, int frame) {
     if (background < 8 || background > 247) return;
-    const int bin = background / kBinLevels;
-    ++hist[static_cast<size_t>(bin) * 256 + static_cast<size_t>(frame)];
-    ++counts[static_cast<size_t>(bin)];
-    sum_b[static_cast<size_t>(bin)] += background;
+    const size_t at = static_cast<size_t>(background / kBinLevels) * 256 + static_cast<size_t>(frame);
+    ++hist[at];
+    sum_b[at] += static_cast<uint32_t>(background);
+    ++counts[static_cast<size_t>(background / kBinLevels)];
     ++total;
   }
 };
@@ -264,19 +265,29 @@ bool FitDensestLine(const LevelPairs& pairs, double* a_out, double* b_out) {
     // The densest window of kModeWindow levels, not the median: the floor of one level stays
     // the densest where people of many shades cover more than half of its bin.
     const uint32_t* h = pairs.hist.data() + static_cast<size_t>(bin) * 256;
+    const uint32_t* sb = pairs.sum_b.data() + static_cast<size_t>(bin) * 256;
     uint32_t in_window = 0, best = 0;
-    int densest = 0;
+    int last = 0;  // the densest window's last level
     for (int level = 0; level < 256; ++level) {
       in_window += h[level];
       if (level >= kModeWindow) in_window -= h[level - kModeWindow];
       if (in_window > best) {
         best = in_window;
-        densest = level - kModeWindow / 2;
+        last = level;
       }
     }
+    // The point is the window's pairs' means, frame and background alike: the bin's mean
+    // background against the window's centre is off wherever the bin's levels are uneven or the
+    // gain spreads them over more levels than the window (ties went to the lowest).
+    double sum_frame = 0, sum_background = 0;
+    for (int level = std::max(0, last - kModeWindow + 1); level <= last; ++level) {
+      sum_frame += static_cast<double>(level) * h[level];
+      sum_background += sb[level];
+    }
+    const double frame_level = sum_frame / best;
     // A clipped level says nothing of the slope (the frame saturates there).
-    if (densest <= 4 || densest >= 251) continue;
-    points.push_back({pairs.sum_b[static_cast<size_t>(bin)] / n, static_cast<double>(densest), static_cast<double>(n)});
+    if (frame_level <= 4 || frame_level >= 251) continue;
+    points.push_back({sum_background / best, frame_level, static_cast<double>(n)});
   }
   if (points.size() < 2) return false;
   double a = 1, b = 0;

@@ -102,6 +102,28 @@ TEST(PhotometricTransfer, RecoversGainAndOffsetWithAThirdOfThePixelsCovered) {
   EXPECT_GT(t.samples, 1000);
 }
 
+// A floor of few tones: in every 8-level bin of the background three pixels in four are at
+// its first level, one at its last. Each bin's point is the mean of the pairs in its densest
+// frame window, background and frame alike; the bin's mean background against that window
+// (the first tones' frame level) put every point 2.3 levels low and the offset with them.
+TEST(PhotometricTransfer, UnevenLevelsWithinABinDoNotBiasTheLine) {
+  const int w = 320, h = 240;
+  Image<uint8_t> background(w, h), frame(w, h);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0, 1);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const int bin = 3 + static_cast<int>(rng() % 24);
+      const int level = 8 * bin + (rng() % 4 == 0 ? 7 : 0);
+      background(x, y) = static_cast<uint8_t>(level);
+      frame(x, y) = Clamp(1.3 * level - 10 + noise(rng));
+    }
+  }
+  const PhotometricTransfer t = EstimateTransfer(background.view(), frame.view());
+  EXPECT_NEAR(t.gain, 1.3, 0.01);
+  EXPECT_NEAR(t.offset, -10, 0.8);
+}
+
 TEST(PhotometricTransfer, IsTheIdentityWithoutEnoughSpread) {
   Image<uint8_t> flat(64, 64, 100), frame(64, 64, 140);
   const PhotometricTransfer t = EstimateTransfer(flat.view(), frame.view());
