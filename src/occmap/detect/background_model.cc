@@ -33,29 +33,6 @@ constexpr double kLookJumpFactor = 2;      // a new mode this many times the loo
 constexpr int64_t kWarmUpLookLessons = 3;  // lessons without shadows that drop the warm-up's look,
 constexpr double kWarmUpLookMinMass = kLookMinMass / 4;  // when they taught fewer pixels than this
 
-// One row of the luma test: cls = out = 1 where |frame - expected| > threshold or the chroma
-// test said so (cc), expected = clamp((gq b + cq) >> 16) (halfway to the clip where b is
-// clipped: ExpectedLuma); returns the count. Compiled again
-// for AVX2 (32-bit multiplies: the baseline x86-64 has none in SIMD), chosen by the kernel set
-// (util/simd.h); the same values on any path.
-[[gnu::always_inline]] inline int LumaTestRowBody(const uint8_t* frame, const uint8_t* background, const uint8_t* cc,
-                                                  int width, int32_t gq, int32_t cq, int threshold, uint8_t* cls,
-                                                  uint8_t* out) {
-  int count = 0;
-  for (int x = 0; x < width; ++x) {
-    int p = (gq * static_cast<int32_t>(background[x]) + cq) >> 16;
-    p = p < 0 ? 0 : (p > 255 ? 255 : p);
-    // BackgroundModel::ExpectedLuma's clipped backgrounds.
-    p = background[x] >= BackgroundModel::kClippedWhite ? (p + 256) >> 1 : (background[x] <= BackgroundModel::kClippedBlack ? p >> 1 : p);
-    const int d = frame[x] - p;
-    const uint8_t c = static_cast<uint8_t>((d > threshold) | (d < -threshold) | cc[x]);
-    cls[x] = c;
-    out[x] = c;
-    count += c;
-  }
-  return count;
-}
-
 // 8.8 fixed point to 8 bits, rounded, saturated.
 [[gnu::always_inline]] inline void RoundRowBody(const uint16_t* src, int width, uint8_t* dst) {
   for (int x = 0; x < width; ++x) {
@@ -65,23 +42,10 @@ constexpr double kWarmUpLookMinMass = kLookMinMass / 4;  // when they taught few
 }
 
 #if OCCMAP_X86_KERNELS
-__attribute__((target("avx2"))) int LumaTestRowAvx2(const uint8_t* frame, const uint8_t* background,
-                                                    const uint8_t* cc, int width, int32_t gq, int32_t cq,
-                                                    int threshold, uint8_t* cls, uint8_t* out) {
-  return LumaTestRowBody(frame, background, cc, width, gq, cq, threshold, cls, out);
-}
 __attribute__((target("avx2"))) void RoundRowAvx2(const uint16_t* src, int width, uint8_t* dst) {
   RoundRowBody(src, width, dst);
 }
 #endif
-
-int LumaTestRow(const uint8_t* frame, const uint8_t* background, const uint8_t* cc, int width, int32_t gq, int32_t cq,
-                int threshold, uint8_t* cls, uint8_t* out) {
-#if OCCMAP_X86_KERNELS
-  if (ActiveKernels() >= KernelSet::kAvx2) return LumaTestRowAvx2(frame, background, cc, width, gq, cq, threshold, cls, out);
-#endif
-  return LumaTestRowBody(frame, background, cc, width, gq, cq, threshold, cls, out);
-}
 
 void RoundRow(const uint16_t* src, int width, uint8_t* dst) {
 #if OCCMAP_X86_KERNELS
@@ -976,52 +940,18 @@ void BackgroundModel::DetectChangesReference(const YuvView& frame, int threshold
     }
   }
   if (options_.grow_steps_px == 0) return;
-  // The hysteresis. Seeds: the 8-connected changes of at least GrowSeedMinPixels() pixels.
-  Image<uint8_t> seeds(width_, height_, 0), seen(width_, height_, 0);
-  std::vector<std::pair<int, int>> component, stack;
-  for (int y0 = 0; y0 < height_; ++y0) {
-    for (int x0 = 0; x0 < width_; ++x0) {
-      if (changes(x0, y0) == 0 || seen(x0, y0) != 0) continue;
-      component.clear();
-      stack.assign(1, {x0, y0});
-      seen(x0, y0) = 1;
-      while (!stack.empty()) {
-        const auto [x, y] = stack.back();
-        stack.pop_back();
-        component.push_back({x, y});
-        for (int dy = -1; dy <= 1; ++dy) {
-          for (int dx = -1; dx <= 1; ++dx) {
-            const int xx = x + dx, yy = y + dy;
-            if (xx < 0 || xx >= width_ || yy < 0 || yy >= height_ || changes(xx, yy) == 0 || seen(xx, yy) != 0) continue;
-            seen(xx, yy) = 1;
-            stack.push_back({xx, yy});
-          }
-        }
-      }
-      if (static_cast<int64_t>(component.size()) < GrowSeedMinPixels()) continue;
-      for (const auto& [x, y] : component) seeds(x, y) = 1;
-    }
-  }
-  // Step by step from the seeds of the step before.
+  // The hysteresis: the pixels classed background that are changes at its thresholds grow from
+  // the changes of at least GrowSeedMinPixels() pixels (a flood fill in the reference).
   const int tl = GrowThreshold(threshold), tcl = chroma_ ? GrowThreshold(options_.chroma_threshold) : 0;
-  for (int step = 0; step < options_.grow_steps_px; ++step) {
-    const Image<uint8_t> before = seeds;
-    for (int y = 0; y < height_; ++y) {
-      for (int x = 0; x < width_; ++x) {
-        if (changes(x, y) != 0 || classes(x, y) != kBackground) continue;
-        bool next_to_change = false;
-        for (int dy = -1; dy <= 1; ++dy) {
-          for (int dx = -1; dx <= 1; ++dx) {
-            const int xx = x + dx, yy = y + dy;
-            if (xx >= 0 && xx < width_ && yy >= 0 && yy < height_ && before(xx, yy) != 0) next_to_change = true;
-          }
-        }
-        if (!next_to_change) continue;
-        const PixelLevels p = LevelsAt(frame, x, y);
-        if (WeakChange(p.y, p.u, p.v, p.by, p.eu, p.ev, tl, tcl)) changes(x, y) = seeds(x, y) = 1;
-      }
+  Image<uint8_t> weak(width_, height_, 0);
+  for (int y = 0; y < height_; ++y) {
+    for (int x = 0; x < width_; ++x) {
+      if (classes(x, y) != kBackground) continue;
+      const PixelLevels p = LevelsAt(frame, x, y);
+      weak(x, y) = WeakChange(p.y, p.u, p.v, p.by, p.eu, p.ev, tl, tcl) ? 1 : 0;
     }
   }
+  GrowChangesFromWeakReference(changes, weak.view(), classes.view(), options_.grow_steps_px, GrowSeedMinPixels());
 }
 
 int64_t BackgroundModel::GrowSeedMinPixels() const {
@@ -1085,70 +1015,11 @@ void BackgroundModel::ExpectChroma() {
   }
 }
 
-int64_t BackgroundModel::GrowChanges(const YuvView& frame, int threshold, ImageView<uint8_t> changes) {
-  const int tl = GrowThreshold(threshold), tcl = chroma_ ? GrowThreshold(options_.chroma_threshold) : 0;
-  if (grow_band_.width() != width_ || grow_band_.height() != height_) grow_band_ = Image<uint8_t>(width_, height_);
-  // Only changes of at least grow_seed_share of the image grow: a speck (noise, the tip of a
-  // shadow) stays what it is.
-  Image<uint8_t>& seeds = grow_seeds_;
-  if (seeds.width() != width_ || seeds.height() != height_) seeds = Image<uint8_t>(width_, height_);
-  const cv::Mat changed_mat(height_, width_, CV_8U, changes.row(0), static_cast<size_t>(changes.stride_elems()));
-  const cv::Mat out(height_, width_, CV_8U, seeds.row(0), static_cast<size_t>(seeds.stride_elems()));
-  {
-    // The labels written into the model's buffer (OpenCV keeps a matching one), not a new one a frame.
-    if (grow_labels_.width() != width_ || grow_labels_.height() != height_) grow_labels_ = Image<int32_t>(width_, height_);
-    cv::Mat labels(height_, width_, CV_32S, grow_labels_.row(0), static_cast<size_t>(grow_labels_.stride_elems()) * sizeof(int32_t));
-    cv::Mat stats, centroids;
-    const int labels_n = cv::connectedComponentsWithStats(changed_mat, labels, stats, centroids, 8, CV_32S);
-    const int64_t min_px = GrowSeedMinPixels();
-    std::vector<uint8_t>& seed_of = grow_seed_of_;
-    seed_of.assign(static_cast<size_t>(labels_n), 0);
-    for (int l = 1; l < labels_n; ++l) seed_of[static_cast<size_t>(l)] = stats.at<int>(l, cv::CC_STAT_AREA) >= min_px;
-    for (int y = 0; y < height_; ++y) {
-      const int32_t* lab = grow_labels_.row(y);
-      uint8_t* s = seeds.row(y);
-      for (int x = 0; x < width_; ++x) s[x] = seed_of[static_cast<size_t>(lab[x])];
-    }
-  }
-  cv::Mat band(height_, width_, CV_8U, grow_band_.row(0), static_cast<size_t>(grow_band_.stride_elems()));
-  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, {3, 3});
-  int64_t added = 0;
-  for (int step = 0; step < options_.grow_steps_px; ++step) {
-    // Out of the image counts as unchanged (OpenCV's default border for dilation is the minimum).
-    cv::dilate(out, band, kernel, {-1, -1}, 1, cv::BORDER_CONSTANT, cv::Scalar(0));
-    int64_t step_added = 0;
-    for (int y = 0; y < height_; ++y) {
-      const uint8_t* b = grow_band_.row(y);
-      uint8_t* o = changes.row(y);
-      uint8_t* cls = class_.data() + static_cast<size_t>(y) * width_;
-      const uint8_t* fy = frame.y.row(y);
-      const uint8_t* b8 = bg8_.row(y);
-      for (int x = 0; x < width_; ++x) {
-        if (x + 8 <= width_) {  // past the band's empty stretches eight pixels at a time
-          uint64_t word;
-          std::memcpy(&word, b + x, 8);
-          if (word == 0) {
-            x += 7;
-            continue;
-          }
-        }
-        if (b[x] == 0 || o[x] != 0 || cls[x] != kBackground) continue;
-        bool weak = std::abs(fy[x] - pred_[b8[x]]) > tl;
-        if (!weak && tcl > 0) {
-          const size_t c = static_cast<size_t>(y / 2) * cw_ + static_cast<size_t>(x / 2);
-          weak = std::abs(frame.u(x / 2, y / 2) - expected_u_[c]) > tcl || std::abs(frame.v(x / 2, y / 2) - expected_v_[c]) > tcl;
-        }
-        if (!weak) continue;
-        o[x] = 1;
-        seeds(x, y) = 1;
-        cls[x] = kChanged;
-        ++step_added;
-      }
-    }
-    added += step_added;
-    if (step_added == 0) break;
-  }
-  return added;
+int64_t BackgroundModel::GrowChanges(ImageView<uint8_t> changes) {
+  // On the change test's masks alone: its weak pixels (classed background, changed at the
+  // hysteresis' thresholds) were marked in its pass (adaptive_change_kernels.h).
+  return GrowChangesFromWeak(changes, grow_weak_.view(), {class_.data(), width_, height_, width_}, options_.grow_steps_px,
+                             GrowSeedMinPixels(), grow_seeds_, grow_band_);
 }
 
 void BackgroundModel::WarmUp(const std::vector<YuvView>& frames, int threshold) {
@@ -1262,6 +1133,9 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
   // pixels only (a few percent).
   chroma_changed_.assign(static_cast<size_t>(width_), 0);
   const int32_t gq = gain_q16_, cq = offset_q16_;
+  // The hysteresis' weak test in the same pass (adaptive_change_kernels.h).
+  const int tl = GrowThreshold(threshold), tcl = chroma_ ? GrowThreshold(options_.chroma_threshold) : 0;
+  if (grow_weak_.width() != width_ || grow_weak_.height() != height_) grow_weak_ = Image<uint8_t>(width_, height_);
   for (int y = 0; y < height_; ++y) {
     const uint8_t* fy = frame.y.row(y);
     const uint8_t* b8 = bg8_.row(y);
@@ -1273,14 +1147,10 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
     uint8_t* rat = ratio_.data() + static_cast<size_t>(y) * width_;
     uint8_t* out = changes.row(y);
     uint8_t* cc = chroma_changed_.data();
-    if (tc > 0 && y % 2 == 0) {
-      for (int x = 0; x < cw_; ++x) {
-        const uint8_t c = std::abs(fu[x] - reu[x]) > tc || std::abs(fv[x] - rev[x]) > tc ? 1 : 0;
-        cc[2 * x] = c;
-        if (2 * x + 1 < width_) cc[2 * x + 1] = c;
-      }
-    }
-    int row_changed = LumaTestRow(fy, b8, cc, width_, gq, cq, threshold, cls, out);
+    if (tc > 0 && y % 2 == 0) ChromaFlagsRow(width_, fu, fv, reu, rev, tc, tcl, cc);
+    int row_changed = ChangeTestRow({.width = width_, .frame_y = fy, .background_y = b8, .chroma_flags = cc,
+                                     .gain_q16 = gq, .offset_q16 = cq, .threshold = threshold, .weak_threshold = tl,
+                                     .classes = cls, .changes = out, .weak = grow_weak_.row(y)});
     if (!options_.shadows.enabled || row_changed == 0) {
       changed += row_changed;
       continue;
@@ -1320,7 +1190,7 @@ void BackgroundModel::DetectChanges(const YuvView& frame, int threshold, ImageVi
     }
     changed += row_changed;
   }
-  if (options_.grow_steps_px > 0 && changed > 0) changed += GrowChanges(frame, threshold, changes);
+  if (options_.grow_steps_px > 0 && changed > 0) changed += GrowChanges(changes);
   const double np = static_cast<double>(width_) * height_;
   stats_.changed_fraction = static_cast<double>(changed) / np;
   stats_.shadow_fraction = static_cast<double>(shadow) / np;

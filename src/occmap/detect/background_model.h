@@ -369,8 +369,8 @@ class BackgroundModel {
   std::array<int, 2> ExpectedChroma(int block_y, int bu, int bv) const;
   // ExpectedChroma of every chroma block into expected_u_, expected_v_.
   void ExpectChroma();
-  // The hysteresis over DetectChanges' output and classes; returns the pixels added.
-  int64_t GrowChanges(const YuvView& frame, int threshold, ImageView<uint8_t> changes);
+  // The hysteresis over DetectChanges' output, classes and weak pixels; returns the pixels added.
+  int64_t GrowChanges(ImageView<uint8_t> changes);
   // The colour part of the shadow test for a darker pixel; adds it to the learning sums when
   // `learn` is given. A frame's sums are applied at the start of the next DetectChanges, so
   // that the look a frame was tested with stays the model's until then (the reference test
@@ -433,8 +433,7 @@ class BackgroundModel {
   std::vector<uint8_t> chroma_changed_;  // per pixel of the current chroma row
   std::vector<uint8_t> update_rest_;     // Update: the pixels of the row its kernel left to it
   Image<uint8_t> grow_seeds_, grow_band_;  // GrowChanges: the changes that grow, dilated by a pixel
-  Image<int32_t> grow_labels_;             // and their connected components
-  std::vector<uint8_t> grow_seed_of_;      // per component: whether it grows
+  Image<uint8_t> grow_weak_;               // DetectChanges' weak pixels (changes at the grow thresholds)
   ShadowLook look_;
   std::vector<double> ratio_histogram_;  // decayed, over [0, 1)
   ShadowLearning learning_;              // the last frame's sums
