@@ -20,38 +20,61 @@ inline int32_t Follow(int32_t value, int32_t target, int32_t alpha) {
   return value + ((target - value) * alpha + 32768) / 65536;
 }
 
+// The luma part of a row, the pointers as restrict parameters (see ChangeTestLoop).
+[[gnu::always_inline]] inline int UpdateLumaLoop(int w, const uint8_t* __restrict frame_y,
+                                                 const uint8_t* __restrict protection,
+                                                 const uint8_t* __restrict classes, uint16_t* __restrict background_y,
+                                                 uint8_t* __restrict previous_y, uint16_t* __restrict steady_frames,
+                                                 int32_t* __restrict set_frame, const int32_t* __restrict inv_y,
+                                                 uint8_t* __restrict rest, int32_t alpha, int32_t frame,
+                                                 bool even_to_model) {
+  static_assert(kFreeProtection == 0 && kBackgroundClass == 0);
+  const int odd_only = even_to_model ? 0 : 1;  // 0: the even pixels go to the model's loop
+  int newly = 0;
+  for (int x = 0; x < w; ++x) {
+    const int level = frame_y[x];
+    // With a fitted colour transfer the chroma blocks' top-left pixels go to the model's loop.
+    const int simple = static_cast<int>((protection[x] | classes[x]) == 0) & ((x & 1) | odd_only);
+    // Selects as masks (m: all ones where simple): selects of stored values become branches.
+    const int32_t m = -static_cast<int32_t>(simple);
+    const int32_t b = background_y[x];
+    const int32_t nb = Follow(b, inv_y[level], alpha);
+    background_y[x] = static_cast<uint16_t>(b + ((nb - b) & m));
+    steady_frames[x] = static_cast<uint16_t>(steady_frames[x] & ~m);
+    const int32_t s = set_frame[x];
+    newly += simple & (s < 0);
+    set_frame[x] = s + ((frame - s) & m);
+    const int32_t p = previous_y[x];
+    previous_y[x] = static_cast<uint8_t>(p + ((level - p) & m));
+    rest[x] = static_cast<uint8_t>(simple ^ 1);
+  }
+  return newly;
+}
+
+[[gnu::always_inline]] inline void UpdateChromaLoop(int cw, const uint8_t* __restrict rest,
+                                                    const uint8_t* __restrict frame_u, const uint8_t* __restrict frame_v,
+                                                    uint16_t* __restrict background_u, uint16_t* __restrict background_v,
+                                                    const int32_t* __restrict inv_c, int32_t alpha) {
+  for (int c = 0; c < cw; ++c) {
+    const bool simple = rest[2 * c] == 0;
+    const int32_t bu = background_u[c], bv = background_v[c];
+    const int32_t nu = Follow(bu, inv_c[frame_u[c]], alpha);
+    const int32_t nv = Follow(bv, inv_c[frame_v[c]], alpha);
+    background_u[c] = static_cast<uint16_t>(simple ? nu : bu);
+    background_v[c] = static_cast<uint16_t>(simple ? nv : bv);
+  }
+}
+
 // The loop as selects, no branches, so that the compiler vectorises it (the tables read by
 // gathers on AVX2 and AVX-512); the same arithmetic as the reference.
 [[gnu::always_inline]] inline int64_t UpdateRowBody(const UpdateRowArgs& a) {
-  const int w = a.width;
   const bool chroma_row = a.frame_u != nullptr;
   const bool chroma_fast = chroma_row && a.inv_c != nullptr;
-  int64_t newly = 0;
-  for (int x = 0; x < w; ++x) {
-    const int level = a.frame_y[x];
-    // With a fitted colour transfer the chroma blocks' top-left pixels go to the model's loop.
-    const bool simple = (a.protection[x] == kFreeProtection) & (a.classes[x] == kBackgroundClass) &
-                        !(chroma_row & !chroma_fast & ((x & 1) == 0));
-    const int32_t b = a.background_y[x];
-    const int32_t nb = Follow(b, a.inv_y[level], a.alpha);
-    a.background_y[x] = static_cast<uint16_t>(simple ? nb : b);
-    a.steady_frames[x] = simple ? uint16_t{0} : a.steady_frames[x];
-    const int32_t s = a.set_frame[x];
-    newly += simple & (s < 0);
-    a.set_frame[x] = simple ? a.frame : s;
-    a.previous_y[x] = simple ? static_cast<uint8_t>(level) : a.previous_y[x];
-    a.rest[x] = simple ? 0 : 1;
-  }
+  const int newly = UpdateLumaLoop(a.width, a.frame_y, a.protection, a.classes, a.background_y, a.previous_y,
+                                   a.steady_frames, a.set_frame, a.inv_y, a.rest, a.alpha, a.frame,
+                                   chroma_row && !chroma_fast);
   if (chroma_fast) {
-    const int cw = (w + 1) / 2;
-    for (int c = 0; c < cw; ++c) {
-      const bool simple = a.rest[2 * c] == 0;
-      const int32_t bu = a.background_u[c], bv = a.background_v[c];
-      const int32_t nu = Follow(bu, a.inv_c[a.frame_u[c]], a.alpha);
-      const int32_t nv = Follow(bv, a.inv_c[a.frame_v[c]], a.alpha);
-      a.background_u[c] = static_cast<uint16_t>(simple ? nu : bu);
-      a.background_v[c] = static_cast<uint16_t>(simple ? nv : bv);
-    }
+    UpdateChromaLoop((a.width + 1) / 2, a.rest, a.frame_u, a.frame_v, a.background_u, a.background_v, a.inv_c, a.alpha);
   }
   return newly;
 }
