@@ -989,12 +989,13 @@ void BackgroundModel::ExpectChroma() {
     // table of ExpectedChroma's values (the same doubles, rounded once per level, not per block).
     std::array<uint8_t, 256> table{};
     for (int level = 0; level < 256; ++level) table[static_cast<size_t>(level)] = static_cast<uint8_t>(ExpectedChroma(0, level, level)[0]);
+    const int cw = cw_;  // a local, as in Update's exclusion
     for (int cy = 0; cy < ch_; ++cy) {
       const uint8_t* bu = bgu8_.row(cy);
       const uint8_t* bv = bgv8_.row(cy);
       uint8_t* eu = expected_u_.data() + static_cast<size_t>(cy) * cw_;
       uint8_t* ev = expected_v_.data() + static_cast<size_t>(cy) * cw_;
-      for (int cx = 0; cx < cw_; ++cx) {
+      for (int cx = 0; cx < cw; ++cx) {
         eu[cx] = table[bu[cx]];
         ev[cx] = table[bv[cx]];
       }
@@ -1214,10 +1215,11 @@ void BackgroundModel::Update(const YuvView& frame, ImageView<const uint8_t> prot
   };
   // What the map protects stays out of the next frame's transfer fits.
   if (fit_exclude_.width() != width_ || fit_exclude_.height() != height_) fit_exclude_ = Image<uint8_t>(width_, height_);
+  const int w = width_;  // a local: a store to e could alias width_, which would be reloaded per pixel
   for (int y = 0; y < height_; ++y) {
     const uint8_t* prot = protection.row(y);
     uint8_t* e = fit_exclude_.row(y);
-    for (int x = 0; x < width_; ++x) e[x] = prot[x] != kFree;
+    for (int x = 0; x < w; ++x) e[x] = prot[x] != kFree;
   }
   have_exclude_ = true;
   // Exponential forgetting with time constant adapt_s, in 1/65536.
