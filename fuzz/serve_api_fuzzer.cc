@@ -8,12 +8,17 @@
 // Input: requests separated by NUL bytes (at most 6), each "METHOD PATH\nBODY", so that one
 // input can add board views and then calibrate, or calibrate and then save the site. Bodies are
 // parsed by ParseJsonBody (web_api.h) as the server parses them; fuzz/dict/serve_api.dict holds
-// the routes, keys and runs of brackets for depth.
+// the routes, keys and runs of brackets for depth. The routes that take a camera (and a view)
+// from the query have "CAMERA [INDEX]" as their body: GET and DELETE /api/board/views, GET
+// /api/board/view.jpg, and the grid picture of a camera's pending calibration (GET
+// /api/cameras/ID/frame.jpg?overlay=grid&calibration=pending, written "GET grid.jpg").
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <string_view>
+#include <utility>
 
 #include "fuzz/fuzz_util.h"
 #include "occmap/serve/serve_session.h"
@@ -65,6 +70,23 @@ void Reply(const occmap::Result<json>& r) {
   if (std::getenv("OCCMAP_FUZZ_VERBOSE") != nullptr) std::fprintf(stderr, "%.300s\n", text.c_str());
 }
 
+// "CAMERA [INDEX]": the camera and the view (-1: none given, or not a number 0..1000 as the
+// server requires).
+std::pair<std::string, int> CameraAndIndex(std::string_view text) {
+  const size_t space = text.find(' ');
+  std::string camera(text.substr(0, space));
+  if (space == std::string_view::npos) return {camera, -1};
+  const std::string number(text.substr(space + 1));
+  char* end = nullptr;
+  const long n = std::strtol(number.c_str(), &end, 10);
+  if (number.empty() || *end != '\0' || n < 0 || n > 1000) return {camera, -1};
+  return {camera, static_cast<int>(n)};
+}
+
+void ReplyBytes(const occmap::Result<std::string>& r) {
+  if (!r.ok()) (void)json{{"error", r.status().message()}}.dump();
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
@@ -96,6 +118,20 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const size_t eol = request.find('\n');
     const std::string_view route = request.substr(0, eol);
     const std::string_view body_text = eol == std::string_view::npos ? std::string_view() : request.substr(eol + 1);
+    if (route == "GET /api/board/views" || route == "DELETE /api/board/views" || route == "GET /api/board/view.jpg" ||
+        route == "GET grid.jpg") {
+      const auto [camera, index] = CameraAndIndex(body_text);
+      if (route == "GET /api/board/views") {
+        Reply(s.BoardViews(camera));
+      } else if (route == "DELETE /api/board/views") {
+        Reply(s.RemoveBoardViews(camera, index));
+      } else if (route == "GET /api/board/view.jpg") {
+        if (index >= 0) ReplyBytes(s.BoardViewJpeg(camera, index));
+      } else {
+        ReplyBytes(s.GridJpeg(camera, /*pending=*/true));
+      }
+      continue;
+    }
     // As the server parses it: nesting over 64 levels is a 400 before json::parse.
     const auto body = occmap::ParseJsonBody(body_text);
     if (!body.ok()) {
