@@ -83,6 +83,15 @@ void FrameSetAligner::End(size_t camera, int64_t frame, Clock::time_point arriva
   ended_[camera] = true;
 }
 
+void FrameSetAligner::Resume(Clock::time_point now) {
+  for (size_t c = 0; c < pending_.size(); ++c) {
+    if (heard_[c]) last_heard_[c] = std::max(last_heard_[c], now);
+    for (Pending& p : pending_[c]) {
+      if (p.reached) p.reached = std::max(*p.reached, now);
+    }
+  }
+}
+
 bool FrameSetAligner::all_ended() const { return std::all_of(ended_.begin(), ended_.end(), [](bool e) { return e; }); }
 
 bool FrameSetAligner::idle() const {

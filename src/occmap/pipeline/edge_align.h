@@ -67,6 +67,10 @@ class FrameSetAligner {
   void Add(EdgeMessage m, Clock::time_point arrival);
   // The camera reported the end of its source (a message it sends after that revives it).
   void End(size_t camera, int64_t frame, Clock::time_point arrival);
+  // The fuse's link to the broker is back after an outage: the cameras' silence meanwhile was
+  // the broker's, not theirs. Every camera heard counts as heard at `now` and the pending sets'
+  // budget counts from `now`, so that what the edges send again joins its set.
+  void Resume(Clock::time_point now);
   // Before the first set: the tolerance once the frame rate is known.
   void set_tolerance(double tolerance_s) { options_.tolerance_s = tolerance_s; }
   // The next set ready at `now`, oldest first.

@@ -105,6 +105,35 @@ TEST(FrameSetAligner, ADeadCameraHoldsNothingUpAndRejoinsWhenItSendsAgain) {
   EXPECT_EQ(Cameras(*s), (std::vector<int>{0, 1}));
 }
 
+TEST(FrameSetAligner, AfterAnOutageOfTheFusesLinkTheCamerasAreWaitedForAgain) {
+  const auto t0 = Clock::now();
+  AlignOptions o = Options(FrameSync::kIndex);
+  FrameSetAligner a(2, o, t0);
+  a.Add(Message(0, 0, 0), t0);
+  a.Add(Message(1, 0, 0), t0);
+  ASSERT_TRUE(a.Next(t0));
+  a.Add(Message(0, 1, 0), t0 + milliseconds(100));
+  // The broker away for 2 s: camera 1 silent past dead_after_s (1 s) and the budget (0.2 s) spent.
+  const auto back = t0 + milliseconds(2100);
+  a.Resume(back);
+  EXPECT_TRUE(a.alive(1, back));
+  EXPECT_FALSE(a.Next(back));  // frame 1 waits for camera 1 again, the budget counted from now
+  EXPECT_FALSE(a.Next(back + milliseconds(150)));
+  a.Add(Message(1, 1, 0), back + milliseconds(160));  // sent again by its edge
+  auto s = a.Next(back + milliseconds(160));
+  ASSERT_TRUE(s);
+  EXPECT_EQ(s->frame, 1);
+  EXPECT_EQ(Cameras(*s), (std::vector<int>{0, 1}));
+  EXPECT_EQ(a.late(), 0);
+  // Without word from camera 1 the budget from the resume still releases the set.
+  a.Add(Message(0, 2, 0), back + milliseconds(200));
+  a.Resume(back + milliseconds(300));
+  EXPECT_FALSE(a.Next(back + milliseconds(450)));
+  s = a.Next(back + milliseconds(501));
+  ASSERT_TRUE(s);
+  EXPECT_EQ(Cameras(*s), (std::vector<int>{0}));
+}
+
 TEST(FrameSetAligner, ByTimestampGroupsFramesWithinTheTolerance) {
   const auto t0 = Clock::now();
   FrameSetAligner a(3, Options(FrameSync::kTimestamp), t0);

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <deque>
 #include <limits>
 #include <map>
 #include <numeric>
@@ -68,6 +69,49 @@ std::optional<FuseProgress> DecodeProgress(const std::string& payload) {
   }
   return FuseProgress{j["frame"].get<int64_t>(), j["t_unix"].get<double>()};
 }
+
+// An edge's messages over files past the fuse's last progress, to send again when the fuse is
+// back after the broker went away: a broker restarted without persistence loses what it held
+// and what the edges sent before the fuse subscribed again (whole frame sets lost under load).
+// Bounded: beyond kMaxBytes the oldest go (a fuse far behind), and the fuse may miss those.
+class Unconfirmed {
+ public:
+  static constexpr size_t kMaxBytes = size_t{64} << 20;
+  void Add(int64_t frame, const std::string& topic, const std::string& bytes) {
+    entries_.push_back({frame, topic, bytes});
+    bytes_ += bytes.size();
+    while (bytes_ > kMaxBytes) Pop();
+  }
+  // The fuse has fused frame set `frame`: what came before it is no longer needed.
+  void Fused(int64_t frame) {
+    fused_ = std::max(fused_, frame);
+    while (!entries_.empty() && entries_.front().frame <= fused_) Pop();
+  }
+  int64_t fused() const { return fused_; }
+  // Publishes again every message past the fuse's progress; the count.
+  Result<int64_t> SendAgain(MqttLink& link) {
+    int64_t n = 0;
+    for (const Entry& e : entries_) {
+      if (e.frame <= fused_) continue;
+      OCCMAP_RETURN_IF_ERROR(link.Publish(e.topic, e.bytes));
+      ++n;
+    }
+    return n;
+  }
+
+ private:
+  struct Entry {
+    int64_t frame;
+    std::string topic, bytes;
+  };
+  void Pop() {
+    bytes_ -= entries_.front().bytes.size();
+    entries_.pop_front();
+  }
+  std::deque<Entry> entries_;
+  size_t bytes_ = 0;
+  int64_t fused_ = std::numeric_limits<int64_t>::min();
+};
 
 // Adaptive backgrounds at an edge (edge_fuse.h): the shadows' floor check and teachers over
 // this edge's cameras (the tables' other cameras abstain), and each frame's update with the
@@ -422,6 +466,51 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& given, Context&
     }
     return link->connected();
   };
+  // Over files (following the fuse's progress): after a reconnection, the fuse's word on the new
+  // connection (a progress it sent while subscribed, not the broker's retained copy), then what
+  // it has not fused sent again (it drops what it has as duplicates).
+  Unconfirmed unconfirmed;
+  int64_t fuse_heard_on = -1;  // the connection that brought the fuse's last live progress
+  int64_t resent_on = link->connects();
+  auto take = [&](const MqttReceived& r) {
+    if (r.topic == progress_topic) {
+      if (auto p = DecodeProgress(r.payload); p && !r.retained) {
+        unconfirmed.Fused(p->frame);
+        fuse_heard_on = r.connection;
+      }
+    } else if (backgrounds && r.topic == protection_topic) {
+      backgrounds->Receive(r);
+    }
+  };
+  auto resend_after_reconnect = [&]() -> Status {
+    const int64_t connection = link->connects();
+    if (!follow_fuse || connection == resent_on || !link->connected()) return Status::Ok();
+    if (resent_on == 0) {  // the first connection (the broker was not there at the start)
+      resent_on = connection;
+      return Status::Ok();
+    }
+    const auto t0 = Clock::now();
+    while (fuse_heard_on != connection && link->connects() == connection && Since(t0) < o.follow_fuse_s &&
+           !stop_requested()) {
+      if (auto r = link->Pop(std::chrono::milliseconds(50))) take(*r);
+    }
+    if (link->connects() != connection) return Status::Ok();  // gone again: at the next connection
+    resent_on = connection;
+    if (fuse_heard_on != connection) {
+      std::fputs(fmt::format("occmap edge: no progress from the fuse {:.0f} s after the broker came back: nothing sent again\n",
+                             o.follow_fuse_s)
+                     .c_str(),
+                 stderr);
+      return Status::Ok();
+    }
+    OCCMAP_ASSIGN_OR_RETURN(const int64_t n, unconfirmed.SendAgain(*link));
+    summary.resent += n;
+    std::fputs(fmt::format("occmap edge: the fuse is back at frame set {}: {} messages past it sent again\n",
+                           unconfirmed.fused(), n)
+                   .c_str(),
+               stderr);
+    return Status::Ok();
+  };
   while (!stop_requested() && reader.Read(set)) {
     next_frame = set.frame_index + 1;
     ++summary.frame_sets;
@@ -430,6 +519,7 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& given, Context&
       ++lost_while_away;
       continue;
     }
+    OCCMAP_RETURN_IF_ERROR(resend_after_reconnect());
     changes.EnsureBuffer(set);
     const bool check_shadows = backgrounds && backgrounds->shadow_check();
     for (size_t k = 0; k < cams.size(); ++k) {
@@ -456,25 +546,22 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& given, Context&
       m.changes.assign(first, first + static_cast<size_t>(size.width) * size.height);
       const std::string bytes = EncodeEdgeMessage(m);
       OCCMAP_RETURN_IF_ERROR(link->Publish(topics[k], bytes));
+      if (follow_fuse) unconfirmed.Add(set.frame_index, topics[k], bytes);
       ++summary.messages;
     }
-    if (!backgrounds) {  // the fuse's progress, read at the start only
-      while (link->Pop(std::chrono::milliseconds(0))) {
-      }
-    }
-    if (backgrounds) {  // the fuse's protection: over files, the one due for this frame is waited for
+    if (backgrounds) {
       for (const MqttReceived& r : early) backgrounds->Receive(r);
       early.clear();
-      for (auto r = link->Pop(std::chrono::milliseconds(0)); r; r = link->Pop(std::chrono::milliseconds(0))) {
-        if (r->topic == protection_topic) backgrounds->Receive(*r);
-      }
+    }
+    for (auto r = link->Pop(std::chrono::milliseconds(0)); r; r = link->Pop(std::chrono::milliseconds(0))) take(*r);
+    if (backgrounds) {  // the fuse's protection: over files, the one due for this frame is waited for
       if (!any_live && waiting && !backgrounds->Ready(set.frame_index)) {
         const auto t0 = Clock::now();
         // A broker that went away since the last frame may have lost the due protection (the
         // fuse waits for this edge's next frame then): a reconnection ends the wait.
         bool reconnected = false;
         while (!backgrounds->Ready(set.frame_index) && !stop_requested() && Since(t0) < o.protection_wait_s) {
-          if (auto r = link->Pop(std::chrono::milliseconds(50)); r && r->topic == protection_topic) backgrounds->Receive(*r);
+          if (auto r = link->Pop(std::chrono::milliseconds(50))) take(*r);
           if ((reconnected = link->connects() != connects_seen && link->connected())) break;
         }
         if (!backgrounds->Ready(set.frame_index) && !stop_requested()) {
@@ -503,6 +590,7 @@ Result<EdgeSummary> RunEdge(const Site& site, const EdgeOptions& given, Context&
   // The end of every source (not on a stop request: a restarted edge goes on where it was).
   if (!stop_requested()) {
     while (!link->connected() && !stop_requested()) link->WaitConnected(std::chrono::milliseconds(100));
+    OCCMAP_RETURN_IF_ERROR(resend_after_reconnect());
     for (size_t k = 0; k < cams.size(); ++k) {
       m.kind = EdgeMessageKind::kEnd;
       m.camera = static_cast<uint32_t>(index[k]);
@@ -678,9 +766,11 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   const bool say_progress = align.sync == FrameSync::kIndex;
   std::optional<FuseProgress> progress_said;
   Clock::time_point progress_said_at;
+  int64_t said_subscribed_on = -1;  // the connection subscribed when it was last said
   auto say = [&](int64_t frame) -> Status {
     progress_said = FuseProgress{frame, UnixNow()};
     progress_said_at = Clock::now();
+    if (link->subscribed()) said_subscribed_on = link->connects();
     return link->Publish(progress_topic, EncodeProgress(*progress_said), /*retain=*/true);
   };
   auto emit = [&](AlignedSet& a) -> Status {
@@ -736,10 +826,21 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
   };
   auto frame_limit = [&] { return options.max_frames > 0 && summary.frames >= options.max_frames; };
   std::vector<bool> was_alive(n_cams, true);
+  int64_t resumed_on = link->connects();
   while (failure.ok() && !stop_requested() && !frame_limit()) {
     // Everything queued: a set is judged on every message that has arrived.
     for (auto r = link->Pop(std::chrono::milliseconds(10)); r; r = link->Pop(std::chrono::milliseconds(0))) receive(*r);
     const auto now = Clock::now();
+    // While the broker is away no camera can be heard: no set is judged. Back, the silence was
+    // not the cameras' (the edges send again what the broker may have lost: RunEdge).
+    if (!link->connected()) {
+      if (aligner.all_ended() && aligner.idle()) break;
+      continue;
+    }
+    if (link->connects() != resumed_on) {
+      resumed_on = link->connects();
+      aligner.Resume(now);
+    }
     // Say when a camera is given up on and when it is back.
     for (size_t n = 0; n < n_cams; ++n) {
       const bool alive = aligner.alive(n, now) || aligner.ended(n) || !aligner.heard(n);
@@ -755,8 +856,12 @@ Result<RunSummary> RunFuse(const Site& site, const FuseOptions& o, Context& ctx,
       if (!a) break;
       failure = emit(*a);
     }
-    // Said again while waiting: an edge takes only a young progress (an old one may be a killed fuse's).
-    if (failure.ok() && progress_said && Clock::now() - progress_said_at > std::chrono::seconds(1)) {
+    // Said again while waiting: an edge takes only a young progress (an old one may be a killed
+    // fuse's). And at once when subscribed again after a reconnection: edges that reconnected
+    // wait for it to send again what the broker may have lost (RunEdge).
+    if (failure.ok() && progress_said &&
+        (Clock::now() - progress_said_at > std::chrono::seconds(1) ||
+         (link->subscribed() && link->connects() != said_subscribed_on))) {
       failure = say(progress_said->frame);
     }
     if (aligner.all_ended() && aligner.idle()) break;

@@ -20,7 +20,11 @@
 // reported the end of its source, the fuse finishes. Aligning by frame index, the fuse keeps its
 // last frame set fused as a retained message (<prefix>/fuse/progress, refreshed every second,
 // cleared when it ends): an edge over files that starts after the fuse began (a restart) begins
-// at the frame after it rather than sending frames the fuse would drop as late.
+// at the frame after it rather than sending frames the fuse would drop as late. A broker restart
+// (without persistence it loses what it held and what comes before the fuse subscribes again):
+// the fuse judges no set while its link is down and, back, waits for every camera again
+// (FrameSetAligner::Resume); an edge over files sends again, once the fuse's progress comes on
+// the new connection, its messages past that progress.
 //
 // Adaptive backgrounds (site backgrounds.adaptive): each edge learns and keeps its cameras'
 // backgrounds; their update needs the fused map, so the fuse publishes per frame set the
@@ -74,6 +78,9 @@ struct EdgeSummary {
   int64_t messages = 0;
   int64_t bytes = 0;       // message bytes published (headers included)
   int64_t reconnects = 0;  // connections to the broker after the first
+  // Over files: messages sent again after a reconnection, past the fuse's progress (what a
+  // broker restarted without persistence may have lost).
+  int64_t resent = 0;
   // Frame sets not sent: read while the broker was away (live streams do not wait for it; files
   // do and lose nothing), and messages the broker had not acknowledged when the edge stopped.
   int64_t lost = 0;

@@ -72,6 +72,8 @@ void MqttLink::OnMessage(mosquitto*, void* self, const mosquitto_message* msg) {
   r.topic = msg->topic;
   r.payload.assign(static_cast<const char*>(msg->payload), static_cast<size_t>(msg->payloadlen));
   r.arrival = std::chrono::steady_clock::now();
+  r.retained = msg->retain;
+  r.connection = link->connects_.load();
   {
     std::lock_guard lock(link->mutex_);
     link->received_.push_back(std::move(r));

@@ -31,6 +31,9 @@ struct MqttReceived {
   std::string topic;
   std::string payload;
   std::chrono::steady_clock::time_point arrival;
+  // The broker's stored copy given on subscribing (not a message published while subscribed).
+  bool retained = false;
+  int64_t connection = 0;  // connects() when it arrived: which connection brought it
 };
 
 class MqttLink {
