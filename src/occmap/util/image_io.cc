@@ -113,6 +113,17 @@ Status CheckPnm(std::string_view name, std::string_view bytes) {
   return CheckPixels(name, "PNM image", dims[0], dims[1]);
 }
 
+// A chunk's 4-byte type as a message shows it: the letters, or \xNN escapes when a byte is not
+// printable ASCII (a raw byte made the message invalid UTF-8: the web API's reply threw).
+std::string ChunkName(std::string_view type) {
+  std::string out;
+  for (const char c : type) {
+    const auto u = static_cast<unsigned char>(c);
+    out += u >= 0x20 && u < 0x7f ? std::string(1, c) : fmt::format("\\x{:02x}", u);
+  }
+  return out;
+}
+
 [[gnu::noinline]] Status CheckPngChunks(const fs::path& path, std::string_view bytes) {
   if (bytes.size() < 8 || std::memcmp(bytes.data(), "\x89PNG\r\n\x1a\n", 8) != 0) return Status::Ok();  // not a PNG
   const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
@@ -130,16 +141,16 @@ Status CheckPnm(std::string_view name, std::string_view bytes) {
     const std::string type(bytes.substr(at + 4, 4));
     if (length > bytes.size() - at - 12) {
       return DataLoss(fmt::format("'{}': truncated PNG: chunk '{}' at byte {} needs {} bytes, {} left", path.string(),
-                                  type, at, length, bytes.size() - at - 12));
+                                  ChunkName(type), at, length, bytes.size() - at - 12));
     }
     if (first && type != "IHDR") {
-      return DataLoss(fmt::format("'{}': expected the PNG's IHDR chunk first, found '{}'", path.string(), type));
+      return DataLoss(fmt::format("'{}': expected the PNG's IHDR chunk first, found '{}'", path.string(), ChunkName(type)));
     }
     first = false;
     const uint32_t crc = (uint32_t{p[at + 8 + length]} << 24) | (uint32_t{p[at + 9 + length]} << 16) |
                          (uint32_t{p[at + 10 + length]} << 8) | p[at + 11 + length];
     if (Crc32(p + at + 4, length + 4) != crc) {
-      return DataLoss(fmt::format("'{}': corrupt PNG: chunk '{}' at byte {} fails its CRC", path.string(), type, at));
+      return DataLoss(fmt::format("'{}': corrupt PNG: chunk '{}' at byte {} fails its CRC", path.string(), ChunkName(type), at));
     }
     at += 12 + length;
     if (type == "IEND") return Status::Ok();

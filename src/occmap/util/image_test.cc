@@ -109,6 +109,14 @@ TEST(ImageIo, TruncatedPngIsRejected) {
   EXPECT_EQ(crc.status().message(), fmt::format("'{}': corrupt PNG: chunk 'IHDR' at byte 8 fails its CRC", (dir / "crc.png").string()));
 }
 
+// A chunk type's raw bytes made the message invalid UTF-8: the web API's reply (dump()) threw
+// (found by the serve_api fuzz target). Shown as escapes.
+TEST(ImageIo, AChunkTypeThatIsNotTextIsShownEscaped) {
+  const std::string png = std::string("\x89PNG\r\n\x1a\n", 8) + std::string("\0\0\0\0", 4) + "IH\x94R" + "crc!";
+  const Status s = CheckEncodedImage(png, "view.png");
+  EXPECT_EQ(s.message(), "'view.png': expected the PNG's IHDR chunk first, found 'IH\\x94R'");
+}
+
 // A 1 MB PNG of 30000 x 30000 pixels decoded to 1.85 GB: its header says so first.
 TEST(ImageIo, OversizeImagesAreRefusedFromTheirHeader) {
   testing::TempDir dir;
