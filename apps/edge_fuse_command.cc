@@ -215,10 +215,10 @@ Status RunEdgeCommand(EdgeCommand cmd, int threads, const std::string& data_root
   Context ctx(threads);
   OCCMAP_ASSIGN_OR_RETURN(EdgeSummary s, RunEdge(site, cmd.options, ctx));
   std::fputs(fmt::format("{} frame sets, {} messages, {:.1f} kB ({:.0f} bytes per message) in {:.2f} s: {}; "
-                         "{} reconnects, {} sent again, {} lost\n",
+                         "{} reconnects, {} lost, {} sent again\n",
                          s.frame_sets, s.messages, static_cast<double>(s.bytes) / 1e3,
                          s.messages > 0 ? static_cast<double>(s.bytes) / static_cast<double>(s.messages) : 0.0,
-                         s.seconds, s.stop_reason, s.reconnects, s.resent, s.lost)
+                         s.seconds, s.stop_reason, s.reconnects, s.lost, s.resent)
                  .c_str(),
              stdout);
   if (site.backgrounds.adaptive) {
