@@ -62,11 +62,12 @@ constexpr std::string_view kExtrinsics = R"(<?xml version="1.0"?>
 </opencv_storage>
 )";
 
-// What serve/web_server.cc sends back: the result, or {"error": message}; dump() throws on
-// invalid UTF-8, which the server would not survive either.
+// What serve/web_server.cc sends back: the result, or {"error": message}, dumped as the server
+// dumps it (bytes that are not UTF-8 as U+FFFD: a camera id from the query may hold any).
 // OCCMAP_FUZZ_VERBOSE=1 prints them (to check what a seed reaches).
 void Reply(const occmap::Result<json>& r) {
-  const std::string text = (r.ok() ? *r : json{{"error", r.status().message()}}).dump();
+  const std::string text =
+      (r.ok() ? *r : json{{"error", r.status().message()}}).dump(-1, ' ', false, json::error_handler_t::replace);
   if (std::getenv("OCCMAP_FUZZ_VERBOSE") != nullptr) std::fprintf(stderr, "%.300s\n", text.c_str());
 }
 
@@ -84,7 +85,7 @@ std::pair<std::string, int> CameraAndIndex(std::string_view text) {
 }
 
 void ReplyBytes(const occmap::Result<std::string>& r) {
-  if (!r.ok()) (void)json{{"error", r.status().message()}}.dump();
+  if (!r.ok()) (void)json{{"error", r.status().message()}}.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
 }  // namespace

@@ -198,7 +198,9 @@ class GuardedHttpServer : public httplib::Server {
 
 void JsonReply(httplib::Response& res, int status, const json& body) {
   res.status = status;
-  res.set_content(body.dump(), "application/json");
+  // Bytes that are not UTF-8 (a query's %FF echoed in a message) become U+FFFD: dump() would
+  // throw, and the reply would be a 500 instead of the error it is.
+  res.set_content(body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
 }
 
 void ErrorReply(httplib::Response& res, int status, const std::string& message) {

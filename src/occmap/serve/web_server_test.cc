@@ -148,6 +148,10 @@ TEST_F(WebServerTest, ServesPagesAndApi) {
   EXPECT_NE(Get(port_, "/metrics").find("occmap_frames_total 0"), std::string::npos);
   EXPECT_EQ(StatusOf(Get(port_, "/api/cameras/c9/frame.jpg")), 404);
   EXPECT_EQ(StatusOf(Get(port_, "/api/cameras/c1/frame.jpg?overlay=bogus")), 400);
+  // A byte that is not UTF-8 echoed in the message: still the 400, the byte as U+FFFD.
+  const std::string bad = Get(port_, "/api/cameras/c1/frame.jpg?overlay=%FF");
+  EXPECT_EQ(StatusOf(bad), 400) << bad;
+  EXPECT_NE(bad.find("found '\xEF\xBF\xBD'"), std::string::npos) << bad;
 }
 
 TEST_F(WebServerTest, CoverageOnceTheTablesAreReady) {
