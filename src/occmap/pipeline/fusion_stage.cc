@@ -21,7 +21,6 @@ FusionStage::FusionStage(const Site& site, const RunOptions& options, const Fusi
     : site_(site),
       options_(options),
       plan_(plan),
-      lut_(lut),
       cams_(cams),
       fps_(fps),
       changes_(site, cams, plan.colour, options.change_pngs),

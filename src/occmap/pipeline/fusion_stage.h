@@ -85,7 +85,6 @@ class FusionStage {
   const Site& site_;
   const RunOptions& options_;
   const FusionPlan plan_;
-  const GroundLut& lut_;
   std::vector<CameraState>& cams_;
   const double fps_;
   CameraChanges changes_;
