@@ -277,11 +277,24 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
   }
   json report = {{"camera", cmd.camera_id}};
   json files = json::object();
+  // A calibration file replaced (--update-site or --force) is kept as FILE.bak first: with
+  // SITE.bak it restores what the site read before.
+  json kept = json::array();
+  auto keep_previous = [&](const fs::path& f) -> Status {
+    std::error_code ec;
+    if (!fs::exists(f, ec)) return Status::Ok();
+    OCCMAP_ASSIGN_OR_RETURN(std::string text, ReadFileToString(f));
+    const fs::path backup = f.string() + ".bak";
+    OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(backup, text));
+    kept.push_back(backup.string());
+    return Status::Ok();
+  };
 
   std::optional<CameraIntrinsics> intrinsics;
   if (board) {
     OCCMAP_ASSIGN_OR_RETURN(IntrinsicsCalibration cal, CalibrateFromBoard(cmd, report));
     intrinsics = cal.intrinsics;
+    OCCMAP_RETURN_IF_ERROR(keep_previous(intr_path));
     OCCMAP_RETURN_IF_ERROR(WriteOpenCvIntrinsics(ToOpenCv(cal.intrinsics), intr_path));
     files["intrinsic"] = intr_path.string();
   }
@@ -340,10 +353,14 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
   // The files the site reads.
   if (refused) {
   } else if (cal.pinhole) {
+    // The board's intrinsics just written are not a previous file.
+    if (!files.contains("intrinsic")) OCCMAP_RETURN_IF_ERROR(keep_previous(intr_path));
+    OCCMAP_RETURN_IF_ERROR(keep_previous(extr_path));
     OCCMAP_RETURN_IF_ERROR(WriteOpenCvCalibration(*cal.pinhole, 1.0, intr_path, extr_path));
     files["intrinsic"] = intr_path.string();
     files["extrinsic"] = extr_path.string();
   } else {
+    OCCMAP_RETURN_IF_ERROR(keep_previous(h_path));
     OCCMAP_RETURN_IF_ERROR(WriteFileAtomic(
         h_path, fmt::format("# occmap calibrate: camera {} from {} ({} floor points); a site file's camera entry\n"
                             "calibration: {}\n",
@@ -369,6 +386,7 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
   report["rms_floor_without_outliers_m"] = Finite(cal.rms_floor_without_outliers_m);
   report["concerns"] = concerns;
   report["refused"] = refused;
+  report["kept_as"] = kept;
   json jp = json::array();
   for (size_t i = 0; i < pts.size(); ++i) {
     const FloorPointError& e = cal.errors[i];
@@ -472,6 +490,7 @@ Status RunCalibrate(const CalibrateCommand& cmd, const std::string& data_root) {
     for (const auto& c : concerns) fmt::print("warning (--force): {}\n", c);
   }
   for (const auto& [k, v] : files.items()) fmt::print("wrote {}: {}\n", k, v.get<std::string>());
+  for (const auto& b : kept) fmt::print("kept the file replaced as {}\n", b.get<std::string>());
   if (refused) return InvalidInput(refusal);
   if (report.contains("site")) {
     fmt::print("{}: camera {}'s calibration replaced (previous file: {})\n", cmd.update_site, cmd.camera_id,

@@ -287,6 +287,12 @@ check calibrate_out_existing_homography 2 "'[^ ]*/lab/newcalib/homography_cam1\.
 check calibrate_out_existing_forced 0 "^wrote extrinsic: [^ ]*/lab/calib/extr_cam1\.xml" -- \
   "$occmap" calibrate --camera cam1 --intrinsics "$work/lab/calib/intr_cam1.xml" --points "$work/lab/cam1.csv" \
   --image-size 320x240 --out "$work/lab/calib" --force
+# ... and the files it replaced are kept as FILE.bak, byte for byte.
+check calibrate_out_existing_kept_as_bak 0 "^same$" -- bash -c "cmp '$work/intr_cam1.xml' '$work/lab/calib/intr_cam1.xml.bak' \
+  && cmp '$work/extr_cam1.xml' '$work/lab/calib/extr_cam1.xml.bak' && echo same"
+check calibrate_out_existing_said 0 "^kept the file replaced as [^ ]*/lab/calib/extr_cam1\.xml\.bak$" -- \
+  "$occmap" calibrate --camera cam1 --intrinsics "$work/lab/calib/intr_cam1.xml" --points "$work/lab/cam1.csv" \
+  --image-size 320x240 --out "$work/lab/calib" --force
 
 echo "$passed passed, $failures failed"
 [ "$failures" -eq 0 ]
